@@ -1,0 +1,256 @@
+//! Domain configuration: which DDS domain and network interface, and how discovery works.
+//!
+//! Safety rule: a real Unitree robot lives on domain 0 on its wired interface. By default the
+//! transport only opens a non-zero domain on a loopback interface; anything else needs
+//! [`DomainConfig::allow_robot`].
+
+use crate::error::{Error, Result};
+
+/// Default domain: 1, as the public simulator bridges use, never 0 (the robot's).
+pub const DEFAULT_DOMAIN: u32 = 1;
+/// Default interface: loopback.
+pub const DEFAULT_INTERFACE: &str = "lo";
+/// Highest domain id whose RTPS port numbers still fit (7400 + 250 * 232 + ...).
+pub const MAX_DOMAIN: u32 = 232;
+
+/// How the participant picks its RTPS participant index (which fixes its unicast ports).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ParticipantIndex {
+    /// The lowest free index, as Cyclone DDS 0.10 picks it when multicast is off.
+    Auto,
+    /// A fixed index.
+    Fixed(u32),
+    /// Cyclone's own default (on loopback, 0.10.2 peers will not find us: for experiments).
+    CycloneDefault,
+}
+
+/// Configuration of one DDS domain as seen by this process.
+///
+/// Cyclone DDS 0.10.2 (Unitree's SDK and robot) disables multicast on `lo` and then discovers
+/// peers only by unicast to the well-known ports of participant indices 0..=9 on the peer
+/// addresses. So on loopback we take a participant index ourselves and list 127.0.0.1 as a peer,
+/// probing indices up to `max_auto_participant_index`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct DomainConfig {
+    /// DDS domain id.
+    pub domain: u32,
+    /// Network interface name (e.g. `lo`, `eth0`).
+    pub interface: String,
+    /// Permit domain 0 or a non-loopback interface.
+    pub allow_robot: bool,
+    /// Participant index policy.
+    pub participant_index: ParticipantIndex,
+    /// Highest participant index probed / taken with [`ParticipantIndex::Auto`].
+    pub max_auto_participant_index: u32,
+    /// Unicast discovery peers (addresses). Defaults to `127.0.0.1` on loopback, none otherwise.
+    pub peers: Vec<String>,
+    /// Optional Cyclone tracing: (verbosity, output file), e.g. ("finest", "/tmp/cdds.log").
+    pub tracing: Option<(String, String)>,
+}
+
+impl Default for DomainConfig {
+    fn default() -> Self {
+        Self {
+            domain: DEFAULT_DOMAIN,
+            interface: DEFAULT_INTERFACE.to_owned(),
+            allow_robot: false,
+            participant_index: ParticipantIndex::Auto,
+            max_auto_participant_index: 32,
+            peers: vec!["127.0.0.1".to_owned()],
+            tracing: None,
+        }
+    }
+}
+
+impl DomainConfig {
+    /// Domain 1 on `lo`.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Loopback on the given domain.
+    pub fn loopback(domain: u32) -> Self {
+        Self { domain, ..Self::default() }
+    }
+
+    /// Sets the domain id.
+    #[must_use]
+    pub fn domain(mut self, domain: u32) -> Self {
+        self.domain = domain;
+        self
+    }
+
+    /// Sets the network interface. A non-loopback interface also needs `allow_robot(true)`;
+    /// the loopback peer list is dropped for it (set peers explicitly if needed).
+    #[must_use]
+    pub fn interface(mut self, name: impl Into<String>) -> Self {
+        self.interface = name.into();
+        if !is_loopback_interface(&self.interface) {
+            self.peers.retain(|p| p != "127.0.0.1");
+        }
+        self
+    }
+
+    /// Permits domain 0 and non-loopback interfaces (a real robot may be reached).
+    #[must_use]
+    pub fn allow_robot(mut self, allow: bool) -> Self {
+        self.allow_robot = allow;
+        self
+    }
+
+    /// Sets the participant index policy.
+    #[must_use]
+    pub fn participant_index(mut self, index: ParticipantIndex) -> Self {
+        self.participant_index = index;
+        self
+    }
+
+    /// Replaces the unicast discovery peers.
+    #[must_use]
+    pub fn peers<I, S>(mut self, peers: I) -> Self
+    where
+        I: IntoIterator<Item = S>,
+        S: Into<String>,
+    {
+        self.peers = peers.into_iter().map(Into::into).collect();
+        self
+    }
+
+    /// Enables Cyclone's own trace (verbosity e.g. `config`, `fine`, `finest`) into a file.
+    #[must_use]
+    pub fn tracing(mut self, verbosity: impl Into<String>, file: impl Into<String>) -> Self {
+        self.tracing = Some((verbosity.into(), file.into()));
+        self
+    }
+
+    /// Checks the safety rule and the values.
+    pub fn validate(&self) -> Result<()> {
+        if self.domain > MAX_DOMAIN {
+            return Err(Error::InvalidConfig(format!(
+                "domain {} is above {MAX_DOMAIN}",
+                self.domain
+            )));
+        }
+        if !is_plain_token(&self.interface) {
+            return Err(Error::InvalidConfig(format!("interface name {:?}", self.interface)));
+        }
+        for p in &self.peers {
+            if !is_plain_token(p) {
+                return Err(Error::InvalidConfig(format!("peer address {p:?}")));
+            }
+        }
+        if let Some((verbosity, file)) = &self.tracing {
+            if !is_plain_token(verbosity) || file.is_empty() || file.contains(['<', '>', '&', '"', '\'']) {
+                return Err(Error::InvalidConfig("tracing settings".to_owned()));
+            }
+        }
+        if let ParticipantIndex::Fixed(i) = self.participant_index {
+            if i > 119 {
+                return Err(Error::InvalidConfig(format!("participant index {i} is above 119")));
+            }
+        }
+        if self.max_auto_participant_index > 119 {
+            return Err(Error::InvalidConfig("max_auto_participant_index above 119".to_owned()));
+        }
+        if !self.allow_robot {
+            if self.domain == 0 {
+                return Err(Error::RobotNotAllowed { what: "domain 0".to_owned() });
+            }
+            if !is_loopback_interface(&self.interface) {
+                return Err(Error::RobotNotAllowed {
+                    what: format!("non-loopback interface {:?}", self.interface),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// The Cyclone DDS XML configuration for this domain.
+    pub fn to_xml(&self) -> String {
+        let index = match self.participant_index {
+            ParticipantIndex::Auto => "auto".to_owned(),
+            ParticipantIndex::Fixed(i) => i.to_string(),
+            ParticipantIndex::CycloneDefault => "default".to_owned(),
+        };
+        let mut peers = String::new();
+        for p in &self.peers {
+            peers.push_str(&format!("<Peer address=\"{p}\"/>"));
+        }
+        let peers = if peers.is_empty() { String::new() } else { format!("<Peers>{peers}</Peers>") };
+        let tracing = match &self.tracing {
+            Some((v, f)) => format!("<Tracing><Verbosity>{v}</Verbosity><OutputFile>{f}</OutputFile></Tracing>"),
+            None => String::new(),
+        };
+        format!(
+            "<CycloneDDS><Domain Id=\"any\">\
+             <General><Interfaces><NetworkInterface name=\"{iface}\" priority=\"default\" multicast=\"default\"/></Interfaces></General>\
+             <Discovery><ParticipantIndex>{index}</ParticipantIndex>\
+             <MaxAutoParticipantIndex>{max}</MaxAutoParticipantIndex>{peers}</Discovery>\
+             {tracing}</Domain></CycloneDDS>",
+            iface = self.interface,
+            max = self.max_auto_participant_index,
+        )
+    }
+}
+
+/// Letters, digits and `.-_:`: enough for interface names and IP addresses, nothing that could
+/// break out of an XML attribute.
+fn is_plain_token(s: &str) -> bool {
+    !s.is_empty() && s.len() <= 255 && s.chars().all(|c| c.is_ascii_alphanumeric() || "._-:".contains(c))
+}
+
+/// Whether the named interface is a loopback interface: Linux's IFF_LOOPBACK flag when sysfs
+/// has it, otherwise the conventional names.
+pub fn is_loopback_interface(name: &str) -> bool {
+    const IFF_LOOPBACK: u32 = 0x8;
+    if !is_plain_token(name) || name.contains('/') || name == "." || name == ".." {
+        return false;
+    }
+    let path = format!("/sys/class/net/{name}/flags");
+    if let Ok(text) = std::fs::read_to_string(path) {
+        let t = text.trim().trim_start_matches("0x");
+        if let Ok(flags) = u32::from_str_radix(t, 16) {
+            return flags & IFF_LOOPBACK != 0;
+        }
+    }
+    name == "lo" || name == "lo0"
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_safe() {
+        let c = DomainConfig::default();
+        assert_eq!(c.domain, 1);
+        assert_eq!(c.interface, "lo");
+        assert!(c.validate().is_ok());
+    }
+
+    #[test]
+    fn robot_settings_need_the_flag() {
+        assert!(matches!(DomainConfig::loopback(0).validate(), Err(Error::RobotNotAllowed { .. })));
+        assert!(DomainConfig::loopback(0).allow_robot(true).validate().is_ok());
+        let eth = DomainConfig::new().interface("eth0");
+        assert!(matches!(eth.validate(), Err(Error::RobotNotAllowed { .. })));
+        assert!(eth.clone().allow_robot(true).validate().is_ok());
+        assert!(eth.peers.is_empty());
+    }
+
+    #[test]
+    fn rejects_injection_and_ranges() {
+        assert!(DomainConfig::new().interface("lo\"/><x").allow_robot(true).validate().is_err());
+        assert!(DomainConfig::new().peers(["1.2.3.4<"]).validate().is_err());
+        assert!(DomainConfig::loopback(233).validate().is_err());
+        assert!(DomainConfig::new().participant_index(ParticipantIndex::Fixed(120)).validate().is_err());
+    }
+
+    #[test]
+    fn xml_has_discovery_settings() {
+        let x = DomainConfig::loopback(7).to_xml();
+        assert!(x.contains("<NetworkInterface name=\"lo\""));
+        assert!(x.contains("<ParticipantIndex>auto</ParticipantIndex>"));
+        assert!(x.contains("<Peer address=\"127.0.0.1\"/>"));
+    }
+}

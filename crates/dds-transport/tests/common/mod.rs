@@ -1,0 +1,163 @@
+//! Helpers shared by the interop tests: payload builders for hg LowCmd_/LowState_ (plain XCDR1
+//! little-endian, offsets checked against the Python Cyclone serializer), helper-process
+//! handling with hard timeouts.
+#![allow(dead_code)]
+
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// Serialized size of hg LowCmd_ with its header.
+pub const HG_LOWCMD_LEN: usize = 1004;
+/// Serialized size of hg LowState_ with its header.
+pub const HG_LOWSTATE_LEN: usize = 2092;
+const HDR: usize = 4;
+
+/// An hg LowCmd_: header CDR_LE, motor i q = q[i], kp of motor 0, crc.
+pub fn hg_lowcmd(q: impl Fn(usize) -> f32, kp0: f32, crc: u32) -> Vec<u8> {
+    let mut b = vec![0u8; HG_LOWCMD_LEN];
+    b[1] = 1; // CDR_LE
+    b[HDR] = 0; // mode_pr
+    b[HDR + 1] = 6; // mode_machine
+    for i in 0..35 {
+        let mode_off = if i == 0 { 2 } else { 28 * i };
+        b[HDR + mode_off] = 1;
+        b[HDR + 28 * i + 4..HDR + 28 * i + 8].copy_from_slice(&q(i).to_le_bytes());
+    }
+    b[HDR + 16..HDR + 20].copy_from_slice(&kp0.to_le_bytes());
+    b[HDR + 996..HDR + 1000].copy_from_slice(&crc.to_le_bytes());
+    b
+}
+
+/// tick of a serialized hg LowState_.
+pub fn hg_lowstate_tick(b: &[u8]) -> Option<u32> {
+    Some(u32::from_le_bytes(b.get(HDR + 12..HDR + 16)?.try_into().ok()?))
+}
+
+/// motor_state[i].q of a serialized hg LowState_.
+pub fn hg_lowstate_q(b: &[u8], i: usize) -> Option<f32> {
+    let o = HDR + 72 + 56 * i;
+    Some(f32::from_le_bytes(b.get(o..o + 4)?.try_into().ok()?))
+}
+
+/// reserve[k] of a serialized hg LowState_.
+pub fn hg_lowstate_reserve(b: &[u8], k: usize) -> Option<u32> {
+    let o = HDR + 2068 + 4 * k;
+    Some(u32::from_le_bytes(b.get(o..o + 4)?.try_into().ok()?))
+}
+
+pub fn crate_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+pub fn workspace_dir() -> PathBuf {
+    let p = crate_dir().join("../..");
+    p.canonicalize().unwrap_or(p)
+}
+
+/// The project's Python (venv), from ULAB_PYTHON or .venv.
+pub fn python() -> PathBuf {
+    if let Ok(p) = std::env::var("ULAB_PYTHON") {
+        return PathBuf::from(p);
+    }
+    workspace_dir().join(".venv/bin/python")
+}
+
+/// Runs a command to completion with a timeout; returns (success, stdout, stderr).
+pub fn run_with_timeout(cmd: &mut Command, timeout: Duration) -> (bool, String, String) {
+    let child = cmd.stdout(Stdio::piped()).stderr(Stdio::piped()).spawn();
+    let child = match child {
+        Ok(c) => c,
+        Err(e) => panic!("cannot start {cmd:?}: {e}"),
+    };
+    let out = Proc::new(child).wait(timeout);
+    (out.0 == Some(0), out.1, out.2)
+}
+
+/// A helper process whose output is collected on threads and which is killed on drop.
+pub struct Proc {
+    child: Child,
+    out: Option<std::thread::JoinHandle<String>>,
+    err: Option<std::thread::JoinHandle<String>>,
+}
+
+fn collect(mut r: impl Read + Send + 'static) -> std::thread::JoinHandle<String> {
+    std::thread::spawn(move || {
+        let mut v = Vec::new();
+        let _ = r.read_to_end(&mut v);
+        String::from_utf8_lossy(&v).into_owned()
+    })
+}
+
+impl Proc {
+    pub fn new(mut child: Child) -> Self {
+        let out = child.stdout.take().map(collect);
+        let err = child.stderr.take().map(collect);
+        Self { child, out, err }
+    }
+
+    pub fn spawn(cmd: &mut Command) -> Self {
+        match cmd.stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn() {
+            Ok(c) => Self::new(c),
+            Err(e) => panic!("cannot start {cmd:?}: {e}"),
+        }
+    }
+
+    /// Waits for exit up to `timeout` (then kills). Returns (exit code, stdout, stderr);
+    /// exit code None means killed by a signal or by the timeout.
+    pub fn wait(mut self, timeout: Duration) -> (Option<i32>, String, String) {
+        let deadline = Instant::now() + timeout;
+        let mut code = None;
+        let mut timed_out = false;
+        loop {
+            match self.child.try_wait() {
+                Ok(Some(st)) => {
+                    code = st.code();
+                    if code.is_none() {
+                        use std::os::unix::process::ExitStatusExt;
+                        eprintln!("helper died with signal {:?}", st.signal());
+                    }
+                    break;
+                }
+                Ok(None) if Instant::now() < deadline => std::thread::sleep(Duration::from_millis(20)),
+                _ => {
+                    timed_out = true;
+                    let _ = self.child.kill();
+                    let _ = self.child.wait();
+                    break;
+                }
+            }
+        }
+        let out = self.out.take().and_then(|h| h.join().ok()).unwrap_or_default();
+        let mut err = self.err.take().and_then(|h| h.join().ok()).unwrap_or_default();
+        if timed_out {
+            err.push_str("\n[killed: timeout]\n");
+        }
+        (code, out, err)
+    }
+}
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        if let Ok(None) = self.child.try_wait() {
+            let _ = self.child.kill();
+            let _ = self.child.wait();
+        }
+    }
+}
+
+/// Builds the Cyclone 0.10.2 C peer into the cargo target tmp dir; returns its path.
+pub fn build_c010_peer() -> PathBuf {
+    let src = crate_dir().join("tests/peers/c010");
+    let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("c010-peer");
+    let (ok, stdout, stderr) = run_with_timeout(
+        Command::new("make").arg("-s").arg("-f").arg(src.join("Makefile")).arg(format!("OUT={}", out.display())),
+        Duration::from_secs(120),
+    );
+    assert!(
+        ok,
+        "building the Cyclone 0.10.2 peer failed (needs Debian's cyclonedds-dev and cyclonedds-tools, see scripts/setup.sh):\n{stdout}\n{stderr}"
+    );
+    out.join("peer")
+}

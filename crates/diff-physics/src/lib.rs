@@ -1,0 +1,50 @@
+//! `diff-physics`: the same robot model in several physics engines behind one [`Engine`] interface, plus the
+//! oracles that compare them with each other and with the model crate's own rigid-body reference.
+//!
+//! Conventions (stated once, used by every engine; see [`engine`]):
+//! - quaternions `[w, x, y, z]`, base(pelvis)-to-world;
+//! - joint vectors in motor-slot order (`model.joints` order);
+//! - base linear velocity: velocity of the pelvis ORIGIN, WORLD frame; base angular velocity: PELVIS (body) frame
+//!   (MuJoCo's free-joint convention; every other engine converts inside).
+#![forbid(unsafe_code)]
+
+pub mod engine;
+pub mod oracle;
+pub mod pd;
+
+#[cfg(feature = "mujoco")]
+pub mod mujoco;
+
+// Rapier engines (written against `engine.rs` by the Rapier work), behind the default feature `rapier` so that
+// `--no-default-features --features mujoco` builds the rest while they are in progress.
+// NOTE for the Rapier work: `link_poses`, `com` and `joint_axes` take `&mut self` (engines may need to refresh
+// lazily computed kinematics, as MuJoCo does after a step).
+#[cfg(feature = "rapier")]
+pub mod rapier_common;
+#[cfg(feature = "rapier")]
+pub mod rapier_multibody;
+// pub mod rapier_impulse;
+
+pub use engine::{
+    CommonSettings, Contact, Energy, Engine, EngineError, EngineKind, LinkPose, State,
+};
+pub use pd::{pd_torques, PdTarget};
+
+/// Creates an engine of the given kind for `model` with the common settings and the engine's own
+/// default specific settings. Kinds whose module is not compiled in return [`EngineError::Unavailable`].
+pub fn make_engine(
+    kind: EngineKind,
+    model: &robot_model::RobotModel,
+    common: &CommonSettings,
+) -> Result<Box<dyn Engine>, EngineError> {
+    match kind {
+        #[cfg(feature = "mujoco")]
+        EngineKind::Mujoco => Ok(Box::new(mujoco::MujocoEngine::new(model, common, &mujoco::MujocoSettings::default())?)),
+        #[cfg(feature = "rapier")]
+        EngineKind::RapierMultibody => Ok(Box::new(rapier_multibody::RapierMultibodyEngine::new(model, common, &Default::default())?)),
+        // #[cfg(feature = "rapier")]
+        // EngineKind::RapierImpulse => Ok(Box::new(rapier_impulse::RapierImpulseEngine::new(model, common, &Default::default())?)),
+        #[allow(unreachable_patterns)]
+        other => Err(EngineError::Unavailable(other.name().to_string())),
+    }
+}

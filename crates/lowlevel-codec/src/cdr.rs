@@ -1,0 +1,428 @@
+//! CDR encoding of `@final` IDL structs: XCDR1 (`CDR_LE`/`CDR_BE`) and XCDR2 (`CDR2_LE`/`CDR2_BE`,
+//! "plain"), preceded by the 4-byte encapsulation header of DDS-RTPS / DDS-XTypes.
+//!
+//! Layout rules (DDS-XTypes 1.3, 7.4.3):
+//! * every primitive is aligned to its size, relative to the first byte after the header, capped
+//!   at 8 in XCDR1 and 4 in XCDR2; padding is written as zeros and ignored when read;
+//! * structs add no padding of their own (no tail padding), unlike the C struct image;
+//! * XCDR2 prefixes every array or sequence of non-primitive elements with a 4-byte DHEADER, the
+//!   byte length of what follows; `@final` structs themselves get none;
+//! * sequences carry a 4-byte element count.
+//!
+//! The header's two option bytes may declare 0..3 bytes of padding at the end of the payload
+//! (XTypes 7.6.3.1.2); we honour them when reading and write none.
+
+use unitree_idl::{align_up, IdlStruct, Primitive, Visitor, VisitorMut};
+
+/// Length of the encapsulation header.
+pub const HEADER_LEN: usize = 4;
+
+/// CDR representation version.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Representation {
+    /// XCDR version 1 (what Unitree's SDKs and Cyclone DDS 0.10 put on the wire).
+    Xcdr1,
+    /// XCDR version 2, plain (no member headers: `@final` types).
+    Xcdr2,
+}
+
+impl Representation {
+    /// Lower-case name used in JSON documents and on the command line.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Representation::Xcdr1 => "xcdr1",
+            Representation::Xcdr2 => "xcdr2",
+        }
+    }
+
+    /// Parses [`Representation::name`].
+    pub fn from_name(name: &str) -> Option<Self> {
+        match name {
+            "xcdr1" => Some(Representation::Xcdr1),
+            "xcdr2" => Some(Representation::Xcdr2),
+            _ => None,
+        }
+    }
+
+    /// Largest alignment applied to any primitive.
+    const fn max_align(self) -> usize {
+        match self {
+            Representation::Xcdr1 => 8,
+            Representation::Xcdr2 => 4,
+        }
+    }
+}
+
+/// Byte order of the payload.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Endianness {
+    Little,
+    Big,
+}
+
+impl Endianness {
+    /// Lower-case name used in JSON documents.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Endianness::Little => "little",
+            Endianness::Big => "big",
+        }
+    }
+
+    /// Parses [`Endianness::name`].
+    pub fn from_name(name: &str) -> Option<Self> {
+        match name {
+            "little" => Some(Endianness::Little),
+            "big" => Some(Endianness::Big),
+            _ => None,
+        }
+    }
+}
+
+/// Representation and byte order together: what the encapsulation header says.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct Encoding {
+    pub representation: Representation,
+    pub endianness: Endianness,
+}
+
+impl Encoding {
+    /// What Unitree's SDKs send: XCDR1, little-endian (header `00 01 00 00`).
+    pub const UNITREE: Encoding = Encoding { representation: Representation::Xcdr1, endianness: Endianness::Little };
+
+    /// Encapsulation identifier (first two header bytes, big-endian).
+    pub const fn identifier(self) -> u16 {
+        match (self.representation, self.endianness) {
+            (Representation::Xcdr1, Endianness::Big) => 0x0000,
+            (Representation::Xcdr1, Endianness::Little) => 0x0001,
+            (Representation::Xcdr2, Endianness::Big) => 0x0006,
+            (Representation::Xcdr2, Endianness::Little) => 0x0007,
+        }
+    }
+
+    /// Encoding named by an encapsulation identifier, or why it cannot be decoded here.
+    pub fn from_identifier(id: u16) -> Result<Encoding, DecodeError> {
+        use Endianness::*;
+        use Representation::*;
+        let (representation, endianness) = match id {
+            0x0000 => (Xcdr1, Big),
+            0x0001 => (Xcdr1, Little),
+            0x0006 => (Xcdr2, Big),
+            0x0007 => (Xcdr2, Little),
+            0x0002 | 0x0003 => return Err(DecodeError::UnsupportedRepresentation { id, name: "PL_CDR (XCDR1 parameter list, mutable types)" }),
+            0x0008 | 0x0009 => return Err(DecodeError::UnsupportedRepresentation { id, name: "D_CDR2 (XCDR2 delimited, appendable types)" }),
+            0x000a | 0x000b => return Err(DecodeError::UnsupportedRepresentation { id, name: "PL_CDR2 (XCDR2 parameter list, mutable types)" }),
+            0x0004 | 0x0005 => return Err(DecodeError::UnsupportedRepresentation { id, name: "XML" }),
+            _ => return Err(DecodeError::UnknownRepresentation { id }),
+        };
+        Ok(Encoding { representation, endianness })
+    }
+
+    /// The 4-byte encapsulation header with zero options.
+    pub const fn header(self) -> [u8; HEADER_LEN] {
+        let id = self.identifier().to_be_bytes();
+        [id[0], id[1], 0, 0]
+    }
+}
+
+/// Why a byte string is not a valid CDR encoding of the requested type.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum DecodeError {
+    #[error("input is {len} bytes, shorter than the 4-byte encapsulation header")]
+    MissingHeader { len: usize },
+    #[error("unknown encapsulation identifier {id:#06x}")]
+    UnknownRepresentation { id: u16 },
+    #[error("encapsulation {id:#06x} is {name}; SDK2 low-level types are @final and use plain CDR or CDR2")]
+    UnsupportedRepresentation { id: u16, name: &'static str },
+    #[error("truncated in member `{member}` at payload offset {offset}: needs {needed} bytes, {available} left")]
+    Truncated { member: &'static str, offset: usize, needed: usize, available: usize },
+    #[error("sequence `{member}` at payload offset {offset} claims {count} elements, but only {available} bytes remain")]
+    BadSequenceLength { member: &'static str, offset: usize, count: u32, available: usize },
+    #[error("DHEADER of `{member}` at payload offset {offset} declares {declared} bytes, but its elements take {actual}")]
+    BadDheader { member: &'static str, offset: usize, declared: u32, actual: usize },
+    #[error("header declares {padding} padding bytes, more than the {payload} payload bytes")]
+    BadPadding { padding: usize, payload: usize },
+    #[error("{count} trailing bytes after the message (payload offset {offset})")]
+    TrailingBytes { offset: usize, count: usize },
+}
+
+/// A decoded message and how it was encoded.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Decoded<T> {
+    pub value: T,
+    pub encoding: Encoding,
+    /// Option bytes of the header (big-endian), as received.
+    pub options: u16,
+}
+
+/// Encodes `value` with its encapsulation header.
+pub fn encode<T: IdlStruct>(value: &T, encoding: Encoding) -> Vec<u8> {
+    let mut out = Vec::with_capacity(HEADER_LEN + 64 + T::CDR_MIN + T::CDR_MIN / 4);
+    encode_into(value, encoding, &mut out);
+    out
+}
+
+/// Appends the encapsulation header and the encoding of `value` to `out`.
+pub fn encode_into<T: IdlStruct>(value: &T, encoding: Encoding, out: &mut Vec<u8>) {
+    out.extend_from_slice(&encoding.header());
+    let origin = out.len();
+    let xcdr2 = encoding.representation == Representation::Xcdr2;
+    let max_align = encoding.representation.max_align();
+    match encoding.endianness {
+        Endianness::Little => value.walk(&mut Writer::<false> { out, origin, xcdr2, max_align }),
+        Endianness::Big => value.walk(&mut Writer::<true> { out, origin, xcdr2, max_align }),
+    }
+}
+
+/// Decodes a complete sample (header and payload). Every byte must be accounted for.
+pub fn decode<T: IdlStruct>(bytes: &[u8]) -> Result<Decoded<T>, DecodeError> {
+    let Some((header, payload)) = bytes.split_first_chunk::<HEADER_LEN>() else {
+        return Err(DecodeError::MissingHeader { len: bytes.len() });
+    };
+    let encoding = Encoding::from_identifier(u16::from_be_bytes([header[0], header[1]]))?;
+    let options = u16::from_be_bytes([header[2], header[3]]);
+    let padding = usize::from(options & 0x3);
+    let Some(body_len) = payload.len().checked_sub(padding) else {
+        return Err(DecodeError::BadPadding { padding, payload: payload.len() });
+    };
+    let body = &payload[..body_len];
+    let xcdr2 = encoding.representation == Representation::Xcdr2;
+    let max_align = encoding.representation.max_align();
+    let mut value = T::zeroed();
+    let consumed = match encoding.endianness {
+        Endianness::Little => {
+            let mut r = Reader::<false> { buf: body, pos: 0, xcdr2, max_align };
+            value.walk_mut(&mut r)?;
+            r.pos
+        }
+        Endianness::Big => {
+            let mut r = Reader::<true> { buf: body, pos: 0, xcdr2, max_align };
+            value.walk_mut(&mut r)?;
+            r.pos
+        }
+    };
+    if consumed != body.len() {
+        return Err(DecodeError::TrailingBytes { offset: consumed, count: body.len() - consumed });
+    }
+    Ok(Decoded { value, encoding, options })
+}
+
+/// Size of the CDR payload (without header) of `value`.
+pub fn encoded_len<T: IdlStruct>(value: &T, representation: Representation) -> usize {
+    encode(value, Encoding { representation, endianness: Endianness::Little }).len() - HEADER_LEN
+}
+
+struct Writer<'o, const BIG: bool> {
+    out: &'o mut Vec<u8>,
+    origin: usize,
+    xcdr2: bool,
+    max_align: usize,
+}
+
+impl<const BIG: bool> Writer<'_, BIG> {
+    #[inline(always)]
+    fn align(&mut self, size: usize) {
+        let align = size.min(self.max_align);
+        let pos = self.out.len() - self.origin;
+        let padded = align_up(pos, align);
+        self.out.resize(self.origin + padded, 0);
+    }
+
+    #[inline(always)]
+    fn put<P: Primitive>(&mut self, value: P) {
+        let bits = value.to_bits();
+        match P::SIZE {
+            1 => self.out.push(bits as u8),
+            2 => self.out.extend_from_slice(&if BIG { (bits as u16).to_be_bytes() } else { (bits as u16).to_le_bytes() }),
+            _ => self.out.extend_from_slice(&if BIG { bits.to_be_bytes() } else { bits.to_le_bytes() }),
+        }
+    }
+
+    #[inline(always)]
+    fn put_u32(&mut self, value: u32) {
+        self.align(4);
+        self.put(value);
+    }
+
+    /// Writes a DHEADER placeholder and returns where to patch it.
+    fn begin_dheader(&mut self) -> usize {
+        self.put_u32(0);
+        self.out.len()
+    }
+
+    fn end_dheader(&mut self, content_start: usize) {
+        let len = (self.out.len() - content_start) as u32;
+        let bytes = if BIG { len.to_be_bytes() } else { len.to_le_bytes() };
+        self.out[content_start - 4..content_start].copy_from_slice(&bytes);
+    }
+}
+
+impl<const BIG: bool> Visitor for Writer<'_, BIG> {
+    #[inline(always)]
+    fn primitive<P: Primitive>(&mut self, _name: &'static str, value: &P) {
+        self.align(P::SIZE);
+        self.put(*value);
+    }
+
+    #[inline(always)]
+    fn primitive_array<P: Primitive>(&mut self, _name: &'static str, items: &[P]) {
+        self.align(P::SIZE);
+        self.out.reserve(items.len() * P::SIZE);
+        for item in items {
+            self.put(*item);
+        }
+    }
+
+    #[inline(always)]
+    fn structure<S: IdlStruct>(&mut self, _name: &'static str, value: &S) {
+        value.walk(self);
+    }
+
+    fn struct_array<S: IdlStruct>(&mut self, _name: &'static str, items: &[S]) {
+        if self.xcdr2 {
+            let start = self.begin_dheader();
+            items.iter().for_each(|item| item.walk(self));
+            self.end_dheader(start);
+        } else {
+            items.iter().for_each(|item| item.walk(self));
+        }
+    }
+
+    fn struct_sequence<S: IdlStruct>(&mut self, _name: &'static str, items: &[S]) {
+        // Lengths beyond u32 cannot be expressed in CDR; nothing in the SDK comes close.
+        let count = u32::try_from(items.len()).unwrap_or(u32::MAX);
+        if self.xcdr2 {
+            let start = self.begin_dheader();
+            self.put_u32(count);
+            items.iter().for_each(|item| item.walk(self));
+            self.end_dheader(start);
+        } else {
+            self.put_u32(count);
+            items.iter().for_each(|item| item.walk(self));
+        }
+    }
+}
+
+struct Reader<'b, const BIG: bool> {
+    buf: &'b [u8],
+    pos: usize,
+    xcdr2: bool,
+    max_align: usize,
+}
+
+impl<const BIG: bool> Reader<'_, BIG> {
+    /// Aligns and returns the next `len` bytes.
+    #[inline(always)]
+    fn take(&mut self, member: &'static str, align: usize, len: usize) -> Result<&[u8], DecodeError> {
+        let start = align_up(self.pos, align.min(self.max_align));
+        match self.buf.get(start..start.saturating_add(len)) {
+            Some(bytes) => {
+                self.pos = start + len;
+                Ok(bytes)
+            }
+            None => Err(DecodeError::Truncated {
+                member,
+                offset: start.min(self.buf.len()),
+                needed: len,
+                available: self.buf.len().saturating_sub(start),
+            }),
+        }
+    }
+
+    #[inline(always)]
+    fn get<P: Primitive>(bytes: &[u8]) -> P {
+        let bits = match P::SIZE {
+            1 => u32::from(bytes[0]),
+            2 => {
+                let b = [bytes[0], bytes[1]];
+                u32::from(if BIG { u16::from_be_bytes(b) } else { u16::from_le_bytes(b) })
+            }
+            _ => {
+                let b = [bytes[0], bytes[1], bytes[2], bytes[3]];
+                if BIG {
+                    u32::from_be_bytes(b)
+                } else {
+                    u32::from_le_bytes(b)
+                }
+            }
+        };
+        P::from_bits(bits)
+    }
+
+    fn u32(&mut self, member: &'static str) -> Result<u32, DecodeError> {
+        let bytes = self.take(member, 4, 4)?;
+        Ok(Self::get::<u32>(bytes))
+    }
+
+    fn check_dheader(&self, member: &'static str, offset: usize, declared: u32, start: usize) -> Result<(), DecodeError> {
+        let actual = self.pos - start;
+        if actual == declared as usize {
+            Ok(())
+        } else {
+            Err(DecodeError::BadDheader { member, offset, declared, actual })
+        }
+    }
+}
+
+impl<const BIG: bool> VisitorMut for Reader<'_, BIG> {
+    type Error = DecodeError;
+
+    #[inline(always)]
+    fn primitive<P: Primitive>(&mut self, name: &'static str, value: &mut P) -> Result<(), DecodeError> {
+        let bytes = self.take(name, P::SIZE, P::SIZE)?;
+        *value = Self::get::<P>(bytes);
+        Ok(())
+    }
+
+    #[inline(always)]
+    fn primitive_array<P: Primitive>(&mut self, name: &'static str, items: &mut [P]) -> Result<(), DecodeError> {
+        let bytes = self.take(name, P::SIZE, items.len() * P::SIZE)?;
+        for (item, chunk) in items.iter_mut().zip(bytes.chunks_exact(P::SIZE)) {
+            *item = Self::get::<P>(chunk);
+        }
+        Ok(())
+    }
+
+    #[inline(always)]
+    fn structure<S: IdlStruct>(&mut self, _name: &'static str, value: &mut S) -> Result<(), DecodeError> {
+        value.walk_mut(self)
+    }
+
+    fn struct_array<S: IdlStruct>(&mut self, name: &'static str, items: &mut [S]) -> Result<(), DecodeError> {
+        if self.xcdr2 {
+            let offset = align_up(self.pos, 4);
+            let declared = self.u32(name)?;
+            let start = self.pos;
+            for item in items.iter_mut() {
+                item.walk_mut(self)?;
+            }
+            self.check_dheader(name, offset, declared, start)
+        } else {
+            items.iter_mut().try_for_each(|item| item.walk_mut(self))
+        }
+    }
+
+    fn struct_sequence<S: IdlStruct>(&mut self, name: &'static str, items: &mut Vec<S>) -> Result<(), DecodeError> {
+        let dheader = if self.xcdr2 { Some((align_up(self.pos, 4), self.u32(name)?, 0)) } else { None };
+        let dheader = dheader.map(|(offset, declared, _)| (offset, declared, self.pos));
+        let offset = align_up(self.pos, 4);
+        let count = self.u32(name)?;
+        let available = self.buf.len() - self.pos;
+        // Bound the count by the bytes left before allocating anything: each element takes at
+        // least S::CDR_MIN bytes.
+        if (count as usize).saturating_mul(S::CDR_MIN.max(1)) > available {
+            return Err(DecodeError::BadSequenceLength { member: name, offset, count, available });
+        }
+        items.clear();
+        items.reserve(count as usize);
+        for _ in 0..count {
+            let mut item = S::zeroed();
+            item.walk_mut(self)?;
+            items.push(item);
+        }
+        match dheader {
+            Some((offset, declared, start)) => self.check_dheader(name, offset, declared, start),
+            None => Ok(()),
+        }
+    }
+}

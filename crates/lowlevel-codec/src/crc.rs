@@ -1,0 +1,246 @@
+//! Unitree's CRC: CRC-32 with polynomial 0x04C11DB7, seed 0xFFFFFFFF, no reflection and no final
+//! xor, fed 32-bit little-endian words most-significant bit first, over the **C struct image** of
+//! the message (natural alignment, padding zeroed) without its trailing `crc` word.
+//!
+//! Unitree's C++ SDK hashes the padding bytes as they happen to lie in memory; we always zero
+//! them, which is what a freshly value-initialised C++ message also has.
+//!
+//! [`crc32_words`] is table-driven (slicing-by-16 on whole words); [`crc32_reference`] is the
+//! bit-serial definition, kept to test it against.
+
+use unitree_idl::{align_up, go, hg, Field, IdlStruct, Primitive, Visitor};
+
+const POLY: u32 = 0x04C1_1DB7;
+const SEED: u32 = 0xFFFF_FFFF;
+
+/// CRC by definition: one bit at a time, each word from its most significant bit.
+/// `image` is read as little-endian words; a trailing partial word is ignored, as the SDK does.
+pub fn crc32_reference(image: &[u8]) -> u32 {
+    let mut crc = SEED;
+    for word in image.chunks_exact(4) {
+        let data = u32::from_le_bytes([word[0], word[1], word[2], word[3]]);
+        for bit in (0..32).rev() {
+            let feedback = (crc >> 31) ^ ((data >> bit) & 1);
+            crc <<= 1;
+            if feedback != 0 {
+                crc ^= POLY;
+            }
+        }
+    }
+    crc
+}
+
+/// `TABLES[k][b]`: the CRC register after byte `b` followed by `k` zero bytes (MSB-first).
+static TABLES: [[u32; 256]; 16] = make_tables();
+
+const fn make_tables() -> [[u32; 256]; 16] {
+    let mut t = [[0u32; 256]; 16];
+    let mut b = 0;
+    while b < 256 {
+        let mut crc = (b as u32) << 24;
+        let mut i = 0;
+        while i < 8 {
+            crc = if crc & 0x8000_0000 != 0 { (crc << 1) ^ POLY } else { crc << 1 };
+            i += 1;
+        }
+        t[0][b] = crc;
+        b += 1;
+    }
+    let mut k = 1;
+    while k < 16 {
+        let mut b = 0;
+        while b < 256 {
+            let prev = t[k - 1][b];
+            t[k][b] = (prev << 8) ^ t[0][(prev >> 24) as usize];
+            b += 1;
+        }
+        k += 1;
+    }
+    t
+}
+
+#[inline(always)]
+fn slice4(word: u32, base: usize) -> u32 {
+    TABLES[base + 3][(word >> 24) as usize]
+        ^ TABLES[base + 2][((word >> 16) & 0xff) as usize]
+        ^ TABLES[base + 1][((word >> 8) & 0xff) as usize]
+        ^ TABLES[base][(word & 0xff) as usize]
+}
+
+/// Table-driven CRC over whole little-endian words (slicing-by-16: four words per step).
+/// Equal to [`crc32_reference`] for every input.
+pub fn crc32_words(image: &[u8]) -> u32 {
+    let mut crc = SEED;
+    let mut blocks = image.chunks_exact(16);
+    for block in &mut blocks {
+        let w = |i: usize| u32::from_le_bytes([block[i], block[i + 1], block[i + 2], block[i + 3]]);
+        crc = slice4(crc ^ w(0), 12) ^ slice4(w(4), 8) ^ slice4(w(8), 4) ^ slice4(w(12), 0);
+    }
+    for word in blocks.remainder().chunks_exact(4) {
+        crc = slice4(crc ^ u32::from_le_bytes([word[0], word[1], word[2], word[3]]), 0);
+    }
+    crc
+}
+
+/// The C struct image of `value`: members at their natural alignment, structs padded to their
+/// alignment, padding zeroed, little-endian (the robot's byte order).
+///
+/// Sequences have no flat image (they are `std::vector` in C++) and are skipped; no type that
+/// carries a CRC contains one.
+pub fn c_image<T: IdlStruct>(value: &T) -> Vec<u8> {
+    let mut writer = CImage { out: Vec::with_capacity(T::C_SIZE) };
+    value.walk(&mut writer);
+    writer.pad_to(T::C_ALIGN);
+    writer.out
+}
+
+struct CImage {
+    out: Vec<u8>,
+}
+
+impl CImage {
+    #[inline(always)]
+    fn pad_to(&mut self, align: usize) {
+        let len = align_up(self.out.len(), align);
+        self.out.resize(len, 0);
+    }
+    #[inline(always)]
+    fn put<P: Primitive>(&mut self, value: P) {
+        let bytes = value.to_bits().to_le_bytes();
+        self.out.extend_from_slice(&bytes[..P::SIZE]);
+    }
+}
+
+impl Visitor for CImage {
+    #[inline(always)]
+    fn primitive<P: Primitive>(&mut self, _name: &'static str, value: &P) {
+        self.pad_to(P::SIZE);
+        self.put(*value);
+    }
+    #[inline(always)]
+    fn primitive_array<P: Primitive>(&mut self, _name: &'static str, items: &[P]) {
+        self.pad_to(P::SIZE);
+        items.iter().for_each(|item| self.put(*item));
+    }
+    #[inline(always)]
+    fn structure<S: IdlStruct>(&mut self, _name: &'static str, value: &S) {
+        self.pad_to(S::C_ALIGN);
+        value.walk(self);
+        self.pad_to(S::C_ALIGN);
+    }
+    #[inline(always)]
+    fn struct_array<S: IdlStruct>(&mut self, name: &'static str, items: &[S]) {
+        items.iter().for_each(|item| self.structure(name, item));
+    }
+    fn struct_sequence<S: IdlStruct>(&mut self, _name: &'static str, _items: &[S]) {}
+}
+
+/// A message whose last member is Unitree's CRC of everything before it.
+pub trait Sealed: IdlStruct {
+    fn crc(&self) -> u32;
+    fn crc_mut(&mut self) -> &mut u32;
+}
+
+macro_rules! sealed {
+    ($($t:ty),*) => {$(
+        impl Sealed for $t {
+            fn crc(&self) -> u32 { self.crc }
+            fn crc_mut(&mut self) -> &mut u32 { &mut self.crc }
+        }
+        // The crc must be the image's last word for "all words but the last" to be right.
+        const _: () = assert!(<$t as Field>::C_SIZE % 4 == 0 && <$t as Field>::C_ALIGN == 4);
+    )*};
+}
+sealed!(hg::LowCmd_, hg::LowState_, go::LowCmd_, go::LowState_);
+
+/// Unitree's CRC of `value` (its stored `crc` is not part of the input).
+pub fn compute<T: Sealed>(value: &T) -> u32 {
+    let image = c_image(value);
+    crc32_words(&image[..image.len() - 4])
+}
+
+/// Sets the `crc` member so that the message verifies.
+pub fn seal<T: Sealed>(value: &mut T) {
+    let crc = compute(value);
+    *value.crc_mut() = crc;
+}
+
+/// Whether the stored `crc` member matches the message.
+pub fn verify<T: Sealed>(value: &T) -> bool {
+    compute(value) == value.crc()
+}
+
+/// CRC status of any message type: `Some(ok)` for the four types that carry a CRC, else `None`.
+pub fn check_any<T: IdlStruct>(value: &T) -> Option<bool> {
+    use core::any::Any;
+    let any = value as &dyn Any;
+    if let Some(v) = any.downcast_ref::<hg::LowCmd_>() {
+        Some(verify(v))
+    } else if let Some(v) = any.downcast_ref::<hg::LowState_>() {
+        Some(verify(v))
+    } else if let Some(v) = any.downcast_ref::<go::LowCmd_>() {
+        Some(verify(v))
+    } else {
+        any.downcast_ref::<go::LowState_>().map(verify)
+    }
+}
+
+/// CRC of any message type that carries one, `None` for the others.
+pub fn compute_any<T: IdlStruct>(value: &T) -> Option<u32> {
+    use core::any::Any;
+    let any = value as &dyn Any;
+    if let Some(v) = any.downcast_ref::<hg::LowCmd_>() {
+        Some(compute(v))
+    } else if let Some(v) = any.downcast_ref::<hg::LowState_>() {
+        Some(compute(v))
+    } else if let Some(v) = any.downcast_ref::<go::LowCmd_>() {
+        Some(compute(v))
+    } else {
+        any.downcast_ref::<go::LowState_>().map(compute)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Image sizes and word counts as stated for Unitree's SDK (reference sheet).
+    #[test]
+    fn image_sizes_match_the_sdk() {
+        assert_eq!(c_image(&hg::LowCmd_::default()).len(), 1004);
+        assert_eq!(c_image(&hg::LowState_::default()).len(), 2092);
+        assert_eq!(c_image(&go::LowCmd_::default()).len(), 812);
+        assert_eq!(c_image(&go::LowState_::default()).len(), 1180);
+    }
+
+    /// CRC of all-zero messages, as published for Unitree's implementation.
+    #[test]
+    fn zero_images_match_published_crcs() {
+        assert_eq!(compute(&hg::LowCmd_::default()), 0xFE17_2F9F);
+        assert_eq!(compute(&hg::LowState_::default()), 0xD64B_B04A);
+        assert_eq!(compute(&go::LowCmd_::default()), 0x4B5A_4880);
+        assert_eq!(compute(&go::LowState_::default()), 0x85F1_1EA6);
+    }
+
+    /// The reference equals CRC-32/MPEG-2 of the byte-swapped words (its check value is
+    /// 0x0376E6E7 over "123456789"), an independent statement of the same function.
+    #[test]
+    fn reference_is_mpeg2_on_swapped_words() {
+        fn mpeg2(bytes: &[u8]) -> u32 {
+            let mut crc = 0xFFFF_FFFFu32;
+            for &byte in bytes {
+                crc ^= u32::from(byte) << 24;
+                for _ in 0..8 {
+                    crc = if crc & 0x8000_0000 != 0 { (crc << 1) ^ 0x04C1_1DB7 } else { crc << 1 };
+                }
+            }
+            crc
+        }
+        // The catalogue's check value pins the byte-wise MPEG-2 definition...
+        assert_eq!(mpeg2(b"123456789"), 0x0376_E6E7);
+        // ...which, on "12345678" fed as byte-swapped words, must equal Unitree's word CRC.
+        let image = [b'4', b'3', b'2', b'1', b'8', b'7', b'6', b'5'];
+        assert_eq!(crc32_reference(&image), mpeg2(b"12345678"));
+        assert_eq!(crc32_words(&image), mpeg2(b"12345678"));
+    }
+}

@@ -1,0 +1,20 @@
+//! Wire codec for Unitree SDK2 low-level messages, written once against the reflection in
+//! [`unitree_idl`]:
+//!
+//! * [`cdr`]: CDR encode/decode, XCDR1 and XCDR2 (plain, for `@final` types), little- and
+//!   big-endian, with the 4-byte encapsulation header. Decoding never panics and never
+//!   allocates in proportion to a length read from the input.
+//! * [`crc`]: Unitree's CRC over the C struct image (padding zeroed), a fast table-driven
+//!   implementation and the bit-serial reference; [`crc::seal`] and [`crc::verify`].
+//! * [`json`]: the JSON document form used by `ulab codec` (exact float round trip).
+//! * [`validate`]: semantic checks kept apart from decoding (non-finite values, limits, unused
+//!   slots), each finding typed and named.
+#![forbid(unsafe_code)]
+
+pub mod cdr;
+pub mod crc;
+pub mod json;
+pub mod validate;
+
+pub use cdr::{decode, encode, DecodeError, Decoded, Encoding, Endianness, Representation};
+pub use crc::{seal, verify, Sealed};

@@ -1,0 +1,340 @@
+//! `ulab record`: subscribes Unitree topics over DDS and writes them to an MCAP file.
+//!
+//! Each message is stored as received (CDR with its encapsulation header; message encoding
+//! `cdr`), its channel's schema is the OMG IDL of its type (`omgidl`), log time is the reception
+//! time and publish time the writer's source timestamp. Ctrl-C (or --duration) ends the
+//! recording and the file is finished properly. At the end, gaps that can be detected are
+//! reported: LowState tick jumps, arrival gaps and one-second windows with a low rate.
+
+use super::recording::{idl_text, lowstate_tick, parse_topic, NetArgs, TopicChoice, DDS_TYPE_KEY};
+use anyhow::{bail, Context, Result};
+use dds_transport::{Participant, ReaderOptions, Sample};
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{mpsc, Arc};
+use std::time::{Duration, Instant};
+
+/// Arguments of `ulab record`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    #[command(flatten)]
+    pub net: NetArgs,
+    /// Output MCAP file.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Stop after this many seconds (default: until Ctrl-C).
+    #[arg(long)]
+    pub duration: Option<f64>,
+    /// Topics to record: rt/lowcmd, rt/lowstate, or TOPIC=TYPE with TYPE a codec name
+    /// (hg/HandState) or a DDS type name. Default: rt/lowcmd and rt/lowstate.
+    #[arg(long, num_args = 1.., value_delimiter = ',')]
+    pub topics: Vec<String>,
+    /// Message family of rt/lowcmd and rt/lowstate: hg (H1-2, G1) or go (Go2, H1, B2).
+    #[arg(long, default_value = "hg", value_parser = ["hg", "go"])]
+    pub family: String,
+    /// Overwrite the output file if it exists.
+    #[arg(long)]
+    pub force: bool,
+    /// Print nothing while recording, only the final report.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+struct Channel {
+    choice: TopicChoice,
+    id: u16,
+    sequence: u32,
+    stats: TopicStats,
+}
+
+/// Per-topic arrival record for the gap report.
+#[derive(Default)]
+struct TopicStats {
+    arrivals: Vec<i64>,
+    ticks: Vec<(i64, u32)>,
+    undecodable: u64,
+}
+
+fn now_ns() -> u64 {
+    std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos() as u64)
+}
+
+pub fn run(args: Args) -> Result<ExitCode> {
+    let cfg = args.net.domain_config()?;
+    if let Some(d) = args.duration {
+        if !(d.is_finite() && d > 0.0) {
+            bail!("--duration must be a positive number of seconds");
+        }
+    }
+    let texts: Vec<String> =
+        if args.topics.is_empty() { vec!["rt/lowcmd".into(), "rt/lowstate".into()] } else { args.topics.clone() };
+    let mut choices: Vec<TopicChoice> = Vec::new();
+    for t in &texts {
+        let c = parse_topic(t, &args.family)?;
+        if choices.iter().any(|o| o.spec.name == c.spec.name) {
+            bail!("topic {} listed twice", c.spec.name);
+        }
+        choices.push(c);
+    }
+    if args.out.exists() && !args.force {
+        bail!("{} exists (use --force to overwrite)", args.out.display());
+    }
+
+    let file = File::create(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    let opts = mcap::WriteOptions::new().library(concat!("ulab ", env!("CARGO_PKG_VERSION"))).chunk_size(Some(256 * 1024));
+    let mut writer = opts.create(BufWriter::new(file)).context("starting the MCAP file")?;
+    let mut channels = Vec::new();
+    for c in choices {
+        let schema_id = match c.kind {
+            Some(kind) => writer.add_schema(&c.spec.type_name, "omgidl", idl_text(kind).as_bytes())?,
+            None => 0,
+        };
+        let mut meta = BTreeMap::new();
+        meta.insert(DDS_TYPE_KEY.to_owned(), c.spec.type_name.clone());
+        let id = writer.add_channel(schema_id, &c.spec.name, "cdr", &meta)?;
+        channels.push(Channel { choice: c, id, sequence: 0, stats: TopicStats::default() });
+    }
+
+    let stop = Arc::new(AtomicBool::new(false));
+    {
+        let stop = stop.clone();
+        if let Err(e) = ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst)) {
+            eprintln!("warning: cannot install the Ctrl-C handler ({e}); use --duration");
+        }
+    }
+
+    let participant = Participant::new(cfg.clone()).context("opening the DDS domain")?;
+    let (tx, rx) = mpsc::sync_channel::<(usize, Sample)>(1 << 16);
+    let overflow = Arc::new(AtomicU64::new(0));
+    let mut readers = Vec::new();
+    for (i, ch) in channels.iter().enumerate() {
+        let tx = tx.clone();
+        let overflow = overflow.clone();
+        let opts = ReaderOptions { history_depth: 64, ..ReaderOptions::default() };
+        let r = participant
+            .reader_with_callback(&ch.choice.spec, opts, move |s| {
+                if tx.try_send((i, s)).is_err() {
+                    overflow.fetch_add(1, Ordering::Relaxed);
+                }
+            })
+            .with_context(|| format!("subscribing {}", ch.choice.spec.name))?;
+        readers.push(r);
+    }
+    drop(tx);
+    if !args.quiet {
+        eprintln!(
+            "recording {} on domain {} / {} into {} ({})",
+            channels.iter().map(|c| c.choice.spec.name.as_str()).collect::<Vec<_>>().join(", "),
+            cfg.domain,
+            cfg.interface,
+            args.out.display(),
+            match args.duration {
+                Some(d) => format!("{d} s"),
+                None => "Ctrl-C to stop".to_owned(),
+            }
+        );
+    }
+
+    let started = Instant::now();
+    let started_ns = now_ns();
+    let deadline = args.duration.map(|d| started + Duration::from_secs_f64(d));
+    let mut last_status = Instant::now();
+    let mut counts_at_status = vec![0u64; channels.len()];
+    let mut write_error = None;
+    loop {
+        if stop.load(Ordering::SeqCst) || deadline.is_some_and(|d| Instant::now() >= d) {
+            break;
+        }
+        match rx.recv_timeout(Duration::from_millis(50)) {
+            Ok((i, s)) => {
+                if let Err(e) = store(&mut writer, &mut channels[i], &s) {
+                    write_error = Some(e);
+                    break;
+                }
+            }
+            Err(mpsc::RecvTimeoutError::Timeout) => {}
+            Err(mpsc::RecvTimeoutError::Disconnected) => break,
+        }
+        if !args.quiet && last_status.elapsed() >= Duration::from_secs(5) {
+            let dt = last_status.elapsed().as_secs_f64();
+            let rates: Vec<String> = channels
+                .iter()
+                .zip(counts_at_status.iter_mut())
+                .map(|(c, prev)| {
+                    let n = c.stats.arrivals.len() as u64;
+                    let r = (n - *prev) as f64 / dt;
+                    *prev = n;
+                    format!("{} {r:.1} Hz", c.choice.spec.name)
+                })
+                .collect();
+            eprintln!("  {:>6.1} s  {}", started.elapsed().as_secs_f64(), rates.join(", "));
+            last_status = Instant::now();
+        }
+    }
+    // Stop the readers first, then store what is still queued.
+    drop(readers);
+    drop(participant);
+    if write_error.is_none() {
+        while let Ok((i, s)) = rx.try_recv() {
+            if let Err(e) = store(&mut writer, &mut channels[i], &s) {
+                write_error = Some(e);
+                break;
+            }
+        }
+    }
+
+    let report = Report::build(&channels, overflow.load(Ordering::Relaxed), started.elapsed().as_secs_f64());
+    let mut meta = BTreeMap::new();
+    meta.insert("domain".to_owned(), cfg.domain.to_string());
+    meta.insert("interface".to_owned(), cfg.interface.clone());
+    meta.insert("start_ns".to_owned(), started_ns.to_string());
+    meta.insert("report".to_owned(), report.text.clone());
+    let _ = writer.write_metadata(&mcap::records::Metadata { name: "ulab.record".to_owned(), metadata: meta });
+    writer.finish().context("finishing the MCAP file")?;
+    drop(writer);
+    print!("{}", report.text);
+    if let Some(e) = write_error {
+        return Err(e).context("writing the MCAP file (what was written before is kept)");
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn store(writer: &mut mcap::Writer<BufWriter<File>>, ch: &mut Channel, s: &Sample) -> Result<()> {
+    let log_time = u64::try_from(s.reception_ns).unwrap_or(0);
+    let publish_time = s.source_timestamp_ns.and_then(|t| u64::try_from(t).ok()).unwrap_or(log_time);
+    writer.write_to_known_channel(
+        &mcap::records::MessageHeader { channel_id: ch.id, sequence: ch.sequence, log_time, publish_time },
+        &s.data,
+    )?;
+    ch.sequence = ch.sequence.wrapping_add(1);
+    ch.stats.arrivals.push(s.reception_ns);
+    if let Some(kind) = ch.choice.kind {
+        if matches!(kind, unitree_idl::MessageType::HgLowState | unitree_idl::MessageType::GoLowState) {
+            match lowstate_tick(kind, &s.data) {
+                Some(t) => ch.stats.ticks.push((s.reception_ns, t)),
+                None => ch.stats.undecodable += 1,
+            }
+        }
+    }
+    Ok(())
+}
+
+fn median(v: &mut [i64]) -> Option<i64> {
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_unstable();
+    Some(v[v.len() / 2])
+}
+
+/// The end-of-recording report.
+struct Report {
+    text: String,
+}
+
+const MAX_LISTED: usize = 10;
+
+impl Report {
+    fn build(channels: &[Channel], overflow: u64, seconds: f64) -> Self {
+        let mut t = String::new();
+        t.push_str(&format!("recorded {seconds:.2} s\n"));
+        if overflow > 0 {
+            t.push_str(&format!("warning: {overflow} samples lost: the writer could not keep up\n"));
+        }
+        for ch in channels {
+            let st = &ch.stats;
+            let n = st.arrivals.len();
+            let name = &ch.choice.spec.name;
+            if n == 0 {
+                t.push_str(&format!("{name}: 0 messages\n"));
+                continue;
+            }
+            let span = (st.arrivals[n - 1] - st.arrivals[0]) as f64 / 1e9;
+            let rate = if span > 0.0 { (n - 1) as f64 / span } else { 0.0 };
+            t.push_str(&format!("{name}: {n} messages, {rate:.1} Hz over {span:.2} s\n"));
+            let mut gaps = Vec::new();
+            // Arrival gaps: more than 5 typical periods and 20 ms.
+            let dts: Vec<i64> = st.arrivals.windows(2).map(|w| w[1] - w[0]).collect();
+            let mut sorted = dts.clone();
+            if let Some(med) = median(&mut sorted) {
+                let limit = (5 * med).max(20_000_000);
+                for (i, dt) in dts.iter().enumerate() {
+                    if *dt > limit {
+                        gaps.push(format!(
+                            "arrival gap of {:.1} ms after message {} (typical {:.2} ms)",
+                            *dt as f64 / 1e6,
+                            i,
+                            med as f64 / 1e6
+                        ));
+                    }
+                }
+            }
+            // Tick jumps.
+            let deltas: Vec<i64> = st.ticks.windows(2).map(|w| i64::from(w[1].1) - i64::from(w[0].1)).collect();
+            let mut pos: Vec<i64> = deltas.iter().copied().filter(|d| *d > 0).collect();
+            if let Some(step) = median(&mut pos) {
+                let mut jumps = 0u64;
+                let mut missing = 0i64;
+                for (i, d) in deltas.iter().enumerate() {
+                    if *d <= 0 || *d > step + step / 2 {
+                        jumps += 1;
+                        if *d > 0 {
+                            missing += d / step - 1;
+                        }
+                        if gaps.len() < 3 * MAX_LISTED {
+                            gaps.push(format!(
+                                "tick jump {} -> {} ({:+}, step {step}) at message {}",
+                                st.ticks[i].1,
+                                st.ticks[i + 1].1,
+                                d,
+                                i + 1
+                            ));
+                        }
+                    }
+                }
+                t.push_str(&format!(
+                    "  tick step {step}, {jumps} tick jumps, about {missing} samples missing by tick\n"
+                ));
+            }
+            if st.undecodable > 0 {
+                t.push_str(&format!("  {} samples did not decode (no tick)\n", st.undecodable));
+            }
+            // Rate drops: full one-second windows under half the median window count.
+            let t0 = st.arrivals[0];
+            let nwin = ((st.arrivals[n - 1] - t0) / 1_000_000_000) as usize;
+            if nwin >= 3 {
+                let mut counts = vec![0i64; nwin];
+                for a in &st.arrivals {
+                    let w = ((a - t0) / 1_000_000_000) as usize;
+                    if w < nwin {
+                        counts[w] += 1;
+                    }
+                }
+                let mut c2 = counts.clone();
+                if let Some(med) = median(&mut c2) {
+                    for (w, c) in counts.iter().enumerate() {
+                        if *c * 2 < med {
+                            gaps.push(format!("rate drop to {c} Hz in second {w} (typical {med} Hz)"));
+                        }
+                    }
+                }
+            }
+            if gaps.is_empty() {
+                t.push_str("  no gaps detected\n");
+            } else {
+                t.push_str(&format!("  {} gap findings:\n", gaps.len()));
+                for g in gaps.iter().take(MAX_LISTED) {
+                    t.push_str(&format!("  gap: {g}\n"));
+                }
+                if gaps.len() > MAX_LISTED {
+                    t.push_str(&format!("  ... {} more\n", gaps.len() - MAX_LISTED));
+                }
+            }
+        }
+        Report { text: t }
+    }
+}

@@ -1,0 +1,36 @@
+//! `ulab`: one binary in front of every tool of the project.
+//!
+//! Each subcommand lives in its own module under `cmd/`; this file only dispatches.
+#![forbid(unsafe_code)]
+
+mod cmd;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+#[derive(Debug, Parser)]
+#[command(name = "ulab", version, about = "Toolkit for Unitree robots over SDK2 low-level DDS channels")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Encode, decode and checksum SDK2 low-level messages (CDR with encapsulation header).
+    Codec(cmd::codec::Args),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Codec(args) => cmd::codec::run(args),
+    };
+    match result {
+        Ok(code) => code,
+        Err(err) => {
+            eprintln!("error: {err:#}");
+            ExitCode::from(2)
+        }
+    }
+}

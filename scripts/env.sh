@@ -1,0 +1,11 @@
+# Source this: environment for building and testing ulab on this checkout.
+# Paths are relative to the repository root so a clean clone works anywhere.
+ULAB_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+export ULAB_ROOT
+export ULAB_VENV="$ULAB_ROOT/.venv"
+export ULAB_PYTHON="$ULAB_VENV/bin/python"
+# mujoco-rs links libmujoco.so dynamically; the library comes from the PyPI wheel (see setup.sh).
+export MUJOCO_DYNAMIC_LINK_DIR="$ULAB_ROOT/.deps/mujoco"
+export LD_LIBRARY_PATH="$MUJOCO_DYNAMIC_LINK_DIR${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
+# Reference material lives beside the checkout, never inside it.
+export ULAB_SHARED="${ULAB_SHARED:-$(cd "$ULAB_ROOT/../shared" 2>/dev/null && pwd)}"

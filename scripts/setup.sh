@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# Installs everything a fresh machine needs beyond the Rust toolchain, gcc and Python 3.11:
+# Debian packages (cmake, libclang for cyclors' bindgen, Cyclone DDS 0.10.2 for the interop peer),
+# a Python venv with the oracle packages, and the MuJoCo shared library from the PyPI wheel.
+# Idempotent: a second run only checks.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+source scripts/env.sh
+
+APT_PACKAGES=(cmake libclang-dev clang pkg-config cyclonedds-dev cyclonedds-tools)
+missing=()
+for p in "${APT_PACKAGES[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "setup: installing Debian packages: ${missing[*]}"
+  SUDO=""; [ "$(id -u)" = 0 ] || SUDO="sudo"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${missing[@]}" >/dev/null
+fi
+
+if [ ! -x "$ULAB_PYTHON" ]; then
+  echo "setup: creating Python venv in .venv"
+  python3 -m venv "$ULAB_VENV"
+fi
+if ! "$ULAB_PYTHON" -c "import importlib.util as u, mujoco, cyclonedds, mcap, numpy, onnxruntime; assert u.find_spec('unitree_sdk2py')" 2>/dev/null; then
+  echo "setup: installing Python packages"
+  "$ULAB_PYTHON" -m pip install -q --disable-pip-version-check -r scripts/requirements.txt
+  # The SDK's own dependency list pins an old cyclonedds; we bring a known one above.
+  "$ULAB_PYTHON" -m pip install -q --disable-pip-version-check --no-deps unitree_sdk2==1.0.1
+fi
+
+mkdir -p "$MUJOCO_DYNAMIC_LINK_DIR"
+lib=$("$ULAB_PYTHON" -c "import mujoco, os, glob; print(sorted(glob.glob(os.path.join(os.path.dirname(mujoco.__file__), 'libmujoco.so.*')))[-1])")
+ln -sf "$lib" "$MUJOCO_DYNAMIC_LINK_DIR/libmujoco.so"
+ln -sf "$lib" "$MUJOCO_DYNAMIC_LINK_DIR/$(basename "$lib")"
+echo "setup: ok (MuJoCo: $lib)"
