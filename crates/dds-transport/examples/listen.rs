@@ -22,7 +22,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     while Instant::now() < end {
         if let Some(s) = r.take(Duration::from_millis(100)) {
             n += 1;
-            if n <= 3 || n % 100 == 0 {
+            if n <= 3 || n.is_multiple_of(100) {
                 println!("sample {n}: {} bytes, matched writers {}", s.data.len(), r.matched_writers()?);
             }
         }

@@ -16,7 +16,6 @@
 //!   only after `dds_delete` of the reader has returned; Cyclone guarantees that no listener
 //!   callback is running or will run for an entity once its deletion has returned.
 //! - No Rust panic crosses the C boundary: the callback body runs under `catch_unwind`.
-#![allow(unsafe_code)]
 
 use std::ffi::{c_void, CStr};
 use std::sync::Arc;
@@ -324,4 +323,107 @@ unsafe fn serdata_bytes(sd: *mut cy::ddsi_serdata) -> Option<Vec<u8>> {
         cy::ddsi_serdata_to_ser_unref(r, &iov);
         out
     }
+}
+
+/// One endpoint read from a builtin topic, copied out of Cyclone's loan.
+#[derive(Debug, Clone)]
+pub(crate) struct RawEndpoint {
+    pub key: [u8; 16],
+    pub participant_key: [u8; 16],
+    pub topic_name: String,
+    pub type_name: String,
+    pub reliability: Option<bool>,
+    pub history_keep_last: Option<(bool, i32)>,
+    pub durability: Option<u32>,
+    pub has_type_info: bool,
+}
+
+/// GUID of an entity.
+pub(crate) fn guid(entity: Entity) -> Result<[u8; 16]> {
+    let mut g = cy::dds_guid_t { v: [0; 16] };
+    // SAFETY: writes one GUID.
+    check("dds_get_guid", unsafe { cy::dds_get_guid(entity, &mut g) })?;
+    Ok(g.v)
+}
+
+/// A reader of the DCPSPublication (`publications = true`) or DCPSSubscription builtin topic,
+/// with Cyclone's builtin QoS. These readers use Cyclone's own builtin sertype, so reading with
+/// loans (`dds_read_mask` + `dds_return_loan`) is valid here, unlike on our blob topics.
+pub(crate) fn create_builtin_endpoint_reader(participant: Entity, publications: bool) -> Result<Entity> {
+    let topic = if publications { cy::DDS_BUILTIN_TOPIC_DCPSPUBLICATION } else { cy::DDS_BUILTIN_TOPIC_DCPSSUBSCRIPTION };
+    // SAFETY: pseudo-handle topic, default QoS, no listener.
+    check("dds_create_reader(builtin)", unsafe {
+        cy::dds_create_reader(participant, topic, std::ptr::null(), std::ptr::null())
+    })
+}
+
+fn c_string(p: *const std::os::raw::c_char) -> String {
+    if p.is_null() {
+        String::new()
+    } else {
+        // SAFETY: non-null pointers in builtin samples are NUL-terminated strings owned by the
+        // loaned sample, alive until the loan is returned (after this copy).
+        unsafe { CStr::from_ptr(p) }.to_string_lossy().into_owned()
+    }
+}
+
+/// Reads (without taking) every alive endpoint known to a builtin endpoint reader.
+pub(crate) fn read_endpoints(reader: Entity) -> Result<Vec<RawEndpoint>> {
+    const N: usize = 256;
+    let mut out = Vec::new();
+    let mut buf: [*mut c_void; N] = [std::ptr::null_mut(); N];
+    // SAFETY: zeroed sample infos are valid plain C structs.
+    let mut infos: [cy::dds_sample_info_t; N] = unsafe { std::mem::zeroed() };
+    let mask = cy::DDS_ANY_SAMPLE_STATE | cy::DDS_ANY_VIEW_STATE | cy::DDS_ALIVE_INSTANCE_STATE;
+    // SAFETY: buf[0] == null asks Cyclone to loan up to N samples into `buf`; `infos` has N
+    // entries. The loan is returned below before `buf` goes out of scope.
+    let n = check("dds_read_mask", unsafe {
+        cy::dds_read_mask(reader, buf.as_mut_ptr(), infos.as_mut_ptr(), N, N as u32, mask)
+    })?;
+    let n = usize::try_from(n).unwrap_or(0).min(N);
+    for i in 0..n {
+        if !infos[i].valid_data || buf[i].is_null() {
+            continue;
+        }
+        let ep = buf[i].cast::<cy::dds_builtintopic_endpoint_t>();
+        // SAFETY: a valid loaned sample of the endpoint builtin topic; we only read from it
+        // (the `*mut` of get_endpoint_type_info is historical: it does not write).
+        unsafe {
+            let e = &*ep;
+            let mut rel_kind: cy::dds_reliability_kind_t = 0;
+            let mut max_block: cy::dds_duration_t = 0;
+            let reliability = if !e.qos.is_null() && cy::dds_qget_reliability(e.qos, &mut rel_kind, &mut max_block) {
+                Some(rel_kind == cy::dds_reliability_kind_DDS_RELIABILITY_RELIABLE)
+            } else {
+                None
+            };
+            let mut hist_kind: cy::dds_history_kind_t = 0;
+            let mut depth: i32 = 0;
+            let history_keep_last = if !e.qos.is_null() && cy::dds_qget_history(e.qos, &mut hist_kind, &mut depth) {
+                Some((hist_kind == cy::dds_history_kind_DDS_HISTORY_KEEP_LAST, depth))
+            } else {
+                None
+            };
+            let mut dur: cy::dds_durability_kind_t = 0;
+            let durability =
+                if !e.qos.is_null() && cy::dds_qget_durability(e.qos, &mut dur) { Some(dur as u32) } else { None };
+            let mut ti: *const cy::dds_typeinfo_t = std::ptr::null();
+            let has_type_info = cy::dds_builtintopic_get_endpoint_type_info(ep, &mut ti) == 0 && !ti.is_null();
+            out.push(RawEndpoint {
+                key: e.key.v,
+                participant_key: e.participant_key.v,
+                topic_name: c_string(e.topic_name),
+                type_name: c_string(e.type_name),
+                reliability,
+                history_keep_last,
+                durability,
+                has_type_info,
+            });
+        }
+    }
+    if n > 0 {
+        // SAFETY: returns exactly the loan obtained above.
+        unsafe { cy::dds_return_loan(reader, buf.as_mut_ptr(), n as i32) };
+    }
+    Ok(out)
 }

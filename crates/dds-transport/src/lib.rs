@@ -28,6 +28,7 @@
 
 pub mod config;
 mod error;
+// The crate's only unsafe code: thin Cyclone DDS wrappers, invariants stated in the module.
 #[allow(unsafe_code)]
 mod ffi;
 pub mod topics;
@@ -426,5 +427,137 @@ impl RawReader {
     /// The topic.
     pub fn topic(&self) -> &TopicSpec {
         &self.topic
+    }
+}
+
+/// Durability kind.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Durability {
+    /// Volatile.
+    Volatile,
+    /// Transient-local.
+    TransientLocal,
+    /// Transient.
+    Transient,
+    /// Persistent.
+    Persistent,
+}
+
+/// Writer (publication) or reader (subscription).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EndpointKind {
+    /// A writer.
+    Publication,
+    /// A reader.
+    Subscription,
+}
+
+/// An endpoint as announced in discovery (SEDP), local or remote.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct DiscoveredEndpoint {
+    /// Writer or reader.
+    pub kind: EndpointKind,
+    /// Endpoint GUID.
+    pub guid: [u8; 16],
+    /// GUID of its participant.
+    pub participant_guid: [u8; 16],
+    /// Whether it belongs to the participant that observes it.
+    pub local: bool,
+    /// Topic name.
+    pub topic_name: String,
+    /// DDS type name.
+    pub type_name: String,
+    /// Reliability, if announced.
+    pub reliability: Option<Reliability>,
+    /// `Some(depth)` for KEEP_LAST, `Some(-1)` for KEEP_ALL, if announced.
+    pub history_depth: Option<i32>,
+    /// Durability, if announced.
+    pub durability: Option<Durability>,
+    /// Whether it carries XTypes type information (Cyclone 0.10.2 peers crash on 11.x's).
+    pub has_type_information: bool,
+}
+
+/// Watches discovery: the endpoints other participants (and this one) announce.
+#[derive(Debug)]
+pub struct DiscoveryMonitor {
+    publications: ffi::Entity,
+    subscriptions: ffi::Entity,
+    own_guid: [u8; 16],
+    participant: Arc<ParticipantInner>,
+}
+
+impl Participant {
+    /// Starts watching discovery (builtin DCPSPublication / DCPSSubscription topics).
+    pub fn discovery(&self) -> Result<DiscoveryMonitor> {
+        let own_guid = ffi::guid(self.inner.entity)?;
+        let publications = ffi::create_builtin_endpoint_reader(self.inner.entity, true)?;
+        let subscriptions = match ffi::create_builtin_endpoint_reader(self.inner.entity, false) {
+            Ok(s) => s,
+            Err(e) => {
+                ffi::delete(publications);
+                return Err(e);
+            }
+        };
+        Ok(DiscoveryMonitor { publications, subscriptions, own_guid, participant: self.inner.clone() })
+    }
+}
+
+impl DiscoveryMonitor {
+    /// Every endpoint currently alive in discovery.
+    pub fn endpoints(&self) -> Result<Vec<DiscoveredEndpoint>> {
+        let mut out = Vec::new();
+        for (kind, reader) in
+            [(EndpointKind::Publication, self.publications), (EndpointKind::Subscription, self.subscriptions)]
+        {
+            for e in ffi::read_endpoints(reader)? {
+                out.push(DiscoveredEndpoint {
+                    kind,
+                    guid: e.key,
+                    participant_guid: e.participant_key,
+                    local: e.participant_key == self.own_guid,
+                    topic_name: e.topic_name,
+                    type_name: e.type_name,
+                    reliability: e.reliability.map(|r| if r { Reliability::Reliable } else { Reliability::BestEffort }),
+                    history_depth: e.history_keep_last.map(|(keep_last, d)| if keep_last { d } else { -1 }),
+                    durability: e.durability.map(|d| match d {
+                        0 => Durability::Volatile,
+                        1 => Durability::TransientLocal,
+                        2 => Durability::Transient,
+                        _ => Durability::Persistent,
+                    }),
+                    has_type_information: e.has_type_info,
+                });
+            }
+        }
+        Ok(out)
+    }
+
+    /// Waits until `pred` holds for some endpoint; returns it, or `None` on timeout.
+    pub fn wait_for<F>(&self, timeout: Duration, mut pred: F) -> Result<Option<DiscoveredEndpoint>>
+    where
+        F: FnMut(&DiscoveredEndpoint) -> bool,
+    {
+        let deadline = Instant::now() + timeout;
+        loop {
+            if let Some(e) = self.endpoints()?.into_iter().find(|e| pred(e)) {
+                return Ok(Some(e));
+            }
+            if Instant::now() >= deadline {
+                return Ok(None);
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
+    /// The participant it belongs to.
+    pub fn participant_config(&self) -> &DomainConfig {
+        &self.participant.config
+    }
+}
+
+impl Drop for DiscoveryMonitor {
+    fn drop(&mut self) {
+        ffi::delete(self.publications);
+        ffi::delete(self.subscriptions);
     }
 }

@@ -8,7 +8,7 @@
 mod common;
 
 use common::*;
-use dds_transport::{topics::Family, DomainConfig, Participant, TopicSpec};
+use dds_transport::{topics::Family, DomainConfig, Durability, EndpointKind, Participant, Reliability, TopicSpec};
 use std::process::Command;
 use std::time::{Duration, Instant};
 
@@ -21,6 +21,7 @@ fn c010_peer_exchanges_lowcmd_and_lowstate_both_ways() {
     let cmd_w = p.writer(&TopicSpec::lowcmd(Family::Hg)).expect("writer");
     let state_r = p.reader(&TopicSpec::lowstate(Family::Hg)).expect("reader");
 
+    let discovery = p.discovery().expect("discovery");
     let peer = Proc::spawn(Command::new(&peer_bin).arg(DOMAIN.to_string()).arg("lo").arg("6"));
 
     assert!(cmd_w.wait_for_readers(1, Duration::from_secs(5)).expect("status"), "0.10.2 reader never matched our writer");
@@ -52,6 +53,30 @@ fn c010_peer_exchanges_lowcmd_and_lowstate_both_ways() {
         assert_eq!(hg_lowstate_q(&echoed.data, i), Some(q(i)), "motor {i} q echoed");
     }
     assert_eq!(hg_lowstate_reserve(&echoed.data, 1), Some(0xC0FFEE), "crc echoed");
+
+    // Unitree-style endpoints on 0.10.2 (default QoS): what Unitree's SDK announces.
+    let find = |kind: EndpointKind, topic: &str| {
+        discovery
+            .wait_for(Duration::from_secs(5), |e| !e.local && e.kind == kind && e.topic_name == topic)
+            .expect("endpoints")
+            .unwrap_or_else(|| {
+                let seen: Vec<_> = discovery
+                    .endpoints()
+                    .unwrap_or_default()
+                    .into_iter()
+                    .map(|e| (e.kind, e.topic_name, e.local))
+                    .collect();
+                panic!("0.10.2 {kind:?} on {topic} not announced; seen: {seen:?}")
+            })
+    };
+    let peer_reader = find(EndpointKind::Subscription, "rt/lowcmd");
+    assert_eq!(peer_reader.reliability, Some(Reliability::BestEffort));
+    assert_eq!(peer_reader.history_depth, Some(1));
+    let peer_writer = find(EndpointKind::Publication, "rt/lowstate");
+    assert_eq!(peer_writer.reliability, Some(Reliability::Reliable));
+    assert_eq!(peer_writer.history_depth, Some(1));
+    assert_eq!(peer_writer.durability, Some(Durability::Volatile));
+    eprintln!("0.10.2 endpoints carry type information: {}", peer_writer.has_type_information);
 
     let (code, out, err) = peer.wait(Duration::from_secs(15));
     let all = format!("{out}\n{err}");

@@ -57,3 +57,26 @@ fn safety_rule_enforced() {
     // Same configuration: shared.
     let _c = Participant::new(DomainConfig::loopback(173)).expect("second participant");
 }
+
+#[test]
+fn discovery_shows_our_endpoints_without_type_information() {
+    use dds_transport::{Durability, EndpointKind, Reliability};
+    let p = Participant::new(DomainConfig::loopback(174)).expect("participant");
+    let mon = p.discovery().expect("discovery");
+    let _w = p.writer(&TopicSpec::lowstate(Family::Hg)).expect("writer");
+    let _r = p.reader(&TopicSpec::lowcmd(Family::Hg)).expect("reader");
+    let w = mon
+        .wait_for(Duration::from_secs(3), |e| e.kind == EndpointKind::Publication && e.topic_name == "rt/lowstate")
+        .expect("read")
+        .expect("our writer is announced");
+    assert!(w.local);
+    assert_eq!(w.type_name, "unitree_hg::msg::dds_::LowState_");
+    assert!(!w.has_type_information);
+    assert_eq!((w.reliability, w.history_depth, w.durability), (Some(Reliability::Reliable), Some(1), Some(Durability::Volatile)));
+    let r = mon
+        .wait_for(Duration::from_secs(3), |e| e.kind == EndpointKind::Subscription && e.topic_name == "rt/lowcmd")
+        .expect("read")
+        .expect("our reader is announced");
+    assert!(!r.has_type_information);
+    assert_eq!((r.reliability, r.history_depth), (Some(Reliability::BestEffort), Some(1)));
+}

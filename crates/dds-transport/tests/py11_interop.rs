@@ -87,3 +87,36 @@ fn py11_typed_writer_to_our_reader() {
         assert_eq!(q34, (0.5f64 + 0.01 * 34.0) as f32);
     }
 }
+
+/// What a Cyclone 11 peer sees of our endpoints in discovery: Unitree's QoS and no XTypes type
+/// information, while its own typed control writer does carry type information.
+#[test]
+fn our_endpoints_advertise_unitree_qos_and_no_type_information() {
+    let domain = 168;
+    let p = Participant::new(DomainConfig::loopback(domain)).expect("participant");
+    let _w = p.writer(&TopicSpec::lowcmd(Family::Hg)).expect("writer");
+    let _r = p.reader(&TopicSpec::lowstate(Family::Hg)).expect("reader");
+    let (ok, out, err) =
+        run_with_timeout(py_peer().args(["discover", "--domain", &domain.to_string(), "--seconds", "3"]), Duration::from_secs(20));
+    assert!(ok, "{out}\n{err}");
+    let eps: Vec<serde_json::Value> = json_lines(&out).into_iter().filter(|v| v["event"] == "endpoint").collect();
+    let find = |kind: &str, topic: &str, local: bool| {
+        eps.iter()
+            .find(|e| e["kind"] == kind && e["topic"] == topic && e["local"] == local)
+            .unwrap_or_else(|| panic!("no {kind} {topic} local={local} in:\n{out}"))
+            .clone()
+    };
+    let w = find("publication", "rt/lowcmd", false);
+    assert_eq!(w["type"], "unitree_hg::msg::dds_::LowCmd_");
+    assert_eq!(w["has_type_info"], false, "{w}");
+    assert!(w["qos"]["reliability"].as_str().unwrap_or("").contains("Reliable"), "{w}");
+    assert_eq!(w["qos"]["history"], "Policy.History.KeepLast(depth=1)");
+    assert_eq!(w["qos"]["durability"], "Policy.Durability.Volatile");
+    let r = find("subscription", "rt/lowstate", false);
+    assert_eq!(r["type"], "unitree_hg::msg::dds_::LowState_");
+    assert_eq!(r["has_type_info"], false, "{r}");
+    assert_eq!(r["qos"]["reliability"], "Policy.Reliability.BestEffort");
+    assert_eq!(r["qos"]["history"], "Policy.History.KeepLast(depth=1)");
+    // Control: the peer's own typed writer carries type information, so the check can fail.
+    assert_eq!(find("publication", "rt/lowcmd", true)["has_type_info"], true);
+}

@@ -23,7 +23,8 @@ pub mod mujoco;
 pub mod rapier_common;
 #[cfg(feature = "rapier")]
 pub mod rapier_multibody;
-// pub mod rapier_impulse;
+#[cfg(feature = "rapier")]
+pub mod rapier_impulse;
 
 pub use engine::{
     CommonSettings, Contact, Energy, Engine, EngineError, EngineKind, LinkPose, State,
@@ -42,8 +43,8 @@ pub fn make_engine(
         EngineKind::Mujoco => Ok(Box::new(mujoco::MujocoEngine::new(model, common, &mujoco::MujocoSettings::default())?)),
         #[cfg(feature = "rapier")]
         EngineKind::RapierMultibody => Ok(Box::new(rapier_multibody::RapierMultibodyEngine::new(model, common, &Default::default())?)),
-        // #[cfg(feature = "rapier")]
-        // EngineKind::RapierImpulse => Ok(Box::new(rapier_impulse::RapierImpulseEngine::new(model, common, &Default::default())?)),
+        #[cfg(feature = "rapier")]
+        EngineKind::RapierImpulse => Ok(Box::new(rapier_impulse::RapierImpulseEngine::new(model, common, &Default::default())?)),
         #[allow(unreachable_patterns)]
         other => Err(EngineError::Unavailable(other.name().to_string())),
     }

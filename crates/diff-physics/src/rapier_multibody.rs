@@ -103,7 +103,7 @@ impl RapierMultibodyEngine {
         let mut offsets = vec![Vector3::zeros(); model.links.len()];
         offsets[0] = model.links[0].inertial.com;
         let mut world = new_world(common, &settings.solver);
-        let robot = add_robot(&mut world, model, common, &fk.link_poses, offsets, &[])?;
+        let robot = add_robot(&mut world, model, common, &fk.link_poses, offsets, &[], true)?;
 
         // Insert joints in link order (parents before children).
         for link in model.links.iter().skip(1) {
@@ -150,6 +150,13 @@ impl RapierMultibodyEngine {
         };
         engine.configure_and_set(state)?;
         Ok(engine)
+    }
+
+    /// One bare `PhysicsWorld::step` (no state conversion, no torque update: the body torques of the previous
+    /// [`Engine::step`] persist). For measuring the overhead of the `Engine` layer only.
+    pub fn step_raw(&mut self) {
+        self.world.step();
+        self.time += self.common.timestep;
     }
 
     fn multibody(&self) -> Result<&Multibody, EngineError> {

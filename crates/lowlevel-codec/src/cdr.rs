@@ -44,13 +44,6 @@ impl Representation {
         }
     }
 
-    /// Largest alignment applied to any primitive.
-    const fn max_align(self) -> usize {
-        match self {
-            Representation::Xcdr1 => 8,
-            Representation::Xcdr2 => 4,
-        }
-    }
 }
 
 /// Byte order of the payload.
@@ -142,7 +135,7 @@ pub enum DecodeError {
     BadDheader { member: &'static str, offset: usize, declared: u32, actual: usize },
     #[error("header declares {padding} padding bytes, more than the {payload} payload bytes")]
     BadPadding { padding: usize, payload: usize },
-    #[error("{count} trailing bytes after the message (payload offset {offset})")]
+    #[error("{count} trailing byte(s) after the message (payload offset {offset})")]
     TrailingBytes { offset: usize, count: usize },
 }
 
@@ -166,11 +159,11 @@ pub fn encode<T: IdlStruct>(value: &T, encoding: Encoding) -> Vec<u8> {
 pub fn encode_into<T: IdlStruct>(value: &T, encoding: Encoding, out: &mut Vec<u8>) {
     out.extend_from_slice(&encoding.header());
     let origin = out.len();
-    let xcdr2 = encoding.representation == Representation::Xcdr2;
-    let max_align = encoding.representation.max_align();
-    match encoding.endianness {
-        Endianness::Little => value.walk(&mut Writer::<false> { out, origin, xcdr2, max_align }),
-        Endianness::Big => value.walk(&mut Writer::<true> { out, origin, xcdr2, max_align }),
+    match (encoding.endianness, encoding.representation) {
+        (Endianness::Little, Representation::Xcdr1) => value.walk(&mut Writer::<false, false> { out, origin }),
+        (Endianness::Little, Representation::Xcdr2) => value.walk(&mut Writer::<false, true> { out, origin }),
+        (Endianness::Big, Representation::Xcdr1) => value.walk(&mut Writer::<true, false> { out, origin }),
+        (Endianness::Big, Representation::Xcdr2) => value.walk(&mut Writer::<true, true> { out, origin }),
     }
 }
 
@@ -186,20 +179,12 @@ pub fn decode<T: IdlStruct>(bytes: &[u8]) -> Result<Decoded<T>, DecodeError> {
         return Err(DecodeError::BadPadding { padding, payload: payload.len() });
     };
     let body = &payload[..body_len];
-    let xcdr2 = encoding.representation == Representation::Xcdr2;
-    let max_align = encoding.representation.max_align();
     let mut value = T::zeroed();
-    let consumed = match encoding.endianness {
-        Endianness::Little => {
-            let mut r = Reader::<false> { buf: body, pos: 0, xcdr2, max_align };
-            value.walk_mut(&mut r)?;
-            r.pos
-        }
-        Endianness::Big => {
-            let mut r = Reader::<true> { buf: body, pos: 0, xcdr2, max_align };
-            value.walk_mut(&mut r)?;
-            r.pos
-        }
+    let consumed = match (encoding.endianness, encoding.representation) {
+        (Endianness::Little, Representation::Xcdr1) => read_into::<T, false, false>(body, &mut value)?,
+        (Endianness::Little, Representation::Xcdr2) => read_into::<T, false, true>(body, &mut value)?,
+        (Endianness::Big, Representation::Xcdr1) => read_into::<T, true, false>(body, &mut value)?,
+        (Endianness::Big, Representation::Xcdr2) => read_into::<T, true, true>(body, &mut value)?,
     };
     if consumed != body.len() {
         return Err(DecodeError::TrailingBytes { offset: consumed, count: body.len() - consumed });
@@ -212,20 +197,23 @@ pub fn encoded_len<T: IdlStruct>(value: &T, representation: Representation) -> u
     encode(value, Encoding { representation, endianness: Endianness::Little }).len() - HEADER_LEN
 }
 
-struct Writer<'o, const BIG: bool> {
+/// Encoding cursor; byte order and representation are type parameters (see `Reader`).
+struct Writer<'o, const BIG: bool, const V2: bool> {
     out: &'o mut Vec<u8>,
     origin: usize,
-    xcdr2: bool,
-    max_align: usize,
 }
 
-impl<const BIG: bool> Writer<'_, BIG> {
+impl<const BIG: bool, const V2: bool> Writer<'_, BIG, V2> {
+    const MAX_ALIGN: usize = if V2 { 4 } else { 8 };
+
     #[inline(always)]
     fn align(&mut self, size: usize) {
-        let align = size.min(self.max_align);
+        let align = if size < Self::MAX_ALIGN { size } else { Self::MAX_ALIGN };
         let pos = self.out.len() - self.origin;
-        let padded = align_up(pos, align);
-        self.out.resize(self.origin + padded, 0);
+        let pad = align_up(pos, align) - pos;
+        if pad != 0 {
+            self.out.extend_from_slice(&[0u8; 8][..pad]);
+        }
     }
 
     #[inline(always)]
@@ -257,7 +245,7 @@ impl<const BIG: bool> Writer<'_, BIG> {
     }
 }
 
-impl<const BIG: bool> Visitor for Writer<'_, BIG> {
+impl<const BIG: bool, const V2: bool> Visitor for Writer<'_, BIG, V2> {
     #[inline(always)]
     fn primitive<P: Primitive>(&mut self, _name: &'static str, value: &P) {
         self.align(P::SIZE);
@@ -279,7 +267,7 @@ impl<const BIG: bool> Visitor for Writer<'_, BIG> {
     }
 
     fn struct_array<S: IdlStruct>(&mut self, _name: &'static str, items: &[S]) {
-        if self.xcdr2 {
+        if V2 {
             let start = self.begin_dheader();
             items.iter().for_each(|item| item.walk(self));
             self.end_dheader(start);
@@ -291,7 +279,7 @@ impl<const BIG: bool> Visitor for Writer<'_, BIG> {
     fn struct_sequence<S: IdlStruct>(&mut self, _name: &'static str, items: &[S]) {
         // Lengths beyond u32 cannot be expressed in CDR; nothing in the SDK comes close.
         let count = u32::try_from(items.len()).unwrap_or(u32::MAX);
-        if self.xcdr2 {
+        if V2 {
             let start = self.begin_dheader();
             self.put_u32(count);
             items.iter().for_each(|item| item.walk(self));
@@ -303,29 +291,41 @@ impl<const BIG: bool> Visitor for Writer<'_, BIG> {
     }
 }
 
-struct Reader<'b, const BIG: bool> {
-    buf: &'b [u8],
-    pos: usize,
-    xcdr2: bool,
-    max_align: usize,
+/// Decodes `body` into `value`; returns the bytes consumed.
+fn read_into<T: IdlStruct, const BIG: bool, const V2: bool>(body: &[u8], value: &mut T) -> Result<usize, DecodeError> {
+    let mut r = Reader::<BIG, V2> { buf: body, pos: 0 };
+    value.walk_mut(&mut r)?;
+    Ok(r.pos)
 }
 
-impl<const BIG: bool> Reader<'_, BIG> {
+/// Decoding cursor; byte order and representation are type parameters so that alignment
+/// masks and byte swaps fold into constants on the hot path.
+struct Reader<'b, const BIG: bool, const V2: bool> {
+    buf: &'b [u8],
+    pos: usize,
+}
+
+#[cold]
+#[inline(never)]
+fn truncated(member: &'static str, start: usize, len: usize, buf_len: usize) -> DecodeError {
+    DecodeError::Truncated { member, offset: start.min(buf_len), needed: len, available: buf_len.saturating_sub(start) }
+}
+
+impl<const BIG: bool, const V2: bool> Reader<'_, BIG, V2> {
+    const MAX_ALIGN: usize = if V2 { 4 } else { 8 };
+
     /// Aligns and returns the next `len` bytes.
     #[inline(always)]
     fn take(&mut self, member: &'static str, align: usize, len: usize) -> Result<&[u8], DecodeError> {
-        let start = align_up(self.pos, align.min(self.max_align));
-        match self.buf.get(start..start.saturating_add(len)) {
-            Some(bytes) => {
-                self.pos = start + len;
-                Ok(bytes)
-            }
-            None => Err(DecodeError::Truncated {
-                member,
-                offset: start.min(self.buf.len()),
-                needed: len,
-                available: self.buf.len().saturating_sub(start),
-            }),
+        let align = if align < Self::MAX_ALIGN { align } else { Self::MAX_ALIGN };
+        let start = align_up(self.pos, align);
+        // `pos` never exceeds `buf.len()`, so `start + len` cannot overflow for in-memory lengths.
+        let end = start + len;
+        if end <= self.buf.len() {
+            self.pos = end;
+            Ok(&self.buf[start..end])
+        } else {
+            Err(truncated(member, start, len, self.buf.len()))
         }
     }
 
@@ -364,7 +364,7 @@ impl<const BIG: bool> Reader<'_, BIG> {
     }
 }
 
-impl<const BIG: bool> VisitorMut for Reader<'_, BIG> {
+impl<const BIG: bool, const V2: bool> VisitorMut for Reader<'_, BIG, V2> {
     type Error = DecodeError;
 
     #[inline(always)]
@@ -389,7 +389,7 @@ impl<const BIG: bool> VisitorMut for Reader<'_, BIG> {
     }
 
     fn struct_array<S: IdlStruct>(&mut self, name: &'static str, items: &mut [S]) -> Result<(), DecodeError> {
-        if self.xcdr2 {
+        if V2 {
             let offset = align_up(self.pos, 4);
             let declared = self.u32(name)?;
             let start = self.pos;
@@ -403,7 +403,7 @@ impl<const BIG: bool> VisitorMut for Reader<'_, BIG> {
     }
 
     fn struct_sequence<S: IdlStruct>(&mut self, name: &'static str, items: &mut Vec<S>) -> Result<(), DecodeError> {
-        let dheader = if self.xcdr2 { Some((align_up(self.pos, 4), self.u32(name)?, 0)) } else { None };
+        let dheader = if V2 { Some((align_up(self.pos, 4), self.u32(name)?, 0)) } else { None };
         let dheader = dheader.map(|(offset, declared, _)| (offset, declared, self.pos));
         let offset = align_up(self.pos, 4);
         let count = self.u32(name)?;

@@ -5,8 +5,8 @@
 //! Unitree's C++ SDK hashes the padding bytes as they happen to lie in memory; we always zero
 //! them, which is what a freshly value-initialised C++ message also has.
 //!
-//! [`crc32_words`] is table-driven (slicing-by-16 on whole words); [`crc32_reference`] is the
-//! bit-serial definition, kept to test it against.
+//! [`crc32_words`] is the fast one (carry-less multiply via `crc-fast`); [`crc32_reference`] is
+//! the bit-serial definition, kept to test it against.
 
 use unitree_idl::{align_up, go, hg, Field, IdlStruct, Primitive, Visitor};
 
@@ -30,56 +30,23 @@ pub fn crc32_reference(image: &[u8]) -> u32 {
     crc
 }
 
-/// `TABLES[k][b]`: the CRC register after byte `b` followed by `k` zero bytes (MSB-first).
-static TABLES: [[u32; 256]; 16] = make_tables();
-
-const fn make_tables() -> [[u32; 256]; 16] {
-    let mut t = [[0u32; 256]; 16];
-    let mut b = 0;
-    while b < 256 {
-        let mut crc = (b as u32) << 24;
-        let mut i = 0;
-        while i < 8 {
-            crc = if crc & 0x8000_0000 != 0 { (crc << 1) ^ POLY } else { crc << 1 };
-            i += 1;
-        }
-        t[0][b] = crc;
-        b += 1;
-    }
-    let mut k = 1;
-    while k < 16 {
-        let mut b = 0;
-        while b < 256 {
-            let prev = t[k - 1][b];
-            t[k][b] = (prev << 8) ^ t[0][(prev >> 24) as usize];
-            b += 1;
-        }
-        k += 1;
-    }
-    t
-}
-
-#[inline(always)]
-fn slice4(word: u32, base: usize) -> u32 {
-    TABLES[base + 3][(word >> 24) as usize]
-        ^ TABLES[base + 2][((word >> 16) & 0xff) as usize]
-        ^ TABLES[base + 1][((word >> 8) & 0xff) as usize]
-        ^ TABLES[base][(word & 0xff) as usize]
-}
-
-/// Table-driven CRC over whole little-endian words (slicing-by-16: four words per step).
-/// Equal to [`crc32_reference`] for every input.
+/// Fast CRC over whole little-endian words: Unitree's CRC is CRC-32/MPEG-2 of the image with
+/// each word byte-swapped, so the words are swapped in a small stack buffer and streamed through
+/// `crc-fast` (carry-less multiply folding on x86_64/aarch64, tables elsewhere).
+/// Equal to [`crc32_reference`] for every input (a trailing partial word is ignored).
 pub fn crc32_words(image: &[u8]) -> u32 {
-    let mut crc = SEED;
-    let mut blocks = image.chunks_exact(16);
-    for block in &mut blocks {
-        let w = |i: usize| u32::from_le_bytes([block[i], block[i + 1], block[i + 2], block[i + 3]]);
-        crc = slice4(crc ^ w(0), 12) ^ slice4(w(4), 8) ^ slice4(w(8), 4) ^ slice4(w(12), 0);
+    const CHUNK: usize = 512;
+    let mut digest = crc_fast::Digest::new(crc_fast::CrcAlgorithm::Crc32Mpeg2);
+    let mut swapped = [0u8; CHUNK];
+    let whole = image.len() & !3;
+    for chunk in image[..whole].chunks(CHUNK) {
+        let out = &mut swapped[..chunk.len()];
+        for (dst, src) in out.chunks_exact_mut(4).zip(chunk.chunks_exact(4)) {
+            dst.copy_from_slice(&[src[3], src[2], src[1], src[0]]);
+        }
+        digest.update(out);
     }
-    for word in blocks.remainder().chunks_exact(4) {
-        crc = slice4(crc ^ u32::from_le_bytes([word[0], word[1], word[2], word[3]]), 0);
-    }
-    crc
+    digest.finalize() as u32
 }
 
 /// The C struct image of `value`: members at their natural alignment, structs padded to their
@@ -88,26 +55,30 @@ pub fn crc32_words(image: &[u8]) -> u32 {
 /// Sequences have no flat image (they are `std::vector` in C++) and are skipped; no type that
 /// carries a CRC contains one.
 pub fn c_image<T: IdlStruct>(value: &T) -> Vec<u8> {
-    let mut writer = CImage { out: Vec::with_capacity(T::C_SIZE) };
+    // Zeroed up front: padding is whatever is not written.
+    let mut writer = CImage { out: vec![0; T::C_SIZE], pos: 0 };
     value.walk(&mut writer);
-    writer.pad_to(T::C_ALIGN);
     writer.out
 }
 
 struct CImage {
     out: Vec<u8>,
+    pos: usize,
 }
 
 impl CImage {
     #[inline(always)]
     fn pad_to(&mut self, align: usize) {
-        let len = align_up(self.out.len(), align);
-        self.out.resize(len, 0);
+        self.pos = align_up(self.pos, align);
     }
     #[inline(always)]
     fn put<P: Primitive>(&mut self, value: P) {
         let bytes = value.to_bits().to_le_bytes();
-        self.out.extend_from_slice(&bytes[..P::SIZE]);
+        // Offsets come from the type's own layout, which C_SIZE was computed from.
+        if let Some(dst) = self.out.get_mut(self.pos..self.pos + P::SIZE) {
+            dst.copy_from_slice(&bytes[..P::SIZE]);
+        }
+        self.pos += P::SIZE;
     }
 }
 

@@ -13,6 +13,7 @@
 
 pub mod cdr;
 pub mod crc;
+pub mod fuzzing;
 pub mod json;
 pub mod validate;
 

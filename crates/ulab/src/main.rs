@@ -19,12 +19,24 @@ struct Cli {
 enum Command {
     /// Encode, decode and checksum SDK2 low-level messages (CDR with encapsulation header).
     Codec(cmd::codec::Args),
+    /// Record DDS topics (rt/lowcmd, rt/lowstate, ...) into an MCAP file.
+    Record(cmd::record::Args),
+    /// Republish an MCAP recording over DDS with its original timing.
+    Replay(cmd::replay::Args),
+    /// Inspect and export MCAP recordings (CSV).
+    Log(cmd::log::Args),
+    /// The robot model in several physics engines: oracles (check), mass matrix dumps (inspect), MJCF export.
+    Model(cmd::model::Args),
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Codec(args) => cmd::codec::run(args),
+        Command::Record(args) => cmd::record::run(args),
+        Command::Replay(args) => cmd::replay::run(args),
+        Command::Log(args) => cmd::log::run(args),
+        Command::Model(args) => cmd::model::run(args),
     };
     match result {
         Ok(code) => code,

@@ -85,7 +85,7 @@ def inertia(quat, diag):
 
 
 def g(v):
-    return "%.10g" % (v + 0.0 if v != 0 else 0.0)
+    return "%.15g" % (v + 0.0 if v != 0 else 0.0)
 
 
 def vec(v):

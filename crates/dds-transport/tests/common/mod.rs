@@ -104,6 +104,11 @@ impl Proc {
         }
     }
 
+    /// The process id.
+    pub fn id(&self) -> u32 {
+        self.child.id()
+    }
+
     /// Waits for exit up to `timeout` (then kills). Returns (exit code, stdout, stderr);
     /// exit code None means killed by a signal or by the timeout.
     pub fn wait(mut self, timeout: Duration) -> (Option<i32>, String, String) {

@@ -1,2 +1,7 @@
 //! Subcommands. One module per subcommand; each exposes `Args` and `run(Args) -> anyhow::Result<ExitCode>`.
 pub mod codec;
+pub mod log;
+pub mod model;
+pub mod record;
+pub mod recording;
+pub mod replay;

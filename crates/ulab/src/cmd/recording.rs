@@ -4,7 +4,7 @@
 
 use anyhow::{bail, Context, Result};
 use dds_transport::{DomainConfig, TopicSpec};
-use unitree_idl::{with_message_type, Element, Field, IdlStruct, MessageType, PrimKind, Primitive, Visitor};
+use unitree_idl::{with_message_type, Field, IdlStruct, MessageType, PrimKind, Primitive, Visitor};
 
 /// MCAP metadata key holding the DDS type name of a channel.
 pub const DDS_TYPE_KEY: &str = "dds_type_name";
@@ -27,8 +27,13 @@ impl NetArgs {
     /// The transport configuration, with the safety rule checked.
     pub fn domain_config(&self) -> Result<DomainConfig> {
         let cfg = DomainConfig::loopback(self.domain).interface(self.interface.clone()).allow_robot(self.allow_robot);
-        cfg.validate().context("unsafe or invalid network settings")?;
-        Ok(cfg)
+        match cfg.validate() {
+            Ok(()) => Ok(cfg),
+            Err(e @ dds_transport::Error::RobotNotAllowed { .. }) => {
+                Err(anyhow::Error::new(e).context("network settings refused (pass --allow-robot to reach a real robot)"))
+            }
+            Err(e) => Err(anyhow::Error::new(e).context("invalid network settings")),
+        }
     }
 }
 
@@ -180,11 +185,11 @@ fn prim_text<P: Primitive>(v: &P) -> String {
 /// Collects `(column name, value)` pairs: `motor_state[3].q`, `imu_state.rpy[2]`, ...
 pub struct Flatten {
     prefix: String,
-    pub columns: Vec<(String, String)>,
+    pub columns: Columns,
 }
 
 impl Flatten {
-    pub fn of<T: IdlStruct>(value: &T) -> Vec<(String, String)> {
+    pub fn of<T: IdlStruct>(value: &T) -> Columns {
         let mut f = Flatten { prefix: String::new(), columns: Vec::new() };
         value.walk(&mut f);
         f.columns
@@ -221,8 +226,12 @@ impl Visitor for Flatten {
     }
 }
 
+/// `(column name, value)` pairs of one message.
+pub type Columns = Vec<(String, String)>;
+
 /// Decodes a sample of `kind` and flattens it; also returns its CRC status where it has one.
-pub fn decode_flat(kind: MessageType, bytes: &[u8]) -> Result<(Vec<(String, String)>, Option<bool>), String> {
+/// The error is the codec's explanation of why the bytes do not decode.
+pub fn decode_flat(kind: MessageType, bytes: &[u8]) -> Result<(Columns, Option<bool>), String> {
     with_message_type!(kind, T => {
         match lowlevel_codec::decode::<T>(bytes) {
             Ok(d) => Ok((Flatten::of(&d.value), lowlevel_codec::crc::check_any(&d.value))),

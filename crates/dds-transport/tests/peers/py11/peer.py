@@ -2,9 +2,12 @@
 
 Modes (all on loopback, bounded in time, output on stdout as JSON lines):
   pub-lowcmd   --domain D [--count N] [--rate HZ]       typed hg LowCmd_ on rt/lowcmd
-  pub-lowstate --domain D [--count N] [--rate HZ]       typed hg LowState_ on rt/lowstate, tick += 2
+  pub-lowstate --domain D [--count N] [--rate HZ] [--gap-at I]
+                                                        typed hg LowState_ on rt/lowstate, tick += 2
   echo         --domain D [--seconds S]                 rt/lowcmd in, rt/lowstate out (q echoed)
   sub          --domain D --topic T [--count N] [--seconds S]   prints each sample received
+  discover     --domain D [--seconds S]                 endpoints seen in discovery, with QoS and
+                                                        whether they carry XTypes type information
 Discovery: --sdk uses unitree_sdk2py's ChannelFactoryInitialize(D, "lo") (Unitree's own config);
 otherwise the same unicast settings as our transport (participant index auto, peer 127.0.0.1).
 """
@@ -87,12 +90,18 @@ def pub(args, topic_name):
     emit({"event": "ready", "matched": wait_matched(w, args.match_timeout)})
     period = 1.0 / args.rate
     t0 = time.time()
+    tick_extra = 0
     for i in range(args.count):
+        if i == args.gap_at:
+            # Simulated outage: 0.3 s of silence and 15 samples' worth of ticks lost.
+            time.sleep(0.3)
+            t0 += 0.3
+            tick_extra += 30
         if topic_name == "rt/lowcmd":
             w.write(cmd_pattern(i))
         else:
             s = unitree_hg_msg_dds__LowState_()
-            s.tick = 2 * i + 2
+            s.tick = 2 * i + 2 + tick_extra
             s.mode_machine = 6
             s.motor_state[0].q = 0.001 * i
             s.crc = 5000 + i
@@ -154,9 +163,43 @@ def sub(args):
     emit({"event": "done", "received": n})
 
 
+def qos_text(qos):
+    out = {}
+    for name, policy in (("reliability", Policy.Reliability), ("history", Policy.History), ("durability", Policy.Durability)):
+        try:
+            out[name] = str(qos[policy])
+        except Exception:  # noqa: BLE001 (policy absent: Cyclone default)
+            out[name] = None
+    return out
+
+
+def discover(args):
+    """Lists the endpoints seen through the builtin topics, ours (a typed control writer) included."""
+    from cyclonedds.builtin import BuiltinDataReader, BuiltinTopicDcpsPublication, BuiltinTopicDcpsSubscription
+
+    dp = participant(args)
+    control = DataWriter(dp, Topic(dp, "rt/lowcmd", LowCmd_), qos=WRITER_QOS)  # noqa: F841
+    readers = [("publication", BuiltinDataReader(dp, BuiltinTopicDcpsPublication)),
+               ("subscription", BuiltinDataReader(dp, BuiltinTopicDcpsSubscription))]
+    emit({"event": "ready"})
+    seen = set()
+    end = time.time() + args.seconds
+    while time.time() < end:
+        for kind, r in readers:
+            for e in r.take(N=64):
+                if not hasattr(e, "topic_name") or e.key in seen:
+                    continue
+                seen.add(e.key)
+                emit({"event": "endpoint", "kind": kind, "topic": e.topic_name, "type": e.type_name,
+                      "local": e.participant_key == dp.guid, "has_type_info": e.type_id is not None,
+                      "qos": qos_text(e.qos)})
+        time.sleep(0.02)
+    emit({"event": "done", "endpoints": len(seen)})
+
+
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("mode", choices=["pub-lowcmd", "pub-lowstate", "echo", "sub"])
+    ap.add_argument("mode", choices=["pub-lowcmd", "pub-lowstate", "echo", "sub", "discover"])
     ap.add_argument("--domain", type=int, required=True)
     ap.add_argument("--count", type=int, default=100)
     ap.add_argument("--rate", type=float, default=100.0)
@@ -164,6 +207,7 @@ def main():
     ap.add_argument("--topic", default="rt/lowstate")
     ap.add_argument("--match-timeout", type=float, default=5.0)
     ap.add_argument("--sdk", action="store_true")
+    ap.add_argument("--gap-at", type=int, default=-1, help="pub-lowstate: pause and skip ticks at this sample")
     args = ap.parse_args()
     if args.domain == 0:
         sys.exit("refusing domain 0")
@@ -173,6 +217,8 @@ def main():
         pub(args, "rt/lowstate")
     elif args.mode == "echo":
         echo(args)
+    elif args.mode == "discover":
+        discover(args)
     else:
         sub(args)
 

@@ -1,0 +1,69 @@
+//! `ulab model` end to end (needs the MuJoCo library: `source scripts/env.sh`).
+use std::process::Command;
+
+fn ulab(args: &[&str]) -> (i32, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_ulab")).args(args).output().expect("run ulab");
+    (out.status.code().unwrap_or(-1), String::from_utf8_lossy(&out.stdout).into(), String::from_utf8_lossy(&out.stderr).into())
+}
+
+fn json(s: &str) -> serde_json::Value {
+    serde_json::from_str(s).expect("valid JSON")
+}
+
+#[test]
+fn check_mujoco_passes_and_reports_errors_and_tolerances() {
+    let (code, out, err) = ulab(&["model", "check", "--robot", "h1_2", "--engine", "mujoco", "--format", "json", "--samples", "2"]);
+    assert_eq!(code, 0, "{out}\n{err}");
+    let r = json(&out);
+    assert_eq!(r["engines"][0]["name"], "mujoco");
+    assert_eq!(r["engines"][0]["settings"]["mujoco"]["integrator"], "implicitfast");
+    let checks = r["checks"].as_array().expect("checks");
+    assert!(checks.len() > 20);
+    for c in checks {
+        assert!(c["error"].is_number() && c["tolerance"].is_number(), "{c}");
+        assert_eq!(c["passed"], true, "{c}");
+    }
+}
+
+#[test]
+fn inspect_mujoco_equals_the_reference_mass_matrix() {
+    let m = |engine: &str| {
+        let (code, out, err) = ulab(&["model", "inspect", "--robot", "h1_2", "--engine", engine, "--q", "random:5", "--format", "json"]);
+        assert_eq!(code, 0, "{err}");
+        json(&out)
+    };
+    let (a, b) = (m("mujoco"), m("reference"));
+    for v in [&a, &b] {
+        assert_eq!(v["nq"], 34);
+        assert_eq!(v["nv"], 33);
+        // Sum of the 28 body masses in Unitree's published MJCF.
+        assert!((v["total_mass"].as_f64().expect("mass") - 66.984).abs() < 1e-9);
+        assert_eq!(v["mass_matrix"].as_array().expect("rows").len(), 33);
+    }
+    let flat = |v: &serde_json::Value| -> Vec<f64> {
+        v["mass_matrix"].as_array().expect("rows").iter().flat_map(|r| r.as_array().expect("row").iter().map(|x| x.as_f64().expect("f64"))).collect()
+    };
+    let (ma, mb) = (flat(&a), flat(&b));
+    let norm = mb.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let diff = ma.iter().zip(&mb).map(|(x, y)| (x - y) * (x - y)).sum::<f64>().sqrt();
+    assert!(diff / norm < 1e-9, "MuJoCo vs reference mass matrix: {}", diff / norm);
+    for i in 0..33 {
+        for j in 0..33 {
+            assert!((ma[i * 33 + j] - ma[j * 33 + i]).abs() < 1e-12);
+        }
+    }
+    let com_a: Vec<f64> = a["com"].as_array().expect("com").iter().map(|x| x.as_f64().expect("f")).collect();
+    let com_b: Vec<f64> = b["com"].as_array().expect("com").iter().map(|x| x.as_f64().expect("f")).collect();
+    assert!(com_a.iter().zip(&com_b).all(|(x, y)| (x - y).abs() < 1e-9));
+}
+
+#[test]
+fn bad_arguments_are_errors() {
+    let (code, _, err) = ulab(&["model", "inspect", "--robot", "h1_2", "--engine", "mujoco", "--q", "bogus"]);
+    assert_eq!(code, 2);
+    assert!(err.contains("random:SEED"), "{err}");
+    let (code, _, err) = ulab(&["model", "inspect", "--robot", "nope", "--engine", "mujoco"]);
+    assert_eq!(code, 2, "{err}");
+    let (code, _, err) = ulab(&["model", "check", "--engine", "bullet"]);
+    assert_eq!(code, 2, "{err}");
+}

@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# Builds and runs the fuzz targets on stable Rust without cargo-fuzz: the same sanitizer-coverage
+# instrumentation cargo-fuzz asks rustc for (`-s none`: no address sanitizer, which needs nightly).
+#   scripts/fuzz.sh build               build every target
+#   scripts/fuzz.sh run TARGET SECONDS  fuzz TARGET from its seed corpus for SECONDS
+#   scripts/fuzz.sh smoke SECONDS       run every target for SECONDS each (CI)
+# New crashes land in fuzz/artifacts/TARGET/; copy minimized ones to corpus/regressions/TARGET/.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+TARGETS=(decode_any crc roundtrip)
+export RUSTFLAGS="--cfg fuzzing -Cpasses=sancov-module -Cllvm-args=-sanitizer-coverage-level=4 \
+-Cllvm-args=-sanitizer-coverage-inline-8bit-counters -Cllvm-args=-sanitizer-coverage-pc-table \
+-Cllvm-args=-sanitizer-coverage-trace-compares -Cdebug-assertions -Coverflow-checks"
+BIN=fuzz/target/x86_64-unknown-linux-gnu/release
+
+build() { cargo build --quiet --release --manifest-path fuzz/Cargo.toml --target x86_64-unknown-linux-gnu --bins; }
+
+run() {
+  local target=$1 seconds=$2 work
+  work=$(mktemp -d)
+  mkdir -p "fuzz/artifacts/$target"
+  # Work corpus in a temp dir: the committed seeds and regressions are only read.
+  "$BIN/$target" -max_total_time="$seconds" -print_final_stats=1 -artifact_prefix="fuzz/artifacts/$target/" \
+    "$work" "corpus/fuzz/$target" "corpus/regressions/$target" 2>&1 | grep -E "^(#[0-9]+.*DONE|stat::number_of_executed_units|==[0-9]+==|SUMMARY)" || true
+  local status=${PIPESTATUS[0]}
+  rm -rf "$work"
+  return "$status"
+}
+
+case "${1:-}" in
+  build) build ;;
+  run) build; run "$2" "$3" ;;
+  smoke)
+    build
+    for t in "${TARGETS[@]}"; do echo "fuzz: $t for ${2}s"; run "$t" "$2"; done ;;
+  *) echo "usage: $0 build | run TARGET SECONDS | smoke SECONDS" >&2; exit 2 ;;
+esac

@@ -1,0 +1,16 @@
+#!/usr/bin/env bash
+# The project's test command: installs what a fresh machine lacks (scripts/setup.sh), then runs
+# every test of the workspace (unit, golden-byte, property, snapshot, fuzz-regression, engine,
+# DDS interop), then builds the fuzz targets on stable and runs each briefly.
+#   ULAB_FUZZ_SECONDS=0 skips the fuzz smoke run (default 20 s per target).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/setup.sh
+source scripts/env.sh
+export CARGO_TERM_COLOR=never
+# Snapshot tests must fail on a mismatch, never write new snapshots.
+export INSTA_UPDATE=no
+cargo test --workspace --locked
+if [ "${ULAB_FUZZ_SECONDS:-20}" != 0 ]; then
+  bash scripts/fuzz.sh smoke "${ULAB_FUZZ_SECONDS:-20}"
+fi
