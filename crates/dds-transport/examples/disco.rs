@@ -9,7 +9,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // With ULAB_DISCO_ENDPOINTS set, our own LowCmd writer / LowState reader exist first.
     let _own = if std::env::var_os("ULAB_DISCO_ENDPOINTS").is_some() {
         let fam = dds_transport::Family::Hg;
-        Some((p.writer(&dds_transport::TopicSpec::lowcmd(fam))?, p.reader(&dds_transport::TopicSpec::lowstate(fam))?))
+        Some((
+            p.writer(&dds_transport::TopicSpec::lowcmd(fam))?,
+            p.reader(&dds_transport::TopicSpec::lowstate(fam))?,
+        ))
     } else {
         None
     };
@@ -18,7 +21,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for e in mon.endpoints()? {
         println!(
             "{:?} {} {} local={} type_info={} {:?} depth={:?} {:?}",
-            e.kind, e.topic_name, e.type_name, e.local, e.has_type_information, e.reliability, e.history_depth, e.durability
+            e.kind,
+            e.topic_name,
+            e.type_name,
+            e.local,
+            e.has_type_information,
+            e.reliability,
+            e.history_depth,
+            e.durability
         );
     }
     Ok(())

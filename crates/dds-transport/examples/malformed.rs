@@ -16,11 +16,32 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ("header only", vec![0, 1, 0, 0]),
         ("truncated 100", good[..100].to_vec()),
         ("truncated 1003", good[..1003].to_vec()),
-        ("oversize 4000", { let mut v = good.clone(); v.resize(4000, 0xAB); v }),
-        ("xcdr2 header", { let mut v = good.clone(); v[1] = 7; v }),
-        ("big endian", { let mut v = good.clone(); v[1] = 0; v }),
-        ("unknown encapsulation", { let mut v = good.clone(); v[0] = 0x55; v[1] = 0x55; v }),
-        ("pl_cdr", { let mut v = good.clone(); v[1] = 3; v }),
+        ("oversize 4000", {
+            let mut v = good.clone();
+            v.resize(4000, 0xAB);
+            v
+        }),
+        ("xcdr2 header", {
+            let mut v = good.clone();
+            v[1] = 7;
+            v
+        }),
+        ("big endian", {
+            let mut v = good.clone();
+            v[1] = 0;
+            v
+        }),
+        ("unknown encapsulation", {
+            let mut v = good.clone();
+            v[0] = 0x55;
+            v[1] = 0x55;
+            v
+        }),
+        ("pl_cdr", {
+            let mut v = good.clone();
+            v[1] = 3;
+            v
+        }),
         ("garbage", (0..1004u32).map(|i| (i * 37 % 256) as u8).collect()),
         ("good", good.clone()),
     ];

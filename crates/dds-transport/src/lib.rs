@@ -76,7 +76,10 @@ pub struct WriterQos {
 
 impl Default for WriterQos {
     fn default() -> Self {
-        Self { reliability: Reliability::Reliable, history_depth: 1 }
+        Self {
+            reliability: Reliability::Reliable,
+            history_depth: 1,
+        }
     }
 }
 
@@ -95,7 +98,11 @@ pub struct ReaderOptions {
 
 impl Default for ReaderOptions {
     fn default() -> Self {
-        Self { reliability: Reliability::BestEffort, history_depth: 1, queue_capacity: 1024 }
+        Self {
+            reliability: Reliability::BestEffort,
+            history_depth: 1,
+            queue_capacity: 1024,
+        }
     }
 }
 
@@ -185,7 +192,9 @@ impl Participant {
             e.users += 1;
         }
         drop(reg);
-        Ok(Self { inner: Arc::new(ParticipantInner { config, entity }) })
+        Ok(Self {
+            inner: Arc::new(ParticipantInner { config, entity }),
+        })
     }
 
     /// The configuration it was created with.
@@ -208,7 +217,11 @@ impl Participant {
     pub fn writer_with_qos(&self, topic: &TopicSpec, q: WriterQos) -> Result<RawWriter> {
         let t = self.topic(topic)?;
         let handle = ffi::create_writer(self.inner.entity, t, qos(q.reliability, q.history_depth))?;
-        Ok(RawWriter { handle, topic: topic.clone(), _participant: self.inner.clone() })
+        Ok(RawWriter {
+            handle,
+            topic: topic.clone(),
+            _participant: self.inner.clone(),
+        })
     }
 
     /// A reader with Unitree's QoS whose samples are queued for [`RawReader::take`].
@@ -219,12 +232,16 @@ impl Participant {
     /// A queued reader with the given options.
     pub fn reader_with(&self, topic: &TopicSpec, opts: ReaderOptions) -> Result<RawReader> {
         let queue = Arc::new(Queue {
-            state: Mutex::new(QueueState { samples: VecDeque::new(), dropped: 0 }),
+            state: Mutex::new(QueueState {
+                samples: VecDeque::new(),
+                dropped: 0,
+            }),
             ready: Condvar::new(),
             capacity: opts.queue_capacity.max(1),
-            received: AtomicU64::new(0),
+            received: Arc::new(AtomicU64::new(0)),
         });
-        self.make_reader(topic, opts, queue.clone(), Some(queue))
+        let received = queue.received.clone();
+        self.make_reader(topic, opts, queue.clone(), Some(queue), received)
     }
 
     /// A reader that hands every sample to `callback` on a Cyclone thread, as it arrives.
@@ -234,8 +251,12 @@ impl Participant {
     where
         F: FnMut(Sample) + Send + 'static,
     {
-        let sink = Arc::new(CallbackSink { f: Mutex::new(Box::new(callback)), received: AtomicU64::new(0) });
-        self.make_reader(topic, opts, sink, None)
+        let received = Arc::new(AtomicU64::new(0));
+        let sink = Arc::new(CallbackSink {
+            f: Mutex::new(Box::new(callback)),
+            received: received.clone(),
+        });
+        self.make_reader(topic, opts, sink, None, received)
     }
 
     fn make_reader(
@@ -244,10 +265,17 @@ impl Participant {
         opts: ReaderOptions,
         sink: Arc<dyn ffi::SampleSink>,
         queue: Option<Arc<Queue>>,
+        received: Arc<AtomicU64>,
     ) -> Result<RawReader> {
         let t = self.topic(topic)?;
         let handle = ffi::create_reader(self.inner.entity, t, qos(opts.reliability, opts.history_depth), sink)?;
-        Ok(RawReader { handle, queue, topic: topic.clone(), _participant: self.inner.clone() })
+        Ok(RawReader {
+            handle,
+            queue,
+            received,
+            topic: topic.clone(),
+            _participant: self.inner.clone(),
+        })
     }
 }
 
@@ -315,7 +343,7 @@ struct Queue {
     state: Mutex<QueueState>,
     ready: Condvar,
     capacity: usize,
-    received: AtomicU64,
+    received: Arc<AtomicU64>,
 }
 
 impl Queue {
@@ -342,7 +370,7 @@ type Callback = Box<dyn FnMut(Sample) + Send>;
 
 struct CallbackSink {
     f: Mutex<Callback>,
-    received: AtomicU64,
+    received: Arc<AtomicU64>,
 }
 
 impl ffi::SampleSink for CallbackSink {
@@ -358,6 +386,7 @@ impl ffi::SampleSink for CallbackSink {
 pub struct RawReader {
     handle: ffi::ReaderHandle,
     queue: Option<Arc<Queue>>,
+    received: Arc<AtomicU64>,
     topic: TopicSpec,
     _participant: Arc<ParticipantInner>,
 }
@@ -411,7 +440,7 @@ impl RawReader {
 
     /// Samples received so far (queued or handed to the callback).
     pub fn received(&self) -> u64 {
-        self.queue.as_ref().map_or(0, |q| q.received.load(Ordering::Relaxed))
+        self.received.load(Ordering::Relaxed)
     }
 
     /// Number of writers currently matched.
@@ -498,7 +527,12 @@ impl Participant {
                 return Err(e);
             }
         };
-        Ok(DiscoveryMonitor { publications, subscriptions, own_guid, participant: self.inner.clone() })
+        Ok(DiscoveryMonitor {
+            publications,
+            subscriptions,
+            own_guid,
+            participant: self.inner.clone(),
+        })
     }
 }
 
@@ -506,9 +540,10 @@ impl DiscoveryMonitor {
     /// Every endpoint currently alive in discovery.
     pub fn endpoints(&self) -> Result<Vec<DiscoveredEndpoint>> {
         let mut out = Vec::new();
-        for (kind, reader) in
-            [(EndpointKind::Publication, self.publications), (EndpointKind::Subscription, self.subscriptions)]
-        {
+        for (kind, reader) in [
+            (EndpointKind::Publication, self.publications),
+            (EndpointKind::Subscription, self.subscriptions),
+        ] {
             for e in ffi::read_endpoints(reader)? {
                 out.push(DiscoveredEndpoint {
                     kind,
@@ -517,7 +552,13 @@ impl DiscoveryMonitor {
                     local: e.participant_key == self.own_guid,
                     topic_name: e.topic_name,
                     type_name: e.type_name,
-                    reliability: e.reliability.map(|r| if r { Reliability::Reliable } else { Reliability::BestEffort }),
+                    reliability: e.reliability.map(|r| {
+                        if r {
+                            Reliability::Reliable
+                        } else {
+                            Reliability::BestEffort
+                        }
+                    }),
                     history_depth: e.history_keep_last.map(|(keep_last, d)| if keep_last { d } else { -1 }),
                     durability: e.durability.map(|d| match d {
                         0 => Durability::Volatile,

@@ -6,6 +6,7 @@
 //! - `standing`: full robot on the ground holding the standing pose with the default gains (contacts on). The
 //!   passive robot tips over after ~1 s, so it is reset every 250 steps (0.5 s); resets are not timed.
 //! - `zero_gravity`: no gravity, no ground (no contacts), same PD hold.
+//!
 //! Loops: `engine` = `Engine::state()` + `pd_torques` + `Engine::step()`; `raw` = read `qpos`/`qvel` from
 //! `MjData` + the same PD + write `ctrl` + `mj_step` (no layer).
 //!

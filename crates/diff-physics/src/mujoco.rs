@@ -24,7 +24,9 @@ pub struct MujocoSettings {
     pub impratio: f64,
     /// Contact detection margin (m) on every geom (0: contacts only when touching; MuJoCo's default).
     pub contact_margin: f64,
-    /// Contact softness (MuJoCo defaults: timeconst 0.02 s, damping ratio 1).
+    /// Contact softness (MuJoCo defaults: timeconst 0.02 s, damping ratio 1). Contacts use condim 3 (sliding
+    /// friction, pyramidal/elliptic cone per `cone`); margin, solref, solimp and the model's friction are applied to
+    /// every contact through MuJoCo's contact override (`<flag override="enable">`).
     pub solref: [f64; 2],
     pub solimp: [f64; 5],
     /// Parent-child contact filtering (MuJoCo's `filterparent` flag; irrelevant when self-collision is off).
@@ -106,6 +108,11 @@ impl MujocoEngine {
                 ("o_margin".into(), format!("{:?}", s.contact_margin)),
                 ("o_solref".into(), fmt_vec(&s.solref)),
                 ("o_solimp".into(), fmt_vec(&s.solimp)),
+                // Contact override friction: sliding ×2, torsional, rolling ×2 (only sliding acts with condim 3).
+                ("o_friction".into(), {
+                    let c = &model.contact;
+                    fmt_vec(&[c.friction, c.friction, c.torsional_friction, c.rolling_friction, c.rolling_friction])
+                }),
             ],
             flag_attrs: flags,
         };
@@ -220,7 +227,7 @@ impl Engine for MujocoEngine {
         // mj_resetData: zeroes time, qacc_warmstart, contacts, constraint forces, ctrl, applied forces.
         self.data.reset();
         let n: f64 = s.base_quat.iter().map(|x| x * x).sum::<f64>().sqrt();
-        if !(n > 1e-9) {
+        if n.is_nan() || n <= 1e-9 {
             return Err(EngineError::Input("zero base quaternion".into()));
         }
         {

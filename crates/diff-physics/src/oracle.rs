@@ -57,7 +57,7 @@ impl Report {
     pub fn table(&self) -> String {
         let mut s = format!("robot {}  reference: {}  seed {}\n", self.robot, self.reference, self.seed);
         for e in &self.engines {
-            s += &format!("engine {}: {}\n", e.name, e.version);
+            s += &format!("engine {}: {}\n  settings: {}\n", e.name, e.version, e.settings);
         }
         for u in &self.unavailable {
             s += &format!("engine {u}: not available in this build\n");
@@ -101,6 +101,7 @@ pub fn known_difference(engine: &str, check: &str) -> Option<&'static str> {
     None
 }
 
+#[allow(clippy::too_many_arguments)]
 fn push(out: &mut Vec<CheckResult>, group: &str, name: &str, engine: &str, error: f64, tolerance: f64, unit: &str, note: &str) {
     let passed = error.is_finite() && error <= tolerance;
     let known = if passed { None } else { known_difference(engine, name).map(str::to_string) };

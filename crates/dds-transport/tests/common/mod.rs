@@ -98,7 +98,12 @@ impl Proc {
     }
 
     pub fn spawn(cmd: &mut Command) -> Self {
-        match cmd.stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn() {
+        match cmd
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+        {
             Ok(c) => Self::new(c),
             Err(e) => panic!("cannot start {cmd:?}: {e}"),
         }
@@ -157,7 +162,11 @@ pub fn build_c010_peer() -> PathBuf {
     let src = crate_dir().join("tests/peers/c010");
     let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("c010-peer");
     let (ok, stdout, stderr) = run_with_timeout(
-        Command::new("make").arg("-s").arg("-f").arg(src.join("Makefile")).arg(format!("OUT={}", out.display())),
+        Command::new("make")
+            .arg("-s")
+            .arg("-f")
+            .arg(src.join("Makefile"))
+            .arg(format!("OUT={}", out.display())),
         Duration::from_secs(120),
     );
     assert!(

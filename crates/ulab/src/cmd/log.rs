@@ -71,8 +71,15 @@ fn export(a: ExportArgs) -> Result<ExitCode> {
     let mut topics: BTreeMap<String, String> = BTreeMap::new();
     for m in mcap::MessageStream::new(&bytes).context("not an MCAP file")? {
         let m = m.context("reading the MCAP file")?;
-        let ty = m.channel.metadata.get(DDS_TYPE_KEY).cloned().or_else(|| m.channel.schema.as_ref().map(|s| s.name.clone()));
-        topics.entry(m.channel.topic.clone()).or_insert_with(|| ty.unwrap_or_default());
+        let ty = m
+            .channel
+            .metadata
+            .get(DDS_TYPE_KEY)
+            .cloned()
+            .or_else(|| m.channel.schema.as_ref().map(|s| s.name.clone()));
+        topics
+            .entry(m.channel.topic.clone())
+            .or_insert_with(|| ty.unwrap_or_default());
     }
     if let Some(t) = &a.topic {
         topics.retain(|k, _| k == t);
@@ -88,7 +95,10 @@ fn export(a: ExportArgs) -> Result<ExitCode> {
         None
     } else {
         let d = a.out.clone().unwrap_or_else(|| {
-            let stem = a.file.file_stem().map_or_else(|| "log".into(), |s| s.to_string_lossy().into_owned());
+            let stem = a
+                .file
+                .file_stem()
+                .map_or_else(|| "log".into(), |s| s.to_string_lossy().into_owned());
             a.file.with_file_name(format!("{stem}_csv"))
         });
         std::fs::create_dir_all(&d).with_context(|| format!("creating {}", d.display()))?;
@@ -114,7 +124,11 @@ fn export(a: ExportArgs) -> Result<ExitCode> {
             columns.push("cdr_hex".into());
         }
         let mut t = Table { out, columns, rows: 0 };
-        writeln!(t.out, "{}", t.columns.iter().map(|c| csv_field(c)).collect::<Vec<_>>().join(","))?;
+        writeln!(
+            t.out,
+            "{}",
+            t.columns.iter().map(|c| csv_field(c)).collect::<Vec<_>>().join(",")
+        )?;
         if let Some(p) = path {
             eprintln!("{topic} -> {}", p.display());
         }
@@ -122,9 +136,15 @@ fn export(a: ExportArgs) -> Result<ExitCode> {
     }
     for m in mcap::MessageStream::new(&bytes).context("not an MCAP file")? {
         let m = m.context("reading the MCAP file")?;
-        let Some(t) = tables.get_mut(&m.channel.topic) else { continue };
+        let Some(t) = tables.get_mut(&m.channel.topic) else {
+            continue;
+        };
         let ty = topics.get(&m.channel.topic).cloned().unwrap_or_default();
-        let mut row = vec![m.log_time.to_string(), m.publish_time.to_string(), m.sequence.to_string()];
+        let mut row = vec![
+            m.log_time.to_string(),
+            m.publish_time.to_string(),
+            m.sequence.to_string(),
+        ];
         match kind_of(&ty) {
             Some(kind) => match decode_flat(kind, &m.data) {
                 Ok((cols, crc)) => {
@@ -144,7 +164,11 @@ fn export(a: ExportArgs) -> Result<ExitCode> {
                 row.push(m.data.iter().map(|b| format!("{b:02x}")).collect());
             }
         }
-        writeln!(t.out, "{}", row.iter().map(|c| csv_field(c)).collect::<Vec<_>>().join(","))?;
+        writeln!(
+            t.out,
+            "{}",
+            row.iter().map(|c| csv_field(c)).collect::<Vec<_>>().join(",")
+        )?;
         t.rows += 1;
     }
     for (topic, t) in tables.iter_mut() {

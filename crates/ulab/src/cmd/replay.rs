@@ -85,7 +85,11 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 w
             }
         };
-        msgs.push(Msg { log_time: m.log_time, writer: w, data: m.data });
+        msgs.push(Msg {
+            log_time: m.log_time,
+            writer: w,
+            data: m.data,
+        });
     }
     if msgs.is_empty() {
         bail!("{} holds no messages to replay", args.file.display());
@@ -152,7 +156,11 @@ pub fn run(args: Args) -> Result<ExitCode> {
     for (s, n) in specs.iter().zip(&sent) {
         println!("{}: {n} messages sent", s.name);
     }
-    println!("took {:.2} s, latest message {:.2} ms behind schedule", start.elapsed().as_secs_f64(), max_late.as_secs_f64() * 1e3);
+    println!(
+        "took {:.2} s, latest message {:.2} ms behind schedule",
+        start.elapsed().as_secs_f64(),
+        max_late.as_secs_f64() * 1e3
+    );
     if skipped > 0 {
         println!("{skipped} messages skipped (not cdr)");
     }

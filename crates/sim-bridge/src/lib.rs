@@ -1,0 +1,316 @@
+//! The robot side of Unitree's low-level protocol, simulated, without any transport.
+//!
+//! [`SimRobot`] owns one physics [`Engine`] and does what the real robot's motor layer does
+//! with `rt/lowcmd` and `rt/lowstate`, but stricter than the public simulator bridges:
+//! * every LowCmd is decoded, its CRC checked ([`Verdict::BadCrc`]: dropped and counted), and
+//!   validated against the robot's limits ([`Verdict::Rejected`]: never applied);
+//! * the latest accepted command drives Unitree's PD law at **every physics step**, per motor
+//!   `mode` (0 = disabled: no torque);
+//! * when commands stop for [`BridgeConfig::command_timeout`], the robot falls back to damping
+//!   mode: `tau = -kd_default * dq` on every joint (what Unitree's damp mode does), no stiffness;
+//! * every LowState is built from the physics state of that instant (fresh), with the IMU on
+//!   the torso (quaternion w,x,y,z; gyroscope in the IMU frame; accelerometer = specific force
+//!   `R^T (a - g)`, so +9.81 m/s² on z at rest), `tick` in ms and a correct CRC.
+//!
+//! DDS, timing and status lines live in the `ulab sim` command; tests drive this directly.
+#![forbid(unsafe_code)]
+
+mod imu;
+
+use diff_physics::{pd, Engine, EngineError, PdTarget, State};
+use lowlevel_codec::{cdr, crc, validate, DecodeError};
+use robot_model::RobotModel;
+use unitree_idl::hg;
+
+pub use imu::ImuReading;
+
+/// Protections of the bridge. All on in normal use; the switches exist so that the conformance
+/// fuzzer can prove it detects a bridge that lacks each of them (test-only CLI flags).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub struct Protections {
+    /// Drop commands whose CRC does not verify.
+    pub check_crc: bool,
+    /// Reject commands with non-finite values, unknown modes or targets/gains beyond limits.
+    pub check_limits: bool,
+    /// Rebuild LowState from the physics state at every publish (off: republish a snapshot
+    /// refreshed only every [`STALE_REFRESH`] publishes, as a stale bridge would).
+    pub fresh_state: bool,
+}
+
+impl Default for Protections {
+    fn default() -> Self {
+        Protections { check_crc: true, check_limits: true, fresh_state: true }
+    }
+}
+
+/// How many publishes a stale snapshot is reused for when `fresh_state` is off.
+pub const STALE_REFRESH: u32 = 10;
+
+/// Bridge behaviour.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct BridgeConfig {
+    /// Seconds without an accepted command before damping mode.
+    pub command_timeout: f64,
+    /// `mode_machine` reported in LowState.
+    pub mode_machine: u8,
+    pub protections: Protections,
+}
+
+impl Default for BridgeConfig {
+    fn default() -> Self {
+        BridgeConfig { command_timeout: 0.1, mode_machine: unitree_idl::h1_2::MODE_MACHINE, protections: Protections::default() }
+    }
+}
+
+/// What happened to one received LowCmd sample.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Verdict {
+    /// Applied from now on.
+    Accepted,
+    /// Not a valid CDR hg LowCmd.
+    Malformed(DecodeError),
+    /// CRC mismatch: dropped.
+    BadCrc { stored: u32, computed: u32 },
+    /// Valid bytes, unsafe content: not applied. The findings say why.
+    Rejected(Vec<validate::Finding>),
+}
+
+/// Counters for status lines and reports.
+#[derive(Debug, Clone, Default, PartialEq, Eq, serde::Serialize)]
+pub struct Counters {
+    pub received: u64,
+    pub accepted: u64,
+    pub malformed: u64,
+    pub bad_crc: u64,
+    pub rejected: u64,
+    pub states_published: u64,
+    /// Physics steps run in damping mode because no command was fresh.
+    pub damping_steps: u64,
+}
+
+/// Errors that stop the simulation.
+#[derive(Debug, thiserror::Error)]
+pub enum BridgeError {
+    #[error(transparent)]
+    Engine(#[from] EngineError),
+    #[error(transparent)]
+    Model(#[from] robot_model::ModelError),
+    #[error("model has {model} joints but the slot map of hg LowCmd has {slots}")]
+    SlotMismatch { model: usize, slots: usize },
+}
+
+/// A simulated H1-2 behind Unitree's low-level protocol.
+#[derive(Debug)]
+pub struct SimRobot {
+    engine: Box<dyn Engine>,
+    model: RobotModel,
+    config: BridgeConfig,
+    limits: Vec<f64>,
+    damping_kd: Vec<f64>,
+    /// Latest accepted command and when it arrived (caller's clock, s).
+    command: Option<(hg::LowCmd_, f64)>,
+    tau: Vec<f64>,
+    prev_dq: Vec<f64>,
+    ddq: Vec<f64>,
+    imu: imu::ImuTracker,
+    stale: Option<(hg::LowState_, u32)>,
+    counters: Counters,
+}
+
+impl SimRobot {
+    /// Wraps `engine` (built for `model`) and resets it to `initial`.
+    pub fn new(engine: Box<dyn Engine>, model: RobotModel, config: BridgeConfig, initial: &State) -> Result<Self, BridgeError> {
+        let n = model.nj();
+        if model.joints.iter().any(|j| j.slot >= hg::MOTOR_SLOTS) {
+            return Err(BridgeError::SlotMismatch { model: n, slots: hg::MOTOR_SLOTS });
+        }
+        let imu = imu::ImuTracker::new(&model)?;
+        let mut robot = SimRobot {
+            limits: model.joints.iter().map(|j| j.torque_limit).collect(),
+            damping_kd: model.joints.iter().map(|j| j.kd).collect(),
+            engine,
+            config,
+            command: None,
+            tau: vec![0.0; n],
+            prev_dq: vec![0.0; n],
+            ddq: vec![0.0; n],
+            imu,
+            stale: None,
+            counters: Counters::default(),
+            model,
+        };
+        robot.reset(initial)?;
+        Ok(robot)
+    }
+
+    /// Resets physics to `state`; forgets commands and derivative history.
+    pub fn reset(&mut self, state: &State) -> Result<(), BridgeError> {
+        self.engine.reset(state)?;
+        self.command = None;
+        self.tau.iter_mut().for_each(|t| *t = 0.0);
+        self.prev_dq.clone_from(&state.dq);
+        self.ddq.iter_mut().for_each(|a| *a = 0.0);
+        self.imu.reset(&self.model, state, self.engine.common().gravity)?;
+        self.stale = None;
+        Ok(())
+    }
+
+    /// Handles one received `rt/lowcmd` sample (CDR bytes with header) at time `now` (s).
+    pub fn handle_lowcmd(&mut self, bytes: &[u8], now: f64) -> Verdict {
+        self.counters.received += 1;
+        let cmd = match cdr::decode::<hg::LowCmd_>(bytes) {
+            Ok(d) => d.value,
+            Err(e) => {
+                self.counters.malformed += 1;
+                return Verdict::Malformed(e);
+            }
+        };
+        self.handle_command(cmd, now)
+    }
+
+    /// Handles an already decoded command (same gates as [`SimRobot::handle_lowcmd`]).
+    pub fn handle_command(&mut self, cmd: hg::LowCmd_, now: f64) -> Verdict {
+        if self.config.protections.check_crc {
+            let computed = crc::compute(&cmd);
+            if computed != cmd.crc {
+                self.counters.bad_crc += 1;
+                return Verdict::BadCrc { stored: cmd.crc, computed };
+            }
+        }
+        if self.config.protections.check_limits {
+            // Unused slots that are not zero are harmless: the robot has no motor there.
+            let findings: Vec<_> = validate::h1_2_lowcmd(&cmd)
+                .into_iter()
+                .filter(|f| !matches!(f, validate::Finding::UnusedSlotNotZero { .. }))
+                .collect();
+            if !findings.is_empty() {
+                self.counters.rejected += 1;
+                return Verdict::Rejected(findings);
+            }
+        }
+        self.counters.accepted += 1;
+        self.command = Some((cmd, now));
+        Verdict::Accepted
+    }
+
+    /// Whether a command is fresh at `now` (else the robot is in damping mode).
+    pub fn command_active(&self, now: f64) -> bool {
+        self.command.as_ref().is_some_and(|(_, t)| now - t <= self.config.command_timeout)
+    }
+
+    /// One physics step at time `now` (caller's clock, for the command timeout): PD torques from
+    /// the latest accepted command (or damping), clamped to the torque limits, then the engine.
+    pub fn step(&mut self, now: f64) -> Result<(), BridgeError> {
+        let state = self.engine.state();
+        let n = self.model.nj();
+        let active = self.command_active(now);
+        if let (true, Some((cmd, _))) = (active, &self.command) {
+            let mut target = PdTarget { q_des: vec![0.0; n], dq_des: vec![0.0; n], kp: vec![0.0; n], kd: vec![0.0; n], tau_ff: vec![0.0; n] };
+            for (i, joint) in self.model.joints.iter().enumerate() {
+                let m = &cmd.motor_cmd[joint.slot];
+                // mode 0: motor disabled, no torque at all (gains and feed-forward ignored).
+                if m.mode != 0 {
+                    target.q_des[i] = f64::from(m.q);
+                    target.dq_des[i] = f64::from(m.dq);
+                    target.kp[i] = f64::from(m.kp);
+                    target.kd[i] = f64::from(m.kd);
+                    target.tau_ff[i] = f64::from(m.tau);
+                }
+            }
+            pd::pd_torques_into(&target, &state.q, &state.dq, &self.limits, &mut self.tau);
+            // Without the limit check a NaN command reaches here; never hand NaN to an engine.
+            self.tau.iter_mut().filter(|t| !t.is_finite()).for_each(|t| *t = 0.0);
+        } else {
+            self.counters.damping_steps += 1;
+            for (i, tau) in self.tau.iter_mut().enumerate() {
+                *tau = (-self.damping_kd[i] * state.dq[i]).clamp(-self.limits[i], self.limits[i]);
+            }
+        }
+        self.engine.step(&self.tau)?;
+        let next = self.engine.state();
+        let dt = self.engine.common().timestep;
+        for i in 0..n {
+            self.ddq[i] = (next.dq[i] - self.prev_dq[i]) / dt;
+        }
+        self.prev_dq.clone_from(&next.dq);
+        self.imu.update(&self.model, &next, dt)?;
+        Ok(())
+    }
+
+    /// A LowState of the current physics state, sealed with its CRC.
+    pub fn lowstate(&mut self) -> Result<hg::LowState_, BridgeError> {
+        self.counters.states_published += 1;
+        if !self.config.protections.fresh_state {
+            let tick = self.tick();
+            if let Some((snapshot, uses)) = &mut self.stale {
+                if *uses < STALE_REFRESH {
+                    *uses += 1;
+                    let mut s = snapshot.clone();
+                    s.tick = tick;
+                    crc::seal(&mut s);
+                    return Ok(s);
+                }
+            }
+            let s = self.build_lowstate()?;
+            self.stale = Some((s.clone(), 1));
+            return Ok(s);
+        }
+        self.build_lowstate()
+    }
+
+    fn tick(&self) -> u32 {
+        // Milliseconds of simulated time; wraps like the robot's u32 counter.
+        ((self.engine.time() * 1000.0).round() as u64 & u64::from(u32::MAX)) as u32
+    }
+
+    fn build_lowstate(&self) -> Result<hg::LowState_, BridgeError> {
+        let state = self.engine.state();
+        let mut s = hg::LowState_::default();
+        s.mode_machine = self.config.mode_machine;
+        s.tick = self.tick();
+        let reading = self.imu.reading();
+        s.imu_state.quaternion = reading.quaternion.map(|x| x as f32);
+        s.imu_state.gyroscope = reading.gyroscope.map(|x| x as f32);
+        s.imu_state.accelerometer = reading.accelerometer.map(|x| x as f32);
+        s.imu_state.rpy = reading.rpy.map(|x| x as f32);
+        s.imu_state.temperature = 40;
+        let enabled = self.command.as_ref().map(|(c, _)| c);
+        for (i, joint) in self.model.joints.iter().enumerate() {
+            let m = &mut s.motor_state[joint.slot];
+            m.mode = enabled.map_or(0, |c| u8::from(c.motor_cmd[joint.slot].mode != 0));
+            m.q = state.q[i] as f32;
+            m.dq = state.dq[i] as f32;
+            m.ddq = self.ddq[i] as f32;
+            m.tau_est = self.tau[i] as f32;
+            m.temperature = [35, 35];
+        }
+        crc::seal(&mut s);
+        Ok(s)
+    }
+
+    /// The LowState as CDR bytes (XCDR1 little-endian, what Unitree's SDK expects).
+    pub fn lowstate_bytes(&mut self) -> Result<Vec<u8>, BridgeError> {
+        Ok(cdr::encode(&self.lowstate()?, lowlevel_codec::Encoding::UNITREE))
+    }
+
+    pub fn counters(&self) -> &Counters {
+        &self.counters
+    }
+    pub fn engine(&self) -> &dyn Engine {
+        self.engine.as_ref()
+    }
+    pub fn model(&self) -> &RobotModel {
+        &self.model
+    }
+    pub fn config(&self) -> &BridgeConfig {
+        &self.config
+    }
+    /// Torques applied in the last step (slot order of the model's joints).
+    pub fn applied_torques(&self) -> &[f64] {
+        &self.tau
+    }
+    /// Current IMU reading (torso).
+    pub fn imu(&self) -> ImuReading {
+        self.imu.reading()
+    }
+}

@@ -1,0 +1,174 @@
+//! The bridge's gates and state synthesis, checked against physics rather than against itself:
+//! a free-falling IMU measures zero specific force, a resting one +g; a bad-CRC, out-of-limit or
+//! non-finite command changes nothing; mode 0 gives no torque; silence leads to damping.
+
+use diff_physics::{make_engine, CommonSettings, EngineKind, State};
+use lowlevel_codec::{cdr, crc, Encoding};
+use sim_bridge::{BridgeConfig, Protections, SimRobot, Verdict};
+use unitree_idl::hg;
+
+fn robot(kind: EngineKind, common: CommonSettings, protections: Protections) -> SimRobot {
+    let model = robot_model::RobotModel::h1_2().expect("model");
+    let engine = make_engine(kind, &model, &common).expect("engine");
+    let initial = State::standing(&model);
+    SimRobot::new(engine, model, BridgeConfig { protections, ..BridgeConfig::default() }, &initial).expect("bridge")
+}
+
+/// A command holding the standing pose with the model's gains, one joint moved to `target`.
+fn hold(robot: &SimRobot, slot: usize, target: f32) -> hg::LowCmd_ {
+    let mut cmd = hg::LowCmd_::default();
+    for j in &robot.model().joints {
+        let m = &mut cmd.motor_cmd[j.slot];
+        m.mode = 1;
+        m.q = j.default_q as f32;
+        m.kp = j.kp as f32;
+        m.kd = j.kd as f32;
+    }
+    cmd.motor_cmd[slot].q = target;
+    crc::seal(&mut cmd);
+    cmd
+}
+
+fn bytes(cmd: &hg::LowCmd_) -> Vec<u8> {
+    cdr::encode(cmd, Encoding::UNITREE)
+}
+
+fn run(robot: &mut SimRobot, cmd: Option<&[u8]>, steps: usize, t0: f64) -> f64 {
+    let dt = robot.engine().common().timestep;
+    let mut t = t0;
+    for _ in 0..steps {
+        if let Some(b) = cmd {
+            robot.handle_lowcmd(b, t);
+        }
+        robot.step(t).expect("step");
+        t += dt;
+    }
+    t
+}
+
+const ELBOW: usize = 16; // left elbow
+
+#[test]
+fn free_fall_reads_zero_specific_force_and_rest_reads_g() {
+    // Free flight keeps armature: without it, explicit damping (tau = -kd dq of the previous
+    // step) is unstable on the light wrist links (kd dt / I > 2).
+    let flight = CommonSettings { ground: false, collisions: false, ..CommonSettings::default() };
+    let mut r = robot(EngineKind::Mujoco, flight, Protections::default());
+    run(&mut r, None, 200, 0.0);
+    let imu = r.imu();
+    let norm = imu.accelerometer.iter().map(|a| a * a).sum::<f64>().sqrt();
+    // Free fall: specific force 0 up to damping-mode joint torques (internal, they cannot
+    // accelerate the centre of mass but do move the torso slightly): far below g.
+    assert!(norm < 0.5, "free fall accelerometer {:?}", imu.accelerometer);
+
+    let mut r = robot(EngineKind::Mujoco, CommonSettings::default(), Protections::default());
+    let state = r.lowstate().expect("state");
+    // Upright torso at rest on the ground: +g along the IMU z axis.
+    let a = state.imu_state.accelerometer;
+    assert!((a[2] - 9.81).abs() < 0.05 && a[0].abs() < 0.05 && a[1].abs() < 0.05, "{a:?}");
+    let q = state.imu_state.quaternion;
+    assert!((q.iter().map(|x| x * x).sum::<f32>() - 1.0).abs() < 1e-5);
+    assert!(crc::verify(&state));
+}
+
+#[test]
+fn valid_command_moves_the_joint_and_bad_crc_does_not() {
+    let mut r = robot(EngineKind::Mujoco, CommonSettings::default(), Protections::default());
+    let start = r.engine().state().q[ELBOW];
+    let target = start as f32 + 0.4;
+    let mut cmd = hold(&r, ELBOW, target);
+    let mut corrupted = cmd.clone();
+    corrupted.crc ^= 1;
+    assert!(matches!(r.handle_command(corrupted.clone(), 0.0), Verdict::BadCrc { .. }));
+    let t = run(&mut r, Some(&bytes(&corrupted)), 250, 0.0);
+    // Never accepted: bit for bit the same motion as with no command at all.
+    let mut silent = robot(EngineKind::Mujoco, CommonSettings::default(), Protections::default());
+    run(&mut silent, None, 250, 0.0);
+    assert_eq!(r.engine().state(), silent.engine().state(), "a bad-CRC command changed the motion");
+    assert_eq!(r.counters().accepted, 0);
+    assert_eq!(r.counters().bad_crc, 251);
+
+    // From a fresh standing start, the same command with a valid CRC takes the elbow there.
+    // Stiffer than the default arm gain so that gravity and joint friction leave < 0.05 rad.
+    let _ = t;
+    r.reset(&State::standing(r.model())).expect("reset");
+    cmd.motor_cmd[ELBOW].kp = 150.0;
+    cmd.motor_cmd[ELBOW].kd = 4.0;
+    crc::seal(&mut cmd);
+    run(&mut r, Some(&bytes(&cmd)), 500, 0.0);
+    let reached = r.engine().state().q[ELBOW];
+    assert!((reached - f64::from(target)).abs() < 0.05, "elbow at {reached}, target {target}");
+}
+
+#[test]
+fn unsafe_commands_are_rejected_and_not_applied() {
+    let mut r = robot(EngineKind::Mujoco, CommonSettings::default(), Protections::default());
+    let base = hold(&r, ELBOW, 0.3);
+    let mutate = |f: &dyn Fn(&mut hg::LowCmd_)| {
+        let mut c = base.clone();
+        f(&mut c);
+        crc::seal(&mut c);
+        c
+    };
+    let bad = [
+        mutate(&|c| c.motor_cmd[ELBOW].q = f32::NAN),
+        mutate(&|c| c.motor_cmd[ELBOW].kp = 1e6),
+        mutate(&|c| c.motor_cmd[ELBOW].kd = -1.0),
+        mutate(&|c| c.motor_cmd[ELBOW].q = 10.0),
+        mutate(&|c| c.motor_cmd[3].tau = f32::INFINITY),
+        mutate(&|c| c.motor_cmd[0].mode = 7),
+    ];
+    for (i, c) in bad.iter().enumerate() {
+        assert!(matches!(r.handle_command(c.clone(), 0.0), Verdict::Rejected(_)), "case {i}");
+    }
+    assert_eq!(r.counters().rejected, bad.len() as u64);
+    assert!(!r.command_active(0.0));
+    // Malformed bytes are counted, not applied.
+    assert!(matches!(r.handle_lowcmd(&bytes(&base)[..100], 0.0), Verdict::Malformed(_)));
+    assert_eq!(r.counters().malformed, 1);
+}
+
+#[test]
+fn mode_zero_gives_no_torque_and_silence_gives_damping() {
+    let mut r = robot(EngineKind::Mujoco, CommonSettings::default(), Protections::default());
+    let mut cmd = hold(&r, ELBOW, 0.3);
+    cmd.motor_cmd[ELBOW].mode = 0;
+    cmd.motor_cmd[ELBOW].tau = 5.0;
+    crc::seal(&mut cmd);
+    let t = run(&mut r, Some(&bytes(&cmd)), 10, 0.0);
+    let elbow = r.model().joints.iter().position(|j| j.slot == ELBOW).expect("elbow");
+    assert_eq!(r.applied_torques()[elbow], 0.0);
+    // No command for longer than the timeout: damping only (tau = -kd dq), no stiffness.
+    let timeout = r.config().command_timeout;
+    let steps = (timeout / r.engine().common().timestep) as usize + 5;
+    let t = run(&mut r, None, steps, t);
+    // One more step: the torques are exactly tau = -kd_default dq of the state before it.
+    let before = r.engine().state();
+    let damping_steps = r.counters().damping_steps;
+    run(&mut r, None, 1, t);
+    assert_eq!(r.counters().damping_steps, damping_steps + 1);
+    for (i, j) in r.model().joints.iter().enumerate() {
+        let expected = (-j.kd * before.dq[i]).clamp(-j.torque_limit, j.torque_limit);
+        assert_eq!(r.applied_torques()[i], expected, "{}", j.name);
+    }
+}
+
+#[test]
+fn state_is_fresh_unless_the_switch_is_off() {
+    let mut fresh = robot(EngineKind::Mujoco, CommonSettings::default(), Protections::default());
+    let mut stale = robot(EngineKind::Mujoco, CommonSettings::default(), Protections { fresh_state: false, ..Protections::default() });
+    let mut distinct = |r: &mut SimRobot| {
+        let mut seen = Vec::new();
+        let mut t = 0.0;
+        for _ in 0..20 {
+            t = run(r, None, 1, t);
+            let mut s = r.lowstate().expect("state");
+            s.tick = 0;
+            s.crc = 0;
+            seen.push(cdr::encode(&s, Encoding::UNITREE));
+        }
+        seen.windows(2).filter(|w| w[0] != w[1]).count()
+    };
+    assert_eq!(distinct(&mut fresh), 19, "every fresh state differs from the previous one");
+    assert!(distinct(&mut stale) <= 2, "stale bridge republishes the same physics state");
+}
