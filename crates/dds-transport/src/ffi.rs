@@ -367,6 +367,7 @@ pub(crate) struct RawEndpoint {
     pub history_keep_last: Option<(bool, i32)>,
     pub durability: Option<u32>,
     pub has_type_info: bool,
+    pub alive: bool,
 }
 
 /// GUID of an entity.
@@ -402,14 +403,15 @@ fn c_string(p: *const std::os::raw::c_char) -> String {
     }
 }
 
-/// Reads (without taking) every alive endpoint known to a builtin endpoint reader.
+/// Reads (without taking) every endpoint known to a builtin endpoint reader, with its instance
+/// state (alive or not: disposed/unregistered endpoints stay until taken).
 pub(crate) fn read_endpoints(reader: Entity) -> Result<Vec<RawEndpoint>> {
     const N: usize = 256;
     let mut out = Vec::new();
     let mut buf: [*mut c_void; N] = [std::ptr::null_mut(); N];
     // SAFETY: zeroed sample infos are valid plain C structs.
     let mut infos: [cy::dds_sample_info_t; N] = unsafe { std::mem::zeroed() };
-    let mask = cy::DDS_ANY_SAMPLE_STATE | cy::DDS_ANY_VIEW_STATE | cy::DDS_ALIVE_INSTANCE_STATE;
+    let mask = cy::DDS_ANY_STATE;
     // SAFETY: buf[0] == null asks Cyclone to loan up to N samples into `buf`; `infos` has N
     // entries. The loan is returned below before `buf` goes out of scope.
     let n = check("dds_read_mask", unsafe {
@@ -456,6 +458,7 @@ pub(crate) fn read_endpoints(reader: Entity) -> Result<Vec<RawEndpoint>> {
                 history_keep_last,
                 durability,
                 has_type_info,
+                alive: infos[i].instance_state == cy::dds_instance_state_DDS_IST_ALIVE,
             });
         }
     }

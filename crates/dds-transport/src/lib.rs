@@ -504,6 +504,9 @@ pub struct DiscoveredEndpoint {
     pub durability: Option<Durability>,
     /// Whether it carries XTypes type information (Cyclone 0.10.2 peers crash on 11.x's).
     pub has_type_information: bool,
+    /// Whether its builtin-topic instance is alive (false: the endpoint was disposed or its
+    /// participant unregistered it, or Cyclone has not marked it alive yet).
+    pub alive: bool,
 }
 
 /// Watches discovery: the endpoints other participants (and this one) announce.
@@ -537,7 +540,7 @@ impl Participant {
 }
 
 impl DiscoveryMonitor {
-    /// Every endpoint currently alive in discovery.
+    /// Every endpoint known to discovery (see [`DiscoveredEndpoint::alive`]).
     pub fn endpoints(&self) -> Result<Vec<DiscoveredEndpoint>> {
         let mut out = Vec::new();
         for (kind, reader) in [
@@ -567,6 +570,7 @@ impl DiscoveryMonitor {
                         _ => Durability::Persistent,
                     }),
                     has_type_information: e.has_type_info,
+                    alive: e.alive,
                 });
             }
         }

@@ -52,9 +52,15 @@ fn engines(model: &robot_model::RobotModel, common: &CommonSettings) -> Vec<Box<
 }
 
 fn bench_rapier(c: &mut Criterion) {
-    let Ok(model) = robot_model::builtin("h1_2") else { return };
+    let Ok(model) = robot_model::builtin("h1_2") else {
+        return;
+    };
     let standing = CommonSettings::default();
-    let zero_g = CommonSettings { gravity: [0.0; 3], ground: false, ..CommonSettings::default() };
+    let zero_g = CommonSettings {
+        gravity: [0.0; 3],
+        ground: false,
+        ..CommonSettings::default()
+    };
     let mut group = c.benchmark_group("rapier_step");
     group.sample_size(20).measurement_time(Duration::from_secs(6));
     for (label, common) in [("standing", &standing), ("zero_gravity", &zero_g)] {
@@ -79,16 +85,12 @@ fn bench_rapier(c: &mut Criterion) {
     let model_ref = &model;
     if let Ok(mut e) = RapierMultibodyEngine::new(&model, &standing, &RapierMultibodySettings::default()) {
         group.bench_function("rapier_multibody/standing_raw_step", |b| {
-            b.iter_custom(|iters| {
-                raw(&mut e, model_ref, iters, |e| e.step_raw())
-            })
+            b.iter_custom(|iters| raw(&mut e, model_ref, iters, |e| e.step_raw()))
         });
     }
     if let Ok(mut e) = RapierImpulseEngine::new(&model, &standing, &RapierImpulseSettings::default()) {
         group.bench_function("rapier_impulse/standing_raw_step", |b| {
-            b.iter_custom(|iters| {
-                raw(&mut e, model_ref, iters, |e| e.step_raw())
-            })
+            b.iter_custom(|iters| raw(&mut e, model_ref, iters, |e| e.step_raw()))
         });
     }
     group.finish();

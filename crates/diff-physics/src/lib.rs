@@ -17,8 +17,6 @@ pub mod mujoco;
 
 // Rapier engines (written against `engine.rs` by the Rapier work), behind the default feature `rapier` so that
 // `--no-default-features --features mujoco` builds the rest while they are in progress.
-// NOTE for the Rapier work: `link_poses`, `com` and `joint_axes` take `&mut self` (engines may need to refresh
-// lazily computed kinematics, as MuJoCo does after a step).
 #[cfg(feature = "rapier")]
 pub mod rapier_common;
 #[cfg(feature = "rapier")]

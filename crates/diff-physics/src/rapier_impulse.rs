@@ -22,8 +22,8 @@
 use crate::engine::{CommonSettings, Contact, Energy, Engine, EngineError, LinkPose, State};
 use crate::rapier_common::{
     add_robot, armature_inertia, arr, bodies_com, bodies_energy, check_tau, iso_from_pose, link_poses_from_bodies,
-    link_velocities, new_world, read_contacts, revolute_joint, v_from_r, v_to_r, BuiltRobot,
-    RapierSolverSettings, RAPIER_VERSION,
+    link_velocities, new_world, read_contacts, revolute_joint, v_from_r, v_to_r, BuiltRobot, RapierSolverSettings,
+    RAPIER_VERSION,
 };
 use nalgebra::{Isometry3, Point3, Vector3};
 use rapier3d_f64::prelude::{ImpulseJointHandle, JointAxis, MotorModel, PhysicsWorld};
@@ -64,7 +64,11 @@ impl Default for RapierImpulseSettings {
         RapierImpulseSettings {
             // A 28-body chain solved by Gauss-Seidel needs more sweeps than contacts alone: 8 substeps x 2
             // PGS sweeps (vs 4 x 1 for the multibody, whose joints are exact).
-            solver: RapierSolverSettings { substeps: 8, pgs_iterations_per_substep: 2, ..RapierSolverSettings::default() },
+            solver: RapierSolverSettings {
+                substeps: 8,
+                pgs_iterations_per_substep: 2,
+                ..RapierSolverSettings::default()
+            },
             warmstart_joints: true,
             // Rapier's joint defaults (1 MHz, critically damped): rigid joints.
             joint_natural_frequency_hz: 1.0e6,
@@ -106,7 +110,11 @@ impl std::fmt::Debug for RapierImpulseEngine {
 
 impl RapierImpulseEngine {
     /// Builds the engine at the model's standing pose, at rest.
-    pub fn new(model: &RobotModel, common: &CommonSettings, settings: &RapierImpulseSettings) -> Result<Self, EngineError> {
+    pub fn new(
+        model: &RobotModel,
+        common: &CommonSettings,
+        settings: &RapierImpulseSettings,
+    ) -> Result<Self, EngineError> {
         Self::build(model, common, settings, &State::standing(model))
     }
 
@@ -117,7 +125,10 @@ impl RapierImpulseEngine {
         state: &State,
     ) -> Result<Self, EngineError> {
         if !(common.timestep.is_finite() && common.timestep > 0.0) {
-            return Err(EngineError::Input(format!("timestep {} must be positive", common.timestep)));
+            return Err(EngineError::Input(format!(
+                "timestep {} must be positive",
+                common.timestep
+            )));
         }
         state.validate(model)?;
         let fk = model.fk(&state.coords())?;
@@ -125,10 +136,24 @@ impl RapierImpulseEngine {
         world.integration_parameters.warmstart_joints = settings.warmstart_joints;
         let offsets = vec![Vector3::zeros(); model.links.len()];
         let extra = armature_inertia(model, common.armature);
-        let robot = add_robot(&mut world, model, common, &fk.link_poses, offsets, &extra, settings.gyroscopic_forces && !common.armature)?;
+        let robot = add_robot(
+            &mut world,
+            model,
+            common,
+            &fk.link_poses,
+            offsets,
+            &extra,
+            settings.gyroscopic_forces && !common.armature,
+        )?;
         let mut joints = Vec::with_capacity(model.nj());
         for (ji, j) in model.joints.iter().enumerate() {
-            let mut data = revolute_joint(model, ji, &robot.frame_offsets, common.joint_limits, settings.solver.parent_child_contacts);
+            let mut data = revolute_joint(
+                model,
+                ji,
+                &robot.frame_offsets,
+                common.joint_limits,
+                settings.solver.parent_child_contacts,
+            );
             let _ = data.set_softness(rapier3d_f64::prelude::SpringCoefficients::new(
                 settings.joint_natural_frequency_hz,
                 settings.joint_damping_ratio,
@@ -138,10 +163,21 @@ impl RapierImpulseEngine {
                 let _ = data.set_motor_velocity(JointAxis::AngX, 0.0, settings.friction_motor_damping);
                 let _ = data.set_motor_max_force(JointAxis::AngX, j.frictionloss);
             }
-            joints.push(world.impulse_joints.insert(robot.bodies[j.parent_link], robot.bodies[j.child_link], data, true));
+            joints.push(world.impulse_joints.insert(
+                robot.bodies[j.parent_link],
+                robot.bodies[j.child_link],
+                data,
+                true,
+            ));
         }
         // Body velocities from the generalized velocity.
-        let vels = link_velocities(model, &fk.link_poses, Vector3::from(state.base_lin_vel), Vector3::from(state.base_ang_vel), &state.dq);
+        let vels = link_velocities(
+            model,
+            &fk.link_poses,
+            Vector3::from(state.base_lin_vel),
+            Vector3::from(state.base_ang_vel),
+            &state.dq,
+        );
         for (li, &h) in robot.bodies.iter().enumerate() {
             let (w, v_o) = vels[li];
             let c = fk.link_poses[li] * Point3::from(model.links[li].inertial.com);
@@ -179,7 +215,11 @@ impl RapierImpulseEngine {
     }
 
     fn body_angvel(&self, li: usize) -> Vector3<f64> {
-        self.world.bodies.get(self.robot.bodies[li]).map(|rb| v_from_r(rb.angvel())).unwrap_or_else(Vector3::zeros)
+        self.world
+            .bodies
+            .get(self.robot.bodies[li])
+            .map(|rb| v_from_r(rb.angvel()))
+            .unwrap_or_else(Vector3::zeros)
     }
 
     /// Applies `tau` (+ explicit viscous damping) as equal and opposite body torques; clears other user forces.
@@ -260,7 +300,11 @@ impl Engine for RapierImpulseEngine {
 
     fn step(&mut self, tau: &[f64]) -> Result<(), EngineError> {
         check_tau(&self.model, tau)?;
-        let dq = if self.common.joint_damping { self.state().dq } else { Vec::new() };
+        let dq = if self.common.joint_damping {
+            self.state().dq
+        } else {
+            Vec::new()
+        };
         self.apply_joint_torques(tau, &dq);
         self.world.step();
         self.time += self.common.timestep;
@@ -268,7 +312,10 @@ impl Engine for RapierImpulseEngine {
         for &h in &self.robot.bodies {
             if let Some(rb) = self.world.bodies.get(h) {
                 if !(rb.linvel().is_finite() && rb.angvel().is_finite() && rb.translation().is_finite()) {
-                    return Err(EngineError::Diverged(format!("non-finite body state at t = {}", self.time)));
+                    return Err(EngineError::Diverged(format!(
+                        "non-finite body state at t = {}",
+                        self.time
+                    )));
                 }
             }
         }
@@ -280,7 +327,12 @@ impl Engine for RapierImpulseEngine {
         let pelvis = self.body_pose(0);
         let mut st = State {
             base_pos: arr(&pelvis.translation.vector),
-            base_quat: [pelvis.rotation.w, pelvis.rotation.i, pelvis.rotation.j, pelvis.rotation.k],
+            base_quat: [
+                pelvis.rotation.w,
+                pelvis.rotation.i,
+                pelvis.rotation.j,
+                pelvis.rotation.k,
+            ],
             q: vec![0.0; nj],
             base_lin_vel: [0.0; 3],
             base_ang_vel: [0.0; 3],
@@ -325,13 +377,20 @@ impl Engine for RapierImpulseEngine {
     }
 
     fn link_masses(&self) -> Vec<f64> {
-        self.robot.bodies.iter().map(|&h| self.world.bodies.get(h).map(|rb| rb.mass()).unwrap_or(f64::NAN)).collect()
+        self.robot
+            .bodies
+            .iter()
+            .map(|&h| self.world.bodies.get(h).map(|rb| rb.mass()).unwrap_or(f64::NAN))
+            .collect()
     }
 
     fn link_poses(&mut self) -> Vec<LinkPose> {
         link_poses_from_bodies(&self.world, &self.robot)
             .iter()
-            .map(|p| LinkPose { pos: arr(&p.translation.vector), quat: [p.rotation.w, p.rotation.i, p.rotation.j, p.rotation.k] })
+            .map(|p| LinkPose {
+                pos: arr(&p.translation.vector),
+                quat: [p.rotation.w, p.rotation.i, p.rotation.j, p.rotation.k],
+            })
             .collect()
     }
 
@@ -340,7 +399,11 @@ impl Engine for RapierImpulseEngine {
     }
 
     fn joint_axes(&mut self) -> Vec<[f64; 3]> {
-        self.model.joints.iter().map(|j| arr(&(self.body_pose(j.child_link).rotation * j.axis.into_inner()))).collect()
+        self.model
+            .joints
+            .iter()
+            .map(|j| arr(&(self.body_pose(j.child_link).rotation * j.axis.into_inner())))
+            .collect()
     }
 
     fn joint_limits(&self) -> Vec<(f64, f64)> {
@@ -375,7 +438,10 @@ impl Engine for RapierImpulseEngine {
             settings.solver.pgs_iterations_per_substep = self.settings.acceleration_probe_pgs_iterations;
             self.probe = Some(Box::new(Self::build(&self.model, &common, &settings, &state)?));
         }
-        let probe = self.probe.as_mut().ok_or_else(|| EngineError::Build("probe missing".into()))?;
+        let probe = self
+            .probe
+            .as_mut()
+            .ok_or_else(|| EngineError::Build("probe missing".into()))?;
         probe.reset(&state)?;
         probe.apply_joint_torques(&f[6..], &state.dq);
         let pelvis = probe.body_pose(0);

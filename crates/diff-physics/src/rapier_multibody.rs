@@ -22,9 +22,8 @@
 //!   so no warm start or contact history survives it.
 use crate::engine::{CommonSettings, Contact, Energy, Engine, EngineError, LinkPose, State};
 use crate::rapier_common::{
-    add_robot, arr, bodies_com, check_tau, iso_from_pose, link_poses_from_bodies, new_world, q_from_r,
-    read_contacts, revolute_joint, v_to_r, wxyz_to_quat, BuiltRobot, RapierSolverSettings,
-    RAPIER_VERSION,
+    add_robot, arr, bodies_com, check_tau, iso_from_pose, link_poses_from_bodies, new_world, q_from_r, read_contacts,
+    revolute_joint, v_to_r, wxyz_to_quat, BuiltRobot, RapierSolverSettings, RAPIER_VERSION,
 };
 use nalgebra::{DMatrix, Isometry3, Matrix3, Translation3, Vector3};
 use rapier3d_f64::na as rna;
@@ -46,7 +45,11 @@ pub struct RapierMultibodySettings {
 
 impl Default for RapierMultibodySettings {
     fn default() -> Self {
-        RapierMultibodySettings { solver: RapierSolverSettings::default(), self_contacts: true, acceleration_probe_dt: 1e-6 }
+        RapierMultibodySettings {
+            solver: RapierSolverSettings::default(),
+            self_contacts: true,
+            acceleration_probe_dt: 1e-6,
+        }
     }
 }
 
@@ -95,7 +98,10 @@ impl RapierMultibodyEngine {
         state: &State,
     ) -> Result<Self, EngineError> {
         if !(common.timestep.is_finite() && common.timestep > 0.0) {
-            return Err(EngineError::Input(format!("timestep {} must be positive", common.timestep)));
+            return Err(EngineError::Input(format!(
+                "timestep {} must be positive",
+                common.timestep
+            )));
         }
         state.validate(model)?;
         let coords = state.coords();
@@ -110,12 +116,20 @@ impl RapierMultibodyEngine {
             let (Some(ji), Some(pl)) = (link.parent_joint, link.parent_link) else {
                 return Err(EngineError::Build(format!("link {} has no parent joint", link.name)));
             };
-            let joint = revolute_joint(model, ji, &robot.frame_offsets, common.joint_limits, settings.solver.parent_child_contacts);
+            let joint = revolute_joint(
+                model,
+                ji,
+                &robot.frame_offsets,
+                common.joint_limits,
+                settings.solver.parent_child_contacts,
+            );
             let child = robot.bodies[model.joints[ji].child_link];
             world
                 .multibody_joints
                 .insert(robot.bodies[pl], child, joint, true)
-                .ok_or_else(|| EngineError::Build(format!("Rapier refused multibody joint {}", model.joints[ji].name)))?;
+                .ok_or_else(|| {
+                    EngineError::Build(format!("Rapier refused multibody joint {}", model.joints[ji].name))
+                })?;
         }
         let root_link = world
             .multibody_joints
@@ -132,7 +146,10 @@ impl RapierMultibodyEngine {
                 .rigid_body_link(robot.bodies[j.child_link])
                 .ok_or_else(|| EngineError::Build(format!("link of joint {} missing", j.name)))?;
             if l.multibody != mb_index {
-                return Err(EngineError::Build(format!("joint {} is not in the pelvis multibody", j.name)));
+                return Err(EngineError::Build(format!(
+                    "joint {} is not in the pelvis multibody",
+                    j.name
+                )));
             }
             link_ids.push(l.id);
         }
@@ -160,7 +177,10 @@ impl RapierMultibodyEngine {
     }
 
     fn multibody(&self) -> Result<&Multibody, EngineError> {
-        self.world.multibody_joints.get_multibody(self.mb).ok_or_else(|| EngineError::Build("multibody vanished".into()))
+        self.world
+            .multibody_joints
+            .get_multibody(self.mb)
+            .ok_or_else(|| EngineError::Build("multibody vanished".into()))
     }
 
     /// Sets per-DoF properties, joint coordinates and generalized velocities of a freshly built world.
@@ -179,11 +199,16 @@ impl RapierMultibodyEngine {
         mb.set_self_contacts_enabled(self.settings.self_contacts);
         let nd = mb.ndofs();
         if nd != 6 + model.nj() {
-            return Err(EngineError::Build(format!("multibody has {nd} DoFs, expected {}", 6 + model.nj())));
+            return Err(EngineError::Build(format!(
+                "multibody has {nd} DoFs, expected {}",
+                6 + model.nj()
+            )));
         }
         let mut dofs = Vec::with_capacity(model.nj());
         for &lid in &self.link_ids {
-            let link = mb.link(lid).ok_or_else(|| EngineError::Build("multibody link missing".into()))?;
+            let link = mb
+                .link(lid)
+                .ok_or_else(|| EngineError::Build("multibody link missing".into()))?;
             dofs.push(link.assembly_id());
         }
         mb.damping_mut().fill(0.0);
@@ -266,7 +291,9 @@ impl RapierMultibodyEngine {
             .inv_augmented_mass()
             .solve(&rna::DMatrix::<f64>::identity(n, n))
             .ok_or_else(|| EngineError::Diverged("singular multibody mass matrix".into()))?;
-        let m = minv.try_inverse().ok_or_else(|| EngineError::Diverged("singular inverse mass matrix".into()))?;
+        let m = minv
+            .try_inverse()
+            .ok_or_else(|| EngineError::Diverged("singular inverse mass matrix".into()))?;
         let mut out = DMatrix::zeros(n, n);
         for r in 0..n {
             for c in 0..n {
@@ -313,7 +340,9 @@ impl RapierMultibodyEngine {
             }
             let child = self.robot.bodies[j.child_link];
             let parent = self.robot.bodies[j.parent_link];
-            let Some(rb) = self.world.bodies.get(child) else { continue };
+            let Some(rb) = self.world.bodies.get(child) else {
+                continue;
+            };
             let axis_w = q_from_r(rb.position().rotation) * j.axis.into_inner();
             let torque = v_to_r(&(axis_w * t));
             if let Some(rb) = self.world.bodies.get_mut(child) {
@@ -349,7 +378,10 @@ impl Engine for RapierMultibodyEngine {
             "acceleration_method": "finite difference of one contact-free probe step (no ground, collisions or limits) of acceleration_probe_dt",
         });
         if let Some(o) = v.as_object_mut() {
-            o.insert("integration_parameters".into(), serde_json::Value::String(format!("{:?}", self.world.integration_parameters)));
+            o.insert(
+                "integration_parameters".into(),
+                serde_json::Value::String(format!("{:?}", self.world.integration_parameters)),
+            );
         }
         v
     }
@@ -371,7 +403,10 @@ impl Engine for RapierMultibodyEngine {
         self.time += self.common.timestep;
         let mb = self.multibody()?;
         if mb.generalized_velocity().iter().any(|x| !x.is_finite()) {
-            return Err(EngineError::Diverged(format!("non-finite velocity at t = {}", self.time)));
+            return Err(EngineError::Diverged(format!(
+                "non-finite velocity at t = {}",
+                self.time
+            )));
         }
         Ok(())
     }
@@ -428,7 +463,11 @@ impl Engine for RapierMultibodyEngine {
     }
 
     fn link_masses(&self) -> Vec<f64> {
-        self.robot.bodies.iter().map(|&h| self.world.bodies.get(h).map(|rb| rb.mass()).unwrap_or(f64::NAN)).collect()
+        self.robot
+            .bodies
+            .iter()
+            .map(|&h| self.world.bodies.get(h).map(|rb| rb.mass()).unwrap_or(f64::NAN))
+            .collect()
     }
 
     fn link_poses(&mut self) -> Vec<LinkPose> {
@@ -447,7 +486,11 @@ impl Engine for RapierMultibodyEngine {
 
     fn joint_axes(&mut self) -> Vec<[f64; 3]> {
         let poses = link_poses_from_bodies(&self.world, &self.robot);
-        self.model.joints.iter().map(|j| arr(&(poses[j.child_link].rotation * j.axis.into_inner()))).collect()
+        self.model
+            .joints
+            .iter()
+            .map(|j| arr(&(poses[j.child_link].rotation * j.axis.into_inner())))
+            .collect()
     }
 
     fn joint_limits(&self) -> Vec<(f64, f64)> {
@@ -478,7 +521,10 @@ impl Engine for RapierMultibodyEngine {
             };
             self.probe = Some(Box::new(Self::build(&self.model, &common, &self.settings, &state)?));
         }
-        let probe = self.probe.as_mut().ok_or_else(|| EngineError::Build("probe missing".into()))?;
+        let probe = self
+            .probe
+            .as_mut()
+            .ok_or_else(|| EngineError::Build("probe missing".into()))?;
         probe.reset(&state)?;
         probe.apply_joint_torques(&f[6..]);
         // Base wrench: force through the pelvis origin (world), moment about the pelvis origin (pelvis frame).

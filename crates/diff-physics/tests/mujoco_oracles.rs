@@ -83,3 +83,54 @@ fn state_round_trips_through_reset_and_contacts_are_on_the_soles() {
     bad.q[0] = f64::NAN;
     assert!(e.reset(&bad).is_err());
 }
+
+#[test]
+fn oracles_detect_typical_translation_bugs() {
+    // The oracles' tolerances must reject the classic engine-translation mistakes. We build MuJoCo from a
+    // deliberately mistranslated model and compare with the reference of the correct one.
+    use diff_physics::oracle::{mass_matrix_from_accelerations, random_coords};
+    use nalgebra::{DMatrix, Unit};
+    let model = robot_model::RobotModel::h1_2().expect("model");
+    let common = CommonSettings::rigid_body_only();
+    let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(11);
+    let c = random_coords(&model, &mut rng);
+    let m_ref = model.mass_matrix(&c, false).expect("M");
+
+    // 1. Inertia orientation dropped (principal moments used as if aligned with the link frame) on one thigh.
+    let mut bad = model.clone();
+    let li = bad.link_index("left_hip_roll_link").expect("link");
+    let eig = bad.links[li].inertial.inertia.symmetric_eigenvalues();
+    bad.links[li].inertial.inertia = nalgebra::Matrix3::from_diagonal(&eig);
+    let mut e = MujocoEngine::new(&bad, &common, &MujocoSettings::default()).expect("engine");
+    e.reset(&State::at_rest(c.clone())).expect("reset");
+    let m = mass_matrix_from_accelerations(&mut e, model.nv()).expect("M");
+    let err = (&m - &m_ref).norm() / m_ref.norm();
+    assert!(err > 1e-6, "dropped inertia orientation went unnoticed: {err}");
+
+    // 2. One joint axis sign flipped: link FK differs.
+    let mut bad = model.clone();
+    bad.joints[3].axis = Unit::new_unchecked(-bad.joints[3].axis.into_inner());
+    let mut e = MujocoEngine::new(&bad, &common, &MujocoSettings::default()).expect("engine");
+    e.reset(&State::at_rest(c.clone())).expect("reset");
+    let fk = model.fk(&c).expect("fk");
+    let worst = e.link_poses().iter().zip(&fk.link_poses).map(|(p, r)| (nalgebra::Vector3::from(p.pos) - r.translation.vector).norm()).fold(0.0, f64::max);
+    assert!(worst > 1e-3, "flipped axis went unnoticed: {worst}");
+
+    // 3. Quaternion convention [x, y, z, w] fed where [w, x, y, z] is expected.
+    let mut e = MujocoEngine::new(&model, &common, &MujocoSettings::default()).expect("engine");
+    let mut s = State::at_rest(c.clone());
+    let [w, x, y, z] = s.base_quat;
+    s.base_quat = [x, y, z, w];
+    e.reset(&s).expect("reset");
+    let base = e.link_poses()[0];
+    let q = fk.link_poses[0].rotation;
+    let angle = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(base.quat[0], base.quat[1], base.quat[2], base.quat[3])).angle_to(&q);
+    assert!(angle > 1e-3, "quaternion convention swap went unnoticed");
+
+    // 4. Armature forgotten: the with-armature mass matrix differs by 0.1 on the joint diagonal.
+    let mut e = MujocoEngine::new(&model, &common, &MujocoSettings::default()).expect("engine");
+    e.reset(&State::at_rest(c.clone())).expect("reset");
+    let m = DMatrix::from_row_slice(model.nv(), model.nv(), &e.mass_matrix().expect("M"));
+    let m_arm = model.mass_matrix(&c, true).expect("M");
+    assert!((&m - &m_arm).norm() / m_arm.norm() > 1e-3);
+}

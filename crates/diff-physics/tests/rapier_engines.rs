@@ -35,7 +35,11 @@ fn random_coords(m: &RobotModel, rng: &mut ChaCha8Rng) -> GenCoords {
         rng.gen_range(-3.0..3.0),
     );
     GenCoords {
-        base_pos: [rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0), rng.gen_range(0.5..1.5)],
+        base_pos: [
+            rng.gen_range(-1.0..1.0),
+            rng.gen_range(-1.0..1.0),
+            rng.gen_range(0.5..1.5),
+        ],
         base_quat: [q.w, q.i, q.j, q.k],
         q: m.joints.iter().map(|j| rng.gen_range(j.lower..j.upper)).collect(),
     }
@@ -70,7 +74,9 @@ fn link_frames_match_model_fk() {
             let fk = m.fk(&s.coords()).unwrap();
             for (p, want) in e.link_poses().iter().zip(&fk.link_poses) {
                 let dp = (Vector3::from(p.pos) - want.translation.vector).norm();
-                let q = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(p.quat[0], p.quat[1], p.quat[2], p.quat[3]));
+                let q = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+                    p.quat[0], p.quat[1], p.quat[2], p.quat[3],
+                ));
                 worst_pos = worst_pos.max(dp);
                 worst_rot = worst_rot.max(q.angle_to(&want.rotation));
             }
@@ -84,12 +90,24 @@ fn link_frames_match_model_fk() {
                 worst_rot = worst_rot.max((Vector3::from(*a) - b.into_inner()).norm());
             }
         }
-        println!("{}: FK worst position {worst_pos:.3e} m, rotation {worst_rot:.3e} rad, state round trip {worst_q:.3e}", e.name());
-        assert!(worst_pos < 1e-9 && worst_rot < 1e-9, "{}: FK disagrees with the model", e.name());
+        println!(
+            "{}: FK worst position {worst_pos:.3e} m, rotation {worst_rot:.3e} rad, state round trip {worst_q:.3e}",
+            e.name()
+        );
+        assert!(
+            worst_pos < 1e-9 && worst_rot < 1e-9,
+            "{}: FK disagrees with the model",
+            e.name()
+        );
         assert!(worst_q < 1e-9, "{}: state does not round-trip", e.name());
         let masses = e.link_masses();
         for (a, l) in masses.iter().zip(&m.links) {
-            assert!((a - l.inertial.mass).abs() < 1e-12 * l.inertial.mass.max(1.0), "{} mass of {}", e.name(), l.name);
+            assert!(
+                (a - l.inertial.mass).abs() < 1e-12 * l.inertial.mass.max(1.0),
+                "{} mass of {}",
+                e.name(),
+                l.name
+            );
         }
         let lim = e.joint_limits();
         assert_eq!(lim.len(), m.nj());
@@ -99,9 +117,15 @@ fn link_frames_match_model_fk() {
 /// Momentum drift (relative) over 1 s of zero-gravity, contact-free, torque-free motion from `s0` at `dt`.
 fn momentum_drift(name: &str, s0: &State, dt: f64) -> (f64, f64) {
     let m = model();
-    let common = CommonSettings { gravity: [0.0; 3], timestep: dt, ..CommonSettings::rigid_body_only() };
+    let common = CommonSettings {
+        gravity: [0.0; 3],
+        timestep: dt,
+        ..CommonSettings::rigid_body_only()
+    };
     let mut e: Box<dyn Engine> = match name {
-        "rapier_multibody" => Box::new(RapierMultibodyEngine::new(&m, &common, &RapierMultibodySettings::default()).unwrap()),
+        "rapier_multibody" => {
+            Box::new(RapierMultibodyEngine::new(&m, &common, &RapierMultibodySettings::default()).unwrap())
+        }
         _ => Box::new(RapierImpulseEngine::new(&m, &common, &RapierImpulseSettings::default()).unwrap()),
     };
     let (l0, p0) = m.momentum(&s0.coords(), &s0.v()).unwrap();
@@ -133,11 +157,17 @@ fn momentum_conserved_in_zero_gravity() {
         // Bound: symplectic Euler's per-step error on a body rotating at |ω| ≲ 1 rad/s is O(dt²|ω|²) ≈ 4e-6
         // relative; if it accumulated coherently over 500 steps that is 2e-3. Drift must stay below it ...
         let bound = 2e-3;
-        assert!(dp < bound && dl < bound, "{name}: momentum drift {dp:e} / {dl:e} above {bound:e}");
+        assert!(
+            dp < bound && dl < bound,
+            "{name}: momentum drift {dp:e} / {dl:e} above {bound:e}"
+        );
         // ... and must be a discretisation error: halving dt must reduce it (at least first order gives 0.5;
         // 0.75 leaves margin), unless it is already at rounding level (1e-10 relative).
         for (a, b, what) in [(dp, dp2, "linear"), (dl, dl2, "angular")] {
-            assert!(a < 1e-10 || b < 0.75 * a, "{name}: {what} momentum drift does not converge with dt: {a:e} -> {b:e}");
+            assert!(
+                a < 1e-10 || b < 0.75 * a,
+                "{name}: {what} momentum drift does not converge with dt: {a:e} -> {b:e}"
+            );
         }
     }
 }
@@ -171,18 +201,27 @@ fn free_fall_com_follows_parabola() {
             // Symplectic Euler with S substeps of dt/S: z drops by g (dt/S)² nS(nS+1)/2 after n steps.
             let sub = e.settings()["specific"]["substeps"].as_u64().unwrap_or(1) as f64;
             let ns = k as f64 * sub;
-            let want_discrete = c0 + vc0 * t - Vector3::new(0.0, 0.0, g * (dt / sub) * (dt / sub) * ns * (ns + 1.0) / 2.0);
+            let want_discrete =
+                c0 + vc0 * t - Vector3::new(0.0, 0.0, g * (dt / sub) * (dt / sub) * ns * (ns + 1.0) / 2.0);
             let allowed = g * dt * t / 2.0 + 1e-6;
             let err = (c - want).norm();
             worst = worst.max(err - allowed);
             worst_discrete = worst_discrete.max((c - want_discrete).norm());
         }
         println!("{}: free-fall COM: worst excess over the integrator bound {worst:.3e} m, worst vs discrete symplectic-Euler parabola {worst_discrete:.3e} m", e.name());
-        assert!(worst <= 0.0, "{}: COM leaves the parabola by {worst:e} m beyond the integrator bound", e.name());
+        assert!(
+            worst <= 0.0,
+            "{}: COM leaves the parabola by {worst:e} m beyond the integrator bound",
+            e.name()
+        );
         // Against the exact discrete trajectory: internal forces cancel, so only momentum drift moves the COM off
         // it; the measured linear-momentum drift (< 3e-5 relative over 1 s, see the momentum test) at |v_c| < 1 m/s
         // bounds that by ~3e-5 m; 1e-4 m leaves a factor 3.
-        assert!(worst_discrete < 1e-4, "{}: COM off the discrete parabola by {worst_discrete:e} m", e.name());
+        assert!(
+            worst_discrete < 1e-4,
+            "{}: COM off the discrete parabola by {worst_discrete:e} m",
+            e.name()
+        );
     }
 }
 
@@ -207,11 +246,16 @@ fn contact_free_dynamics_match_reference() {
                 worst_m = if worst_m.is_nan() { err } else { worst_m.max(err) };
             }
             let f: Vec<f64> = (0..m.nv()).map(|_| rng.gen_range(-20.0..20.0)).collect();
-            let aref = m.forward_dynamics(&s.coords(), &s.v(), &f, common.gravity, false).unwrap();
+            let aref = m
+                .forward_dynamics(&s.coords(), &s.v(), &f, common.gravity, false)
+                .unwrap();
             let a = DVector::from_vec(e.generalized_acceleration(&f).unwrap());
             worst_a = worst_a.max((&a - &aref).amax() / aref.amax().max(1.0));
         }
-        println!("{}: mass matrix worst rel. error {worst_m:.3e}, acceleration worst rel. error {worst_a:.3e}", e.name());
+        println!(
+            "{}: mass matrix worst rel. error {worst_m:.3e}, acceleration worst rel. error {worst_a:.3e}",
+            e.name()
+        );
         let _ = RigidBodyDynamics::NAME;
         match e.name() {
             "rapier_multibody" => {
@@ -262,7 +306,13 @@ fn stands_with_pd() {
         let dz = s.base_pos[2] - s0.base_pos[2];
         // Feet must not slide (static Coulomb friction, mu = 1, on flat ground): horizontal motion of the
         // ankle-roll (foot) frames since the reset.
-        let feet: Vec<usize> = m.links.iter().enumerate().filter(|(_, l)| l.name.contains("ankle_roll")).map(|(i, _)| i).collect();
+        let feet: Vec<usize> = m
+            .links
+            .iter()
+            .enumerate()
+            .filter(|(_, l)| l.name.contains("ankle_roll"))
+            .map(|(i, _)| i)
+            .collect();
         let fk0 = m.fk(&s0.coords()).unwrap();
         let poses = e.link_poses();
         let drift_xy = feet
@@ -281,14 +331,32 @@ fn stands_with_pd() {
         assert!(dz.abs() < 0.03, "{}: pelvis moved {dz} m vertically", e.name());
         // A foot rocking on its sole edge moves its frame by < 1 cm horizontally; 1 cm bound.
         assert!(drift_xy < 0.01, "{}: a foot moved {drift_xy} m horizontally", e.name());
-        assert!(contacts.iter().all(|c| c.body_a == "ground" && c.body_b.contains("ankle_roll")), "{}: unexpected contact {contacts:?}", e.name());
-        assert!(contacts.iter().all(|c| c.normal[2] > 0.99), "{}: ground normals must point up", e.name());
+        assert!(
+            contacts
+                .iter()
+                .all(|c| c.body_a == "ground" && c.body_b.contains("ankle_roll")),
+            "{}: unexpected contact {contacts:?}",
+            e.name()
+        );
+        assert!(
+            contacts.iter().all(|c| c.normal[2] > 0.99),
+            "{}: ground normals must point up",
+            e.name()
+        );
         // Contact points lie on the floor: within the allowed penetration (1 mm) plus the contact spring's
         // static compression (a few mm at 60 Hz under ~330 N per foot) of z = 0; 1 cm bound.
-        assert!(contacts.iter().all(|c| c.point[2].abs() < 0.01 && c.depth < 0.01), "{}: contact points off the floor {contacts:?}", e.name());
+        assert!(
+            contacts.iter().all(|c| c.point[2].abs() < 0.01 && c.depth < 0.01),
+            "{}: contact points off the floor {contacts:?}",
+            e.name()
+        );
         // At rest the mean normal force equals the weight; 5 % covers the residual sway (the PD settling
         // oscillation of the first 0.2 s is excluded from the average).
-        assert!((fz_avg - weight).abs() < 0.05 * weight, "{}: mean contact force {fz_avg} N vs weight {weight} N", e.name());
+        assert!(
+            (fz_avg - weight).abs() < 0.05 * weight,
+            "{}: mean contact force {fz_avg} N vs weight {weight} N",
+            e.name()
+        );
     }
 }
 
@@ -330,7 +398,12 @@ fn survives_a_fall() {
         }
         let s = e.state();
         println!("{}: after 3 s: pelvis at {:?}", e.name(), s.base_pos);
-        assert!(s.base_pos[2] > -0.05 && s.base_pos[2] < 1.1, "{}: pelvis at {:?} after the fall", e.name(), s.base_pos);
+        assert!(
+            s.base_pos[2] > -0.05 && s.base_pos[2] < 1.1,
+            "{}: pelvis at {:?} after the fall",
+            e.name(),
+            s.base_pos
+        );
     }
 }
 
@@ -362,5 +435,80 @@ fn queries_do_not_perturb() {
             finals.push(e.state());
         }
         assert_eq!(finals[0], finals[1], "{}: queries changed the trajectory", e.name());
+    }
+}
+
+/// Joint limits and dry joint friction act: in zero gravity without ground, (a) a torque driving the left knee
+/// into its upper limit for 0.5 s leaves it at the limit, and (b) starting again at rest, a torque of half the
+/// model's frictionloss on the left elbow (and nothing else) does not move it; with friction disabled the same
+/// torque does (so the check can fail).
+#[test]
+fn joint_limits_and_friction_act() {
+    let m = model();
+    let common = CommonSettings {
+        gravity: [0.0; 3],
+        ground: false,
+        ..CommonSettings::default()
+    };
+    let knee = m.joint_index("left_knee_joint").unwrap();
+    let elbow = m.joint_index("left_elbow_joint").unwrap();
+    for mut e in engines(&common) {
+        e.reset(&State::standing(&m)).unwrap();
+        let mut tau = vec![0.0; m.nj()];
+        tau[knee] = 100.0;
+        let mut max_knee = f64::NEG_INFINITY;
+        for _ in 0..250 {
+            e.step(&tau).unwrap();
+            max_knee = max_knee.max(e.state().q[knee]);
+        }
+        let upper = m.joints[knee].upper;
+        println!("{}: knee max {max_knee:.5} (upper limit {upper})", e.name());
+        // The knee must reach the limit (100 N·m on a free lower leg) and not pass it by more than 0.01 rad
+        // (Rapier's limit constraint is rigid, joint softness 1 MHz; 0.01 rad is half a step at 10 rad/s).
+        assert!(
+            max_knee > upper - 0.01 && max_knee < upper + 0.01,
+            "{}: knee reached {max_knee}, limit {upper}",
+            e.name()
+        );
+    }
+    let sub_friction = 0.5 * m.joints[elbow].frictionloss;
+    for (friction, label) in [(true, "with"), (false, "without")] {
+        let c = CommonSettings {
+            joint_friction: friction,
+            ..common.clone()
+        };
+        for mut e in engines(&c) {
+            e.reset(&State::standing(&m)).unwrap();
+            let mut tau = vec![0.0; m.nj()];
+            tau[elbow] = sub_friction;
+            let mut max_speed: f64 = 0.0;
+            for _ in 0..250 {
+                e.step(&tau).unwrap();
+                max_speed = max_speed.max(e.state().dq[elbow].abs());
+            }
+            println!(
+                "{}: elbow max |dq| {max_speed:.3e} rad/s under {sub_friction} N·m {label} friction",
+                e.name()
+            );
+            // Without friction the torque drives the elbow towards τ/d = 0.1 rad/s (viscous damping 1 N·m·s/rad,
+            // time constant (I + armature)/d ≈ 0.1 s): it must exceed 10x the friction bound. With friction the
+            // bounded constraint absorbs it all: 1e-3 rad/s bound (solver residual).
+            // Impulse joints: the friction motor shares the Gauss-Seidel sweeps with 27 joint constraints and
+            // leaves a residual (measured 1.2e-3 rad/s): known difference, bound 5e-3 rad/s.
+            let bound = if e.name() == "rapier_impulse" { 5e-3 } else { 1e-3 };
+            if friction {
+                assert!(
+                    max_speed < bound,
+                    "{}: elbow moved at {max_speed} rad/s under sub-friction torque",
+                    e.name()
+                );
+            } else {
+                assert!(
+                    max_speed > 10.0 * bound,
+                    "{}: elbow did not move without friction ({max_speed})",
+                    e.name()
+                );
+            }
+        }
     }
 }

@@ -6,6 +6,7 @@
 //!   validated against the robot's limits ([`Verdict::Rejected`]: never applied);
 //! * the latest accepted command drives Unitree's PD law at **every physics step**, per motor
 //!   `mode` (0 = disabled: no torque);
+//! * optionally the standing pose is held until the first command arrives;
 //! * when commands stop for [`BridgeConfig::command_timeout`], the robot falls back to damping
 //!   mode: `tau = -kd_default * dq` on every joint (what Unitree's damp mode does), no stiffness;
 //! * every LowState is built from the physics state of that instant (fresh), with the IMU on
@@ -53,12 +54,20 @@ pub struct BridgeConfig {
     pub command_timeout: f64,
     /// `mode_machine` reported in LowState.
     pub mode_machine: u8,
+    /// Until the first command is accepted, hold the standing pose with the model's default
+    /// gains (a simulator that starts standing); afterwards silence means damping.
+    pub hold_until_first_command: bool,
     pub protections: Protections,
 }
 
 impl Default for BridgeConfig {
     fn default() -> Self {
-        BridgeConfig { command_timeout: 0.1, mode_machine: unitree_idl::h1_2::MODE_MACHINE, protections: Protections::default() }
+        BridgeConfig {
+            command_timeout: 0.1,
+            mode_machine: unitree_idl::h1_2::MODE_MACHINE,
+            hold_until_first_command: false,
+            protections: Protections::default(),
+        }
     }
 }
 
@@ -88,6 +97,34 @@ pub struct Counters {
     pub damping_steps: u64,
 }
 
+/// Stiffness that keeps the robot standing without a balance controller (N·m/rad, N·m·s/rad):
+/// the model's default (RL deploy) gains cannot. Leg joints are raised to at least these; the
+/// ankles dominate (the H1-2 topples at about 690 N·m/rad of ankle stiffness demand, against
+/// 2 x 40 in the deploy gains). Figures checked by the model's standing oracle.
+const STAND_LEG_KP: f64 = 500.0;
+const STAND_LEG_KD: f64 = 5.0;
+const STAND_ANKLE_KP: f64 = 600.0;
+const STAND_ANKLE_KD: f64 = 10.0;
+
+/// PD target holding the standing pose: the model's default pose and gains, with leg gains
+/// raised to [`STAND_LEG_KP`]/[`STAND_ANKLE_KP`] so that the robot stays up until a controller
+/// takes over.
+pub fn stand_target(model: &RobotModel) -> PdTarget {
+    let mut t = PdTarget::hold_standing(model);
+    for (i, j) in model.joints.iter().enumerate() {
+        let (kp, kd) = if j.name.contains("ankle") {
+            (STAND_ANKLE_KP, STAND_ANKLE_KD)
+        } else if j.name.contains("hip") || j.name.contains("knee") {
+            (STAND_LEG_KP, STAND_LEG_KD)
+        } else {
+            continue;
+        };
+        t.kp[i] = t.kp[i].max(kp);
+        t.kd[i] = t.kd[i].max(kd);
+    }
+    t
+}
+
 /// Errors that stop the simulation.
 #[derive(Debug, thiserror::Error)]
 pub enum BridgeError {
@@ -107,6 +144,8 @@ pub struct SimRobot {
     config: BridgeConfig,
     limits: Vec<f64>,
     damping_kd: Vec<f64>,
+    /// PD target of the initial standing hold (see [`stand_target`]).
+    stand: PdTarget,
     /// Latest accepted command and when it arrived (caller's clock, s).
     command: Option<(hg::LowCmd_, f64)>,
     tau: Vec<f64>,
@@ -128,6 +167,7 @@ impl SimRobot {
         let mut robot = SimRobot {
             limits: model.joints.iter().map(|j| j.torque_limit).collect(),
             damping_kd: model.joints.iter().map(|j| j.kd).collect(),
+            stand: stand_target(&model),
             engine,
             config,
             command: None,
@@ -220,6 +260,8 @@ impl SimRobot {
             pd::pd_torques_into(&target, &state.q, &state.dq, &self.limits, &mut self.tau);
             // Without the limit check a NaN command reaches here; never hand NaN to an engine.
             self.tau.iter_mut().filter(|t| !t.is_finite()).for_each(|t| *t = 0.0);
+        } else if self.command.is_none() && self.config.hold_until_first_command {
+            pd::pd_torques_into(&self.stand, &state.q, &state.dq, &self.limits, &mut self.tau);
         } else {
             self.counters.damping_steps += 1;
             for (i, tau) in self.tau.iter_mut().enumerate() {

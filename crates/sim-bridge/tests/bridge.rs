@@ -172,3 +172,17 @@ fn state_is_fresh_unless_the_switch_is_off() {
     assert_eq!(distinct(&mut fresh), 19, "every fresh state differs from the previous one");
     assert!(distinct(&mut stale) <= 2, "stale bridge republishes the same physics state");
 }
+
+#[test]
+fn initial_hold_keeps_the_robot_standing() {
+    let model = robot_model::RobotModel::h1_2().expect("model");
+    let engine = make_engine(EngineKind::Mujoco, &model, &CommonSettings::default()).expect("engine");
+    let config = BridgeConfig { hold_until_first_command: true, ..BridgeConfig::default() };
+    let mut r = SimRobot::new(engine, model.clone(), config, &State::standing(&model)).expect("bridge");
+    run(&mut r, None, 1500, 0.0);
+    let s = r.engine().state();
+    // Still upright after 3 s: pelvis within 5 cm of its start height, torso nearly level.
+    assert!((s.base_pos[2] - State::standing(&model).base_pos[2]).abs() < 0.05, "pelvis at {:?}", s.base_pos);
+    let rpy = r.imu().rpy;
+    assert!(rpy[0].abs() < 0.1 && rpy[1].abs() < 0.1, "torso rpy {rpy:?}");
+}

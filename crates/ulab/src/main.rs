@@ -27,6 +27,8 @@ enum Command {
     Log(cmd::log::Args),
     /// The robot model in several physics engines: oracles (check), mass matrix dumps (inspect), MJCF export.
     Model(cmd::model::Args),
+    /// Simulated robot behind rt/lowcmd and rt/lowstate (a bridge a stock Unitree SDK client drives).
+    Sim(cmd::sim::Args),
 }
 
 fn main() -> ExitCode {
@@ -37,6 +39,7 @@ fn main() -> ExitCode {
         Command::Replay(args) => cmd::replay::run(args),
         Command::Log(args) => cmd::log::run(args),
         Command::Model(args) => cmd::model::run(args),
+        Command::Sim(args) => cmd::sim::run(args),
     };
     match result {
         Ok(code) => code,

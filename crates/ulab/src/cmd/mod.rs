@@ -5,3 +5,4 @@ pub mod model;
 pub mod record;
 pub mod recording;
 pub mod replay;
+pub mod sim;

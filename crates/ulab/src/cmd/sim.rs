@@ -1,0 +1,176 @@
+//! `ulab sim`: a simulated robot behind Unitree's low-level DDS topics, so that a stock Unitree
+//! SDK2 controller drives it exactly as the real robot: it subscribes `rt/lowcmd`, publishes
+//! `rt/lowstate`. The protocol logic (gates, PD law, damping timeout, IMU, CRC) is
+//! `sim_bridge::SimRobot`; this module adds DDS, pacing and the status line.
+
+use super::recording::NetArgs;
+use anyhow::{Context, Result};
+use dds_transport::{Participant, TopicSpec};
+use diff_physics::{make_engine, CommonSettings, EngineKind, State};
+use sim_bridge::{BridgeConfig, Protections, SimRobot};
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    #[command(flatten)]
+    pub net: NetArgs,
+    /// Robot model (built in): h1_2.
+    #[arg(long, default_value = "h1_2")]
+    pub robot: String,
+    /// Physics engine: mujoco, rapier-multibody or rapier-impulse.
+    #[arg(long, default_value = "mujoco", value_parser = parse_engine)]
+    pub engine: EngineKind,
+    /// LowState publish rate (Hz); the real robot publishes about 500 Hz.
+    #[arg(long, default_value_t = 500.0)]
+    pub state_rate: f64,
+    /// Physics timestep (s).
+    #[arg(long, default_value_t = 0.002)]
+    pub dt: f64,
+    /// Pace simulated time to the wall clock (default).
+    #[arg(long, conflicts_with = "fast")]
+    pub realtime: bool,
+    /// Run as fast as possible (simulated time runs ahead of the wall clock).
+    #[arg(long)]
+    pub fast: bool,
+    /// Seconds without a valid command before damping mode.
+    #[arg(long, default_value_t = 0.1)]
+    pub command_timeout: f64,
+    /// Start in damping mode instead of holding the standing pose until the first command.
+    #[arg(long)]
+    pub no_hold: bool,
+    /// Stop after this many seconds of wall time (default: until Ctrl-C).
+    #[arg(long)]
+    pub duration: Option<f64>,
+    /// No status line.
+    #[arg(long)]
+    pub quiet: bool,
+    /// TEST ONLY: apply commands whose CRC is wrong (lets the conformance checks prove they see it).
+    #[arg(long, hide = true)]
+    pub unsafe_skip_crc_check: bool,
+    /// TEST ONLY: apply commands beyond the robot's limits or with non-finite values.
+    #[arg(long, hide = true)]
+    pub unsafe_skip_limit_check: bool,
+    /// TEST ONLY: republish stale physics state.
+    #[arg(long, hide = true)]
+    pub unsafe_stale_state: bool,
+}
+
+fn parse_engine(s: &str) -> Result<EngineKind, String> {
+    EngineKind::parse(s).ok_or_else(|| format!("unknown engine `{s}` (mujoco, rapier-multibody, rapier-impulse)"))
+}
+
+pub fn run(args: Args) -> Result<ExitCode> {
+    anyhow::ensure!(args.state_rate > 0.0 && args.state_rate.is_finite(), "--state-rate must be positive");
+    anyhow::ensure!(args.dt > 0.0 && args.dt <= 0.05, "--dt must be in (0, 0.05] s");
+    let cfg = args.net.domain_config()?;
+    let model = robot_model::builtin(&args.robot).with_context(|| format!("loading robot `{}`", args.robot))?;
+    let common = CommonSettings { timestep: args.dt, ..CommonSettings::default() };
+    let engine = make_engine(args.engine, &model, &common).with_context(|| format!("building the {} engine", args.engine.name()))?;
+    let config = BridgeConfig {
+        command_timeout: args.command_timeout,
+        hold_until_first_command: !args.no_hold,
+        protections: Protections {
+            check_crc: !args.unsafe_skip_crc_check,
+            check_limits: !args.unsafe_skip_limit_check,
+            fresh_state: !args.unsafe_stale_state,
+        },
+        ..BridgeConfig::default()
+    };
+    if config.protections != Protections::default() {
+        eprintln!("sim: WARNING test-only switches active: {:?}", config.protections);
+    }
+    let initial = State::standing(&model);
+    let mut robot = SimRobot::new(engine, model, config, &initial).context("starting the simulated robot")?;
+
+    let participant = Participant::new(cfg.clone()).context("opening the DDS domain")?;
+    let family = dds_transport::Family::Hg;
+    let commands = participant.reader(&TopicSpec::lowcmd(family)).context("subscribing rt/lowcmd")?;
+    let states = participant.writer(&TopicSpec::lowstate(family)).context("creating the rt/lowstate writer")?;
+
+    let stop = Arc::new(AtomicBool::new(false));
+    {
+        let stop = stop.clone();
+        if let Err(e) = ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst)) {
+            eprintln!("warning: cannot install the Ctrl-C handler ({e}); use --duration");
+        }
+    }
+    if !args.quiet {
+        eprintln!(
+            "sim: {} on {} (domain {}, {}), LowState at {} Hz, dt {} s, {}",
+            args.robot,
+            robot.engine().version(),
+            cfg.domain,
+            cfg.interface,
+            args.state_rate,
+            args.dt,
+            if args.fast { "fast" } else { "real time" }
+        );
+    }
+
+    let start = Instant::now();
+    let publish_period = 1.0 / args.state_rate;
+    let mut next_publish = 0.0;
+    let mut sim_time = 0.0;
+    let mut window = (Instant::now(), 0.0_f64, robot.counters().states_published);
+    loop {
+        let wall = start.elapsed().as_secs_f64();
+        if stop.load(Ordering::SeqCst) || args.duration.is_some_and(|d| wall >= d) {
+            break;
+        }
+        if !args.fast && sim_time > wall {
+            // Ahead of the wall clock: wait, but keep taking commands.
+            std::thread::sleep(Duration::from_secs_f64((sim_time - wall).min(0.001)));
+            drain(&commands, &mut robot, start);
+            continue;
+        }
+        drain(&commands, &mut robot, start);
+        robot.step(start.elapsed().as_secs_f64()).context("physics step")?;
+        sim_time += args.dt;
+        if sim_time + 1e-9 >= next_publish {
+            let bytes = robot.lowstate_bytes().context("building LowState")?;
+            if let Err(e) = states.write(&bytes) {
+                eprintln!("sim: publishing rt/lowstate failed: {e}");
+            }
+            next_publish += publish_period;
+        }
+        let since = window.0.elapsed().as_secs_f64();
+        if since >= 1.0 {
+            let c = robot.counters();
+            if !args.quiet {
+                eprintln!(
+                    "sim: t={sim_time:.1}s state {:.1} Hz  rtf {:.2}  cmds accepted {} rejected {} bad-crc {} malformed {}{}",
+                    (c.states_published - window.2) as f64 / since,
+                    (sim_time - window.1) / since,
+                    c.accepted,
+                    c.rejected,
+                    c.bad_crc,
+                    c.malformed,
+                    if robot.command_active(start.elapsed().as_secs_f64()) { "" } else { "  [damping/hold: no fresh command]" }
+                );
+            }
+            window = (Instant::now(), sim_time, c.states_published);
+        }
+    }
+    let c = robot.counters();
+    eprintln!(
+        "sim: stopped after {:.1} s wall, {sim_time:.1} s simulated; states {} cmds received {} accepted {} rejected {} bad-crc {} malformed {}",
+        start.elapsed().as_secs_f64(),
+        c.states_published,
+        c.received,
+        c.accepted,
+        c.rejected,
+        c.bad_crc,
+        c.malformed
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Hands every pending command sample to the robot, stamped with the bridge's clock.
+fn drain(reader: &dds_transport::RawReader, robot: &mut SimRobot, start: Instant) {
+    while let Some(sample) = reader.try_take() {
+        robot.handle_lowcmd(&sample.data, start.elapsed().as_secs_f64());
+    }
+}
