@@ -10,7 +10,7 @@ source scripts/env.sh
 export CARGO_TERM_COLOR=never
 # Snapshot tests must fail on a mismatch, never write new snapshots.
 export INSTA_UPDATE=no
-cargo test --workspace --locked
+cargo test --workspace --locked --no-fail-fast
 if [ "${ULAB_FUZZ_SECONDS:-20}" != 0 ]; then
   bash scripts/fuzz.sh smoke "${ULAB_FUZZ_SECONDS:-20}"
 fi

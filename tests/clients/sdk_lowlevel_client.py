@@ -9,6 +9,7 @@ joints commanded to targets and where they ended, and what a corrupted-CRC comma
 Every wait is bounded; exit code 0 unless the SDK itself failed.
 """
 import argparse
+import dataclasses
 import json
 import platform
 import sys
@@ -99,6 +100,7 @@ def main():
     ap.add_argument("--domain", type=int, required=True)
     ap.add_argument("--seconds-rate", type=float, default=2.0)
     ap.add_argument("--connect-timeout", type=float, default=20.0)
+    ap.add_argument("--dump", type=int, default=0, help="also print N received LowState samples as decoded by Python")
     args = ap.parse_args()
     out = {}
     c = Client(args.domain)
@@ -125,6 +127,9 @@ def main():
     out["ticks_increasing"] = all(b > a for a, b in zip(ticks, ticks[1:]))
     mode_machine = c.latest()[4]
     out["mode_machine"] = mode_machine
+    if args.dump:
+        step = max(1, len(window) // args.dump)
+        out["samples"] = [dataclasses.asdict(s[1]) for s in window[::step][: args.dump]]
 
     # 2. Hold the current pose, move a few joints to targets.
     start_q = list(c.latest()[3])
@@ -150,7 +155,8 @@ def main():
 
     c.drive(both, 1.5, period=0.004)
     out["corrupted"] = {"slot": 16, "held_target": targets[16], "corrupt_target": bad[16], "final": c.latest()[3][16]}
-    print(json.dumps(out), flush=True)
+    # Received octet arrays come back as bytes: print them as lists of integers.
+    print(json.dumps(out, default=list), flush=True)
 
 
 if __name__ == "__main__":

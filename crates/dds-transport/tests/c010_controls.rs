@@ -34,7 +34,7 @@ fn default_discovery_settings_do_not_find_a_010_peer() {
 #[test]
 fn typed_cyclone11_writer_crashes_a_010_peer() {
     let peer_bin = build_c010_peer();
-    let peer = Proc::spawn(Command::new(&peer_bin).arg("163").arg("lo").arg("5"));
+    let peer = Proc::spawn(Command::new(&peer_bin).arg("163").arg("lo").arg("20"));
     std::thread::sleep(Duration::from_millis(300));
     let (_ok, _o, _e) = run_with_timeout(
         Command::new(python())

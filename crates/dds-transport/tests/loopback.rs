@@ -86,7 +86,7 @@ fn discovery_shows_our_endpoints_without_type_information() {
         })
         .expect("read")
         .expect("our writer is announced");
-    assert!(w.local);
+    assert!(w.local && w.alive);
     assert_eq!(w.type_name, "unitree_hg::msg::dds_::LowState_");
     assert!(!w.has_type_information);
     assert_eq!(

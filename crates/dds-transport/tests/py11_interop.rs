@@ -23,22 +23,23 @@ fn echo_round_trip(domain: u32, sdk_config: bool) {
     let cmd_w = p.writer(&TopicSpec::lowcmd(Family::Hg)).expect("writer");
     let state_r = p.reader(&TopicSpec::lowstate(Family::Hg)).expect("reader");
     let mut cmd = py_peer();
-    cmd.args(["echo", "--domain", &domain.to_string(), "--seconds", "8"]);
+    cmd.args(["echo", "--domain", &domain.to_string(), "--seconds", "30"]);
     if sdk_config {
         cmd.arg("--sdk");
     }
     let peer = Proc::spawn(&mut cmd);
     assert!(
-        cmd_w.wait_for_readers(1, Duration::from_secs(8)).expect("status"),
+        cmd_w.wait_for_readers(1, Duration::from_secs(20)).expect("status"),
         "Python reader never matched"
     );
     let q = |i: usize| -1.0 + i as f32 * 0.03125;
     let payload = hg_lowcmd(q, 7.0, 77);
-    let deadline = Instant::now() + Duration::from_secs(5);
+    let deadline = Instant::now() + Duration::from_secs(15);
     let mut echoed = None;
     while Instant::now() < deadline && echoed.is_none() {
         cmd_w.write(&payload).expect("write");
-        while let Some(s) = state_r.take(Duration::from_millis(20)) {
+        std::thread::sleep(Duration::from_millis(10));
+        while let Some(s) = state_r.try_take() {
             assert_eq!(s.data.len(), HG_LOWSTATE_LEN);
             if hg_lowstate_reserve(&s.data, 0).unwrap_or(0) > 0 {
                 echoed = Some(s);
@@ -159,8 +160,8 @@ fn discovery_monitor_sees_remote_type_information() {
         "100",
     ]));
     let w = mon
-        .wait_for(Duration::from_secs(8), |e| {
-            !e.local && e.kind == EndpointKind::Publication && e.topic_name == "rt/lowcmd"
+        .wait_for(Duration::from_secs(20), |e| {
+            e.alive && !e.local && e.kind == EndpointKind::Publication && e.topic_name == "rt/lowcmd"
         })
         .expect("read");
     drop(peer);

@@ -30,6 +30,13 @@ pub fn hg_lowcmd(q: impl Fn(usize) -> f32, kp0: f32, crc: u32) -> Vec<u8> {
     b
 }
 
+/// An hg LowCmd_ asking the C test peer to exit (reserve[0] = 0xDEADBEEF).
+pub fn hg_lowcmd_shutdown() -> Vec<u8> {
+    let mut b = hg_lowcmd(|_| 0.0, 0.0, 0);
+    b[HDR + 980..HDR + 984].copy_from_slice(&0xDEAD_BEEFu32.to_le_bytes());
+    b
+}
+
 /// tick of a serialized hg LowState_.
 pub fn hg_lowstate_tick(b: &[u8]) -> Option<u32> {
     Some(u32::from_le_bytes(b.get(HDR + 12..HDR + 16)?.try_into().ok()?))
@@ -109,6 +116,11 @@ impl Proc {
         }
     }
 
+    /// Whether it has exited.
+    pub fn has_exited(&mut self) -> bool {
+        matches!(self.child.try_wait(), Ok(Some(_)))
+    }
+
     /// The process id.
     pub fn id(&self) -> u32 {
         self.child.id()
@@ -157,8 +169,15 @@ impl Drop for Proc {
     }
 }
 
-/// Builds the Cyclone 0.10.2 C peer into the cargo target tmp dir; returns its path.
+/// Builds the Cyclone 0.10.2 C peer into the cargo target tmp dir (once per test binary: tests
+/// run on parallel threads, and one must not exec the binary while another rewrites it);
+/// returns its path.
 pub fn build_c010_peer() -> PathBuf {
+    static PEER: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    PEER.get_or_init(build_c010_peer_once).clone()
+}
+
+fn build_c010_peer_once() -> PathBuf {
     let src = crate_dir().join("tests/peers/c010");
     let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("c010-peer");
     let (ok, stdout, stderr) = run_with_timeout(

@@ -4,7 +4,8 @@
  * else Cyclone's default), publishes hg LowState_ on rt/lowstate at 100 Hz and subscribes hg
  * LowCmd_ on rt/lowcmd with default QoS. Every received command is printed and echoed into the
  * next states: motor_state[i].q = motor_cmd[i].q, reserve[0] = number of commands received,
- * reserve[1] = crc of the last command. It exits 0 after --seconds, or 3 on a setup error.
+ * reserve[1] = crc of the last command. It exits 0 after SECONDS, or as soon as a command with
+ * reserve[0] == 0xDEADBEEF arrives (the test's shutdown request), or 3 on a setup error.
  *
  * usage: peer DOMAIN INTERFACE SECONDS
  */
@@ -67,6 +68,12 @@ int main(int argc, char **argv)
     dds_return_t n;
     while ((n = dds_take(rd, samples, info, 1, 1)) > 0) {
       if (!info[0].valid_data) continue;
+      if (cmd.reserve[0] == 0xDEADBEEFu) {
+        printf("SHUTDOWN received=%u\n", received);
+        fflush(stdout);
+        dds_delete(dom);
+        return 0;
+      }
       received++;
       for (int i = 0; i < 35; i++) state.motor_state[i].q = cmd.motor_cmd[i].q;
       state.reserve[0] = received;
