@@ -34,7 +34,14 @@ fn default_discovery_settings_do_not_find_a_010_peer() {
 #[test]
 fn typed_cyclone11_writer_crashes_a_010_peer() {
     let peer_bin = build_c010_peer();
-    let peer = Proc::spawn(Command::new(&peer_bin).arg("163").arg("lo").arg("20"));
+    // The peer is expected to crash: no core file (`ulimit -c 0`).
+    let peer = Proc::spawn(
+        Command::new("sh")
+            .arg("-c")
+            .arg("ulimit -c 0; exec \"$0\" \"$@\"")
+            .arg(&peer_bin)
+            .args(["163", "lo", "20"]),
+    );
     std::thread::sleep(Duration::from_millis(300));
     let (_ok, _o, _e) = run_with_timeout(
         Command::new(python())

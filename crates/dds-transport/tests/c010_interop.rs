@@ -9,8 +9,10 @@ mod common;
 
 use common::*;
 use dds_transport::{topics::Family, DomainConfig, Durability, EndpointKind, Participant, Reliability, TopicSpec};
+use lowlevel_codec::Encoding;
 use std::process::Command;
 use std::time::{Duration, Instant};
+use unitree_idl::hg;
 
 const DOMAIN: u32 = 161;
 
@@ -34,8 +36,17 @@ fn c010_peer_exchanges_lowcmd_and_lowstate_both_ways() {
     );
 
     // Send commands with a distinctive pattern until the peer echoes them back in LowState.
+    // A command built and sealed by our codec; the peer checks the CRC with Unitree's algorithm.
     let q = |i: usize| 0.25 + i as f32 * 0.01;
-    let cmd = hg_lowcmd(q, 42.5, 0xC0FFEE);
+    let mut c = hg::LowCmd_ { mode_machine: 6, ..Default::default() };
+    for (i, m) in c.motor_cmd.iter_mut().enumerate() {
+        m.mode = 1;
+        m.q = q(i);
+    }
+    c.motor_cmd[0].kp = 42.5;
+    lowlevel_codec::seal(&mut c);
+    let sealed_crc = c.crc;
+    let cmd = lowlevel_codec::encode(&c, Encoding::UNITREE);
     let deadline = Instant::now() + Duration::from_secs(15);
     let mut states = 0usize;
     let mut last_tick = None;
@@ -59,7 +70,16 @@ fn c010_peer_exchanges_lowcmd_and_lowstate_both_ways() {
     for i in [0usize, 1, 17, 34] {
         assert_eq!(hg_lowstate_q(&echoed.data, i), Some(q(i)), "motor {i} q echoed");
     }
-    assert_eq!(hg_lowstate_reserve(&echoed.data, 1), Some(0xC0FFEE), "crc echoed");
+    assert_eq!(hg_lowstate_reserve(&echoed.data, 1), Some(sealed_crc), "crc echoed");
+    // Its state decodes with our codec and its CRC (computed in C) verifies with ours.
+    let state = lowlevel_codec::decode::<hg::LowState_>(&echoed.data)
+        .expect("decode")
+        .value;
+    assert!(lowlevel_codec::verify(&state), "0.10.2 peer's LowState CRC");
+    assert!(
+        state.reserve[2] >= 1 && state.reserve[2] == state.reserve[0],
+        "peer found our command CRCs valid"
+    );
 
     // What the 0.10.2 peer (default QoS, like Unitree's SDK) announces in discovery.
     let find = |kind: EndpointKind, topic: &str| {
@@ -102,6 +122,83 @@ fn c010_peer_exchanges_lowcmd_and_lowstate_both_ways() {
         out.contains("CMD n=1 mode_pr=0 mode_machine=6 m0.mode=1 m0.q=0.250000 m0.kp=42.500"),
         "{all}"
     );
-    assert!(out.contains("m34.q=0.590000 crc=12648430"), "{all}");
+    assert!(
+        out.contains(&format!("m34.q=0.590000 crc={sealed_crc} crc_ok=1")),
+        "{all}"
+    );
     assert!(out.contains("SHUTDOWN"), "{all}");
+}
+
+/// The 0.10.2 peer as a Unitree-style low-level controller, our transport as the robot: it reads
+/// our LowState (CRC and ticks checked in C), drives one joint, and its sealed LowCmd decodes and
+/// verifies with our codec.
+#[test]
+fn c010_controller_drives_a_robot_on_our_transport() {
+    const JOINT: usize = 3;
+    const TARGET: f32 = 0.4;
+    let peer_bin = build_c010_peer();
+    let domain = 176;
+    let p = Participant::new(DomainConfig::loopback(domain)).expect("participant");
+    let state_w = p.writer(&TopicSpec::lowstate(Family::Hg)).expect("writer");
+    let cmd_r = p.reader(&TopicSpec::lowcmd(Family::Hg)).expect("reader");
+    let peer = Proc::spawn(Command::new(&peer_bin).args([
+        &domain.to_string(),
+        "lo",
+        "3",
+        "controller",
+        "3",
+        "0.4",
+        "60",
+        "2",
+    ]));
+
+    // A toy robot at 500 Hz: joint JOINT moves 2% of the way to a valid command's target per tick.
+    let mut state = hg::LowState_ { mode_machine: 6, ..Default::default() };
+    state.imu_state.quaternion[0] = 1.0;
+    let (mut cmds, mut bad_crc) = (0u32, 0u32);
+    let start = Instant::now();
+    let mut next = start;
+    while start.elapsed() < Duration::from_secs(4) {
+        while let Some(s) = cmd_r.try_take() {
+            match lowlevel_codec::decode::<hg::LowCmd_>(&s.data) {
+                Ok(d) if lowlevel_codec::verify(&d.value) => {
+                    cmds += 1;
+                    let m = &d.value.motor_cmd[JOINT];
+                    assert_eq!((d.value.mode_machine, m.mode, m.q, m.kp), (6, 1, TARGET, 60.0));
+                    state.motor_state[JOINT].q += 0.02 * (m.q - state.motor_state[JOINT].q);
+                }
+                _ => bad_crc += 1,
+            }
+        }
+        state.tick = state.tick.wrapping_add(2);
+        lowlevel_codec::seal(&mut state);
+        state_w
+            .write(&lowlevel_codec::encode(&state, Encoding::UNITREE))
+            .expect("write");
+        next += Duration::from_millis(2);
+        if let Some(d) = next.checked_duration_since(Instant::now()) {
+            std::thread::sleep(d);
+        }
+    }
+    let (code, out, err) = peer.wait(Duration::from_secs(15));
+    assert_eq!(code, Some(0), "{out}\n{err}");
+    let report: serde_json::Value = out
+        .lines()
+        .rev()
+        .find_map(|l| serde_json::from_str(l).ok())
+        .unwrap_or_else(|| panic!("no report:\n{out}\n{err}"));
+    let states = report["states"].as_u64().expect("states");
+    assert!(states > 500, "{report}");
+    assert_eq!(
+        report["crc_ok"].as_u64(),
+        Some(states),
+        "our LowState CRCs verified in C: {report}"
+    );
+    assert_eq!(report["ticks_increasing"], true);
+    assert!(report["rate_hz"].as_f64().unwrap_or(0.0) > 400.0, "{report}");
+    assert!(
+        (report["last_q"].as_f64().unwrap_or(0.0) - f64::from(TARGET)).abs() < 0.01,
+        "{report}"
+    );
+    assert!(cmds > 500 && bad_crc == 0, "commands {cmds}, bad CRC {bad_crc}");
 }

@@ -500,6 +500,22 @@ pub fn link_poses_from_bodies(world: &PhysicsWorld, robot: &BuiltRobot) -> Vec<I
         .collect()
 }
 
+/// Mass of every simulated link body (`model.links` order); NaN for a missing body.
+pub fn link_masses(world: &PhysicsWorld, robot: &BuiltRobot) -> Vec<f64> {
+    robot.bodies.iter().map(|&h| world.bodies.get(h).map(|rb| rb.mass()).unwrap_or(f64::NAN)).collect()
+}
+
+/// World poses of the link frames in the `Engine` convention (`[w, x, y, z]` quaternions).
+pub fn link_poses(world: &PhysicsWorld, robot: &BuiltRobot) -> Vec<crate::engine::LinkPose> {
+    link_poses_from_bodies(world, robot)
+        .iter()
+        .map(|p| crate::engine::LinkPose {
+            pos: arr(&p.translation.vector),
+            quat: [p.rotation.w, p.rotation.i, p.rotation.j, p.rotation.k],
+        })
+        .collect()
+}
+
 /// Checks a torque vector's length and finiteness.
 pub fn check_tau(model: &RobotModel, tau: &[f64]) -> Result<(), EngineError> {
     if tau.len() != model.nj() {

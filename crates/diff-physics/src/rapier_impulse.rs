@@ -21,7 +21,7 @@
 //! - A reset rebuilds the whole Rapier world, so no joint or contact warm start survives it.
 use crate::engine::{CommonSettings, Contact, Energy, Engine, EngineError, LinkPose, State};
 use crate::rapier_common::{
-    add_robot, armature_inertia, arr, bodies_com, bodies_energy, check_tau, iso_from_pose, link_poses_from_bodies,
+    add_robot, armature_inertia, arr, bodies_com, bodies_energy, check_tau, iso_from_pose, link_masses, link_poses,
     link_velocities, new_world, read_contacts, revolute_joint, v_from_r, v_to_r, BuiltRobot, RapierSolverSettings,
     RAPIER_VERSION,
 };
@@ -377,21 +377,11 @@ impl Engine for RapierImpulseEngine {
     }
 
     fn link_masses(&self) -> Vec<f64> {
-        self.robot
-            .bodies
-            .iter()
-            .map(|&h| self.world.bodies.get(h).map(|rb| rb.mass()).unwrap_or(f64::NAN))
-            .collect()
+        link_masses(&self.world, &self.robot)
     }
 
     fn link_poses(&mut self) -> Vec<LinkPose> {
-        link_poses_from_bodies(&self.world, &self.robot)
-            .iter()
-            .map(|p| LinkPose {
-                pos: arr(&p.translation.vector),
-                quat: [p.rotation.w, p.rotation.i, p.rotation.j, p.rotation.k],
-            })
-            .collect()
+        link_poses(&self.world, &self.robot)
     }
 
     fn com(&mut self) -> [f64; 3] {

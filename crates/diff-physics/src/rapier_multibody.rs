@@ -22,7 +22,7 @@
 //!   so no warm start or contact history survives it.
 use crate::engine::{CommonSettings, Contact, Energy, Engine, EngineError, LinkPose, State};
 use crate::rapier_common::{
-    add_robot, arr, bodies_com, check_tau, iso_from_pose, link_poses_from_bodies, new_world, q_from_r, read_contacts,
+    add_robot, arr, bodies_com, check_tau, iso_from_pose, link_masses, link_poses, link_poses_from_bodies, new_world, q_from_r, read_contacts,
     revolute_joint, v_to_r, wxyz_to_quat, BuiltRobot, RapierSolverSettings, RAPIER_VERSION,
 };
 use nalgebra::{DMatrix, Isometry3, Matrix3, Translation3, Vector3};
@@ -463,21 +463,11 @@ impl Engine for RapierMultibodyEngine {
     }
 
     fn link_masses(&self) -> Vec<f64> {
-        self.robot
-            .bodies
-            .iter()
-            .map(|&h| self.world.bodies.get(h).map(|rb| rb.mass()).unwrap_or(f64::NAN))
-            .collect()
+        link_masses(&self.world, &self.robot)
     }
 
     fn link_poses(&mut self) -> Vec<LinkPose> {
-        link_poses_from_bodies(&self.world, &self.robot)
-            .iter()
-            .map(|p| LinkPose {
-                pos: arr(&p.translation.vector),
-                quat: [p.rotation.w, p.rotation.i, p.rotation.j, p.rotation.k],
-            })
-            .collect()
+        link_poses(&self.world, &self.robot)
     }
 
     fn com(&mut self) -> [f64; 3] {

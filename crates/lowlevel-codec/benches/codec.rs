@@ -13,8 +13,7 @@ use std::time::Instant;
 use unitree_idl::hg;
 
 fn sample_state() -> hg::LowState_ {
-    let mut s = hg::LowState_::default();
-    s.tick = 123_456;
+    let mut s = hg::LowState_ { tick: 123_456, ..Default::default() };
     s.imu_state.quaternion = [0.999, 0.01, -0.02, 0.03];
     for (i, m) in s.motor_state.iter_mut().enumerate() {
         let x = i as f32;

@@ -62,6 +62,8 @@ pub fn roundtrip_bytes(data: &[u8]) {
     use arbitrary::{Arbitrary, Unstructured};
     use unitree_idl::{go, hg};
 
+    // Built once per fuzz input and matched immediately: boxing the big variants buys nothing.
+    #[allow(clippy::large_enum_variant)]
     #[derive(Debug, Arbitrary)]
     enum Message {
         HgLowCmd(hg::LowCmd_),

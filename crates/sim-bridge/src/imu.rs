@@ -32,6 +32,9 @@ pub(crate) struct ImuTracker {
     reading: ImuReading,
 }
 
+/// World pose of the IMU frame, its world linear velocity and world angular velocity.
+type ImuKinematics = (Isometry3<f64>, Vector3<f64>, Vector3<f64>);
+
 /// Step along the velocity used to differentiate forward kinematics (s).
 const EPS: f64 = 1e-7;
 
@@ -56,7 +59,7 @@ impl ImuTracker {
     }
 
     /// World pose of the IMU frame, and its world linear and angular velocity.
-    fn kinematics(&self, model: &RobotModel, state: &State) -> Result<(Isometry3<f64>, Vector3<f64>, Vector3<f64>), ModelError> {
+    fn kinematics(&self, model: &RobotModel, state: &State) -> Result<ImuKinematics, ModelError> {
         let pose = |c: &GenCoords| -> Result<Isometry3<f64>, ModelError> { Ok(model.fk(c)?.link_poses[self.link] * self.site) };
         let c0 = state.coords();
         let p0 = pose(&c0)?;

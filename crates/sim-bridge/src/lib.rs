@@ -307,9 +307,7 @@ impl SimRobot {
 
     fn build_lowstate(&self) -> Result<hg::LowState_, BridgeError> {
         let state = self.engine.state();
-        let mut s = hg::LowState_::default();
-        s.mode_machine = self.config.mode_machine;
-        s.tick = self.tick();
+        let mut s = hg::LowState_ { mode_machine: self.config.mode_machine, tick: self.tick(), ..Default::default() };
         let reading = self.imu.reading();
         s.imu_state.quaternion = reading.quaternion.map(|x| x as f32);
         s.imu_state.gyroscope = reading.gyroscope.map(|x| x as f32);

@@ -44,6 +44,8 @@ const fn j(slot: usize, name: &'static str, torque: f32, speed: f32, lower: f32,
 }
 
 /// The 27 joints in slot order.
+// Figures as Unitree publishes them: 3.14 is their limit, not an approximation of pi.
+#[allow(clippy::approx_constant)]
 pub const JOINTS: [Joint; NUM_JOINTS] = [
     j(0, "left_hip_yaw_joint", 200.0, 23.0, -0.43, 0.43),
     j(1, "left_hip_pitch_joint", 200.0, 23.0, -3.14, 2.5),
