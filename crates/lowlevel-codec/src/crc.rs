@@ -35,18 +35,46 @@ pub fn crc32_reference(image: &[u8]) -> u32 {
 /// `crc-fast` (carry-less multiply folding on x86_64/aarch64, tables elsewhere).
 /// Equal to [`crc32_reference`] for every input (a trailing partial word is ignored).
 pub fn crc32_words(image: &[u8]) -> u32 {
-    const CHUNK: usize = 512;
-    let mut digest = crc_fast::Digest::new(crc_fast::CrcAlgorithm::Crc32Mpeg2);
-    let mut swapped = [0u8; CHUNK];
-    let whole = image.len() & !3;
-    for chunk in image[..whole].chunks(CHUNK) {
-        let out = &mut swapped[..chunk.len()];
-        for (dst, src) in out.chunks_exact_mut(4).zip(chunk.chunks_exact(4)) {
-            dst.copy_from_slice(&[src[3], src[2], src[1], src[0]]);
-        }
-        digest.update(out);
+    use std::cell::RefCell;
+    thread_local! {
+        // Scratch for the swapped words, reused so that no call pays for zeroing a buffer.
+        static SWAPPED: RefCell<Vec<u8>> = const { RefCell::new(Vec::new()) };
     }
-    digest.finalize() as u32
+    let whole = image.len() & !3;
+    SWAPPED.with(|cell| match cell.try_borrow_mut() {
+        Ok(mut buf) => {
+            if buf.len() < whole {
+                buf.resize(whole, 0);
+            }
+            swap_words(&image[..whole], &mut buf[..whole]);
+            crc_fast::checksum(crc_fast::CrcAlgorithm::Crc32Mpeg2, &buf[..whole]) as u32
+        }
+        // Re-entered on this thread (cannot happen today): fall back to a fresh buffer.
+        Err(_) => {
+            let mut buf = vec![0u8; whole];
+            swap_words(&image[..whole], &mut buf);
+            crc_fast::checksum(crc_fast::CrcAlgorithm::Crc32Mpeg2, &buf) as u32
+        }
+    })
+}
+
+/// Byte-swaps every 32-bit word of `src` into `dst` (same length, a multiple of 4), two words at
+/// a time with shifts and masks, which the compiler vectorises.
+#[inline]
+fn swap_words(src: &[u8], dst: &mut [u8]) {
+    let mut d8 = dst.chunks_exact_mut(8);
+    let mut s8 = src.chunks_exact(8);
+    for (d, s) in (&mut d8).zip(&mut s8) {
+        let mut b = [0u8; 8];
+        b.copy_from_slice(s);
+        let w = u64::from_le_bytes(b);
+        let w = ((w & 0x00ff_00ff_00ff_00ff) << 8) | ((w >> 8) & 0x00ff_00ff_00ff_00ff);
+        let w = ((w & 0x0000_ffff_0000_ffff) << 16) | ((w >> 16) & 0x0000_ffff_0000_ffff);
+        d.copy_from_slice(&w.to_le_bytes());
+    }
+    for (d, s) in d8.into_remainder().chunks_exact_mut(4).zip(s8.remainder().chunks_exact(4)) {
+        d.copy_from_slice(&[s[3], s[2], s[1], s[0]]);
+    }
 }
 
 /// The C struct image of `value`: members at their natural alignment, structs padded to their

@@ -179,18 +179,31 @@ pub fn build_c010_peer() -> PathBuf {
 
 fn build_c010_peer_once() -> PathBuf {
     let src = crate_dir().join("tests/peers/c010");
-    let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("c010-peer");
+    let tmpdir = Path::new(env!("CARGO_TARGET_TMPDIR"));
+    let out = tmpdir.join("c010-peer");
+    let target = out.join("peer");
+    // Up to date: nothing to do (also keeps concurrent test processes from rebuilding it).
+    let mtime = |p: &Path| std::fs::metadata(p).and_then(|m| m.modified()).ok();
+    let newest_src = ["peer.c", "unitree_hg.idl", "Makefile"].iter().filter_map(|f| mtime(&src.join(f))).max();
+    if let (Some(t), Some(s)) = (mtime(&target), newest_src) {
+        if t >= s {
+            return target;
+        }
+    }
+    // Build in a private directory, then move the binary into place atomically: another test
+    // process may be executing the old one.
+    let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos());
+    let private = tmpdir.join(format!("c010-peer-build-{}-{nanos}", std::process::id()));
     let (ok, stdout, stderr) = run_with_timeout(
-        Command::new("make")
-            .arg("-s")
-            .arg("-f")
-            .arg(src.join("Makefile"))
-            .arg(format!("OUT={}", out.display())),
+        Command::new("make").arg("-s").arg("-f").arg(src.join("Makefile")).arg(format!("OUT={}", private.display())),
         Duration::from_secs(120),
     );
     assert!(
         ok,
         "building the Cyclone 0.10.2 peer failed (needs Debian's cyclonedds-dev and cyclonedds-tools, see scripts/setup.sh):\n{stdout}\n{stderr}"
     );
-    out.join("peer")
+    std::fs::create_dir_all(&out).expect("peer output directory");
+    std::fs::rename(private.join("peer"), &target).expect("move the peer into place");
+    let _ = std::fs::remove_dir_all(&private);
+    target
 }

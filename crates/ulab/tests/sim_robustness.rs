@@ -1,0 +1,524 @@
+//! Robustness of `ulab sim --engine mujoco` on its DDS interface (issue 7, item 5):
+//! * a flood of valid commands at 10x the normal rate (5 kHz);
+//! * malformed samples published raw through our transport (truncated, too long, bad or
+//!   unsupported encapsulation header, header only), and well-formed commands with unsafe content
+//!   under a valid CRC (NaN, infinity, absurd gains, targets and torques, unknown mode);
+//! * subscribers (readers and whole participants, best-effort and reliable) joining and leaving.
+//!
+//! Throughout, our own reader checks that the bridge keeps publishing LowState at >= 90 % of
+//! the set rate, and that every LowState decodes, has a valid CRC and only finite values. At the
+//! end the bridge must exit 0 by itself (`--duration`), without a panic, and its final counters
+//! (`cmds received N accepted N rejected N bad-crc N malformed N`) must account for what was sent.
+
+use dds_transport::{DomainConfig, Family, Participant, RawWriter, ReaderOptions, Reliability, TopicSpec};
+use lowlevel_codec::{cdr, crc, validate, Encoding, Endianness, Representation};
+use std::io::Read;
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+use unitree_idl::{h1_2, hg};
+
+/// One simulator at a time: the 2-core machines cannot run two in real time.
+static SERIAL: Mutex<()> = Mutex::new(());
+
+const STATE_RATE: f64 = 500.0;
+/// Left elbow: light, so a wrongly applied command moves it quickly and visibly.
+const ELBOW: usize = 16;
+
+// ---------------------------------------------------------------------------------------------
+// The bridge process.
+
+struct Sim {
+    child: Option<Child>,
+    stderr: Option<JoinHandle<String>>,
+}
+
+impl Sim {
+    /// Starts `ulab sim --engine mujoco` on `domain` for `seconds` of wall time.
+    fn start(domain: u32, seconds: f64, extra: &[&str]) -> Sim {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_ulab"))
+            .args(["sim", "--engine", "mujoco", "--domain", &domain.to_string(), "--duration", &seconds.to_string(), "--quiet"])
+            .args(extra)
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("start ulab sim");
+        // Read stderr on a thread so that a full pipe never blocks the bridge.
+        let mut err = child.stderr.take().expect("stderr piped");
+        let stderr = std::thread::spawn(move || {
+            let mut s = String::new();
+            let _ = err.read_to_string(&mut s);
+            s
+        });
+        Sim { child: Some(child), stderr: Some(stderr) }
+    }
+
+    fn alive(&mut self) -> bool {
+        self.child.as_mut().is_some_and(|c| matches!(c.try_wait(), Ok(None)))
+    }
+
+    /// Waits (bounded) for the bridge to end its `--duration`; returns its status and stderr.
+    fn finish(mut self, timeout: Duration) -> (Option<ExitStatus>, String) {
+        let mut child = self.child.take().expect("child");
+        let end = Instant::now() + timeout;
+        let status = loop {
+            match child.try_wait() {
+                Ok(Some(s)) => break Some(s),
+                Ok(None) if Instant::now() < end => std::thread::sleep(Duration::from_millis(50)),
+                _ => {
+                    let _ = child.kill();
+                    let _ = child.wait();
+                    break None;
+                }
+            }
+        };
+        let err = self.stderr.take().map(|h| h.join().unwrap_or_default()).unwrap_or_default();
+        (status, err)
+    }
+}
+
+impl Drop for Sim {
+    fn drop(&mut self) {
+        if let Some(c) = &mut self.child {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+/// The bridge's final counters, parsed from its last stderr line.
+#[derive(Debug, Default)]
+struct Counters {
+    received: u64,
+    accepted: u64,
+    rejected: u64,
+    bad_crc: u64,
+    malformed: u64,
+}
+
+fn counters(stderr: &str) -> Counters {
+    let line = stderr.lines().rev().find(|l| l.contains("cmds received")).unwrap_or_else(|| panic!("no summary line in:\n{stderr}"));
+    let get = |key: &str| -> u64 {
+        let pat = format!(" {key} ");
+        let at = line.find(&pat).unwrap_or_else(|| panic!("`{key}` not in {line:?}")) + pat.len();
+        line[at..].split_whitespace().next().and_then(|n| n.parse().ok()).unwrap_or_else(|| panic!("`{key}` in {line:?}"))
+    };
+    Counters { received: get("received"), accepted: get("accepted"), rejected: get("rejected"), bad_crc: get("bad-crc"), malformed: get("malformed") }
+}
+
+/// Common end-of-run checks: exited 0 by itself, no panic; returns the counters.
+fn finish_ok(sim: Sim, timeout: Duration) -> Counters {
+    let (status, err) = sim.finish(timeout);
+    assert!(!err.contains("panicked"), "bridge panicked:\n{err}");
+    assert!(status.is_some_and(|s| s.success()), "bridge did not exit 0 after --duration ({status:?}):\n{err}");
+    counters(&err)
+}
+
+// ---------------------------------------------------------------------------------------------
+// Our own LowState monitor.
+
+#[derive(Debug, Default)]
+struct Report {
+    /// Arrival time of every LowState.
+    arrivals: Vec<Instant>,
+    undecodable: usize,
+    bad_crc: usize,
+    non_finite: usize,
+    /// (arrival, left elbow q) of every LowState.
+    elbow: Vec<(Instant, f32)>,
+}
+
+struct Monitor {
+    stop: Arc<AtomicBool>,
+    latest: Arc<Mutex<Option<hg::LowState_>>>,
+    handle: Option<JoinHandle<Report>>,
+}
+
+impl Monitor {
+    /// Takes every LowState on `participant` until stopped, checking each one.
+    fn start(participant: &Participant) -> Monitor {
+        let reader = participant.reader(&TopicSpec::lowstate(Family::Hg)).expect("LowState reader");
+        let stop = Arc::new(AtomicBool::new(false));
+        let latest = Arc::new(Mutex::new(None));
+        let (s, l) = (stop.clone(), latest.clone());
+        let handle = std::thread::spawn(move || {
+            let mut r = Report::default();
+            while !s.load(Ordering::SeqCst) {
+                let Some(sample) = reader.take(Duration::from_millis(20)) else { continue };
+                let now = Instant::now();
+                r.arrivals.push(now);
+                let Ok(d) = cdr::decode::<hg::LowState_>(&sample.data) else {
+                    r.undecodable += 1;
+                    continue;
+                };
+                if !crc::verify(&d.value) {
+                    r.bad_crc += 1;
+                }
+                if !validate::non_finite(&d.value).is_empty() {
+                    r.non_finite += 1;
+                }
+                r.elbow.push((now, d.value.motor_state[ELBOW].q));
+                *l.lock().unwrap_or_else(|e| e.into_inner()) = Some(d.value);
+            }
+            r
+        });
+        Monitor { stop, latest, handle: Some(handle) }
+    }
+
+    /// Waits (bounded) for the first LowState and returns it.
+    fn first(&self, timeout: Duration) -> hg::LowState_ {
+        let end = Instant::now() + timeout;
+        while Instant::now() < end {
+            if let Some(s) = self.latest() {
+                return s;
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        panic!("no LowState from the bridge within {timeout:?}");
+    }
+
+    fn latest(&self) -> Option<hg::LowState_> {
+        self.latest.lock().unwrap_or_else(|e| e.into_inner()).clone()
+    }
+
+    fn stop(mut self) -> Report {
+        self.stop.store(true, Ordering::SeqCst);
+        self.handle.take().expect("handle").join().expect("monitor thread")
+    }
+}
+
+impl Report {
+    /// Every LowState decoded, had a valid CRC and only finite values.
+    fn assert_clean(&self) {
+        assert!(!self.arrivals.is_empty(), "no LowState at all");
+        assert_eq!(
+            (self.undecodable, self.bad_crc, self.non_finite),
+            (0, 0, 0),
+            "of {} LowState: undecodable, bad CRC, non-finite",
+            self.arrivals.len()
+        );
+    }
+
+    /// LowState rate in every whole second of [from, to) is at least 90 % of the set rate.
+    fn assert_rate(&self, from: Instant, to: Instant, what: &str) {
+        let mut t = from;
+        let mut windows = Vec::new();
+        while t + Duration::from_secs(1) <= to {
+            let end = t + Duration::from_secs(1);
+            let n = self.arrivals.iter().filter(|&&a| a >= t && a < end).count();
+            windows.push(n);
+            t = end;
+        }
+        assert!(!windows.is_empty(), "{what}: no whole second to measure");
+        eprintln!("{what}: LowState per second {windows:?}");
+        for (i, &n) in windows.iter().enumerate() {
+            assert!(n as f64 >= 0.9 * STATE_RATE, "{what}: second {i}: {n} LowState, set {STATE_RATE} Hz (all: {windows:?})");
+        }
+    }
+
+    /// Largest |elbow q - reference| over LowState that arrived in [from, to).
+    fn elbow_excursion(&self, from: Instant, to: Instant, reference: f32) -> f32 {
+        self.elbow.iter().filter(|(t, _)| *t >= from && *t < to).map(|(_, q)| (q - reference).abs()).fold(0.0, f32::max)
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Commands.
+
+/// A valid hold command for the current pose `q` (first 27 slots), with gains that keep the
+/// H1-2 standing (same as the Python SDK client test), CRC sealed.
+fn hold_command(q: &[f32], mode_machine: u8) -> hg::LowCmd_ {
+    const LEG_KP: [f32; 6] = [500.0, 500.0, 500.0, 500.0, 600.0, 600.0];
+    const LEG_KD: [f32; 6] = [5.0, 5.0, 5.0, 6.0, 10.0, 10.0];
+    let mut cmd = hg::LowCmd_::default();
+    cmd.mode_machine = mode_machine;
+    for (i, m) in cmd.motor_cmd.iter_mut().take(h1_2::NUM_JOINTS).enumerate() {
+        m.mode = 1;
+        m.q = q[i];
+        (m.kp, m.kd) = match i {
+            0..=11 => (LEG_KP[i % 6], LEG_KD[i % 6]),
+            12 => (300.0, 5.0),
+            _ => (120.0, 3.0),
+        };
+    }
+    crc::seal(&mut cmd);
+    cmd
+}
+
+fn current_q(s: &hg::LowState_) -> Vec<f32> {
+    s.motor_state.iter().take(h1_2::NUM_JOINTS).map(|m| m.q).collect()
+}
+
+fn xcdr1(cmd: &hg::LowCmd_) -> Vec<u8> {
+    cdr::encode(cmd, Encoding::UNITREE)
+}
+
+/// Sends `make()` at `rate` Hz for `seconds`, catching up after oversleeping so that the
+/// average rate holds even where the OS sleeps longer than the period. Returns samples sent.
+fn send_at(writer: &RawWriter, rate: f64, seconds: f64, mut make: impl FnMut(u64) -> Vec<u8>) -> u64 {
+    let start = Instant::now();
+    let mut sent = 0u64;
+    loop {
+        let elapsed = start.elapsed().as_secs_f64();
+        if elapsed >= seconds {
+            return sent;
+        }
+        let due = (elapsed * rate).floor() as u64 + 1;
+        while sent < due {
+            writer.write(&make(sent)).expect("write LowCmd");
+            sent += 1;
+        }
+        std::thread::sleep(Duration::from_secs_f64((due as f64 / rate - start.elapsed().as_secs_f64()).max(0.0)));
+    }
+}
+
+/// Our participant on `domain` with a LowState monitor and a raw LowCmd writer matched to the
+/// bridge's reader; waits (bounded) for the first LowState.
+fn connect(domain: u32) -> (Participant, Monitor, RawWriter, hg::LowState_) {
+    let p = Participant::new(DomainConfig::loopback(domain)).expect("participant");
+    let monitor = Monitor::start(&p);
+    let writer = p.writer(&TopicSpec::lowcmd(Family::Hg)).expect("LowCmd writer");
+    let first = monitor.first(Duration::from_secs(20));
+    assert!(writer.wait_for_readers(1, Duration::from_secs(10)).expect("matched status"), "bridge's rt/lowcmd reader never matched");
+    (p, monitor, writer, first)
+}
+
+// ---------------------------------------------------------------------------------------------
+// Tests.
+
+/// 5 kHz of valid commands (10x Unitree's 500 Hz control loop) for 3 s.
+#[test]
+fn flood_of_valid_commands_at_10x_rate() {
+    const DOMAIN: u32 = 72;
+    const FLOOD_HZ: f64 = 5000.0;
+    const FLOOD_S: f64 = 3.0;
+    let _guard = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let mut sim = Sim::start(DOMAIN, 9.0, &[]);
+    let (_p, monitor, writer, first) = connect(DOMAIN);
+
+    // The flood holds the pose but moves the left elbow by +0.3 rad: where the elbow ends
+    // shows that the bridge kept applying the flood rather than just surviving it.
+    let mut q = current_q(&first);
+    let elbow_target = q[ELBOW] + 0.3;
+    q[ELBOW] = elbow_target;
+    let bytes = xcdr1(&hold_command(&q, first.mode_machine));
+    let t0 = Instant::now();
+    let sent = send_at(&writer, FLOOD_HZ, FLOOD_S, |_| bytes.clone());
+    let t1 = Instant::now();
+    let achieved = sent as f64 / (t1 - t0).as_secs_f64();
+    let elbow_end = monitor.latest().map(|s| s.motor_state[ELBOW].q).unwrap_or(f32::NAN);
+    assert!(sim.alive(), "bridge died during the flood");
+    let report = monitor.stop();
+
+    assert!(achieved >= 0.9 * FLOOD_HZ, "the test only reached {achieved:.0} commands/s");
+    report.assert_clean();
+    report.assert_rate(t0, t1, "during a 5 kHz flood");
+    assert!((elbow_end - elbow_target).abs() < 0.08, "elbow at {elbow_end:.3}, flood target {elbow_target:.3}");
+
+    let c = finish_ok(sim, Duration::from_secs(20));
+    eprintln!("flood: sent {sent} at {achieved:.0}/s; bridge {c:?}");
+    // Only valid commands were sent: none may be rejected; most must be taken (loopback and the
+    // bridge's best-effort reader may drop some of a 5 kHz stream, which the protocol allows).
+    assert_eq!((c.rejected, c.bad_crc, c.malformed), (0, 0, 0), "{c:?}");
+    assert!(c.accepted <= sent && c.accepted * 2 >= sent, "accepted {} of {sent} flood commands", c.accepted);
+}
+
+/// Malformed samples and unsafe commands with a valid CRC: none applied, all counted.
+#[test]
+fn malformed_and_unsafe_commands_are_counted_and_never_applied() {
+    const DOMAIN: u32 = 73;
+    let _guard = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    // A long command timeout keeps the last valid hold active while only bad samples arrive,
+    // so that the elbow would visibly move if any of them were applied.
+    let mut sim = Sim::start(DOMAIN, 11.0, &["--command-timeout", "30"]);
+    let (_p, monitor, writer, first) = connect(DOMAIN);
+    let q = current_q(&first);
+    let hold = hold_command(&q, first.mode_machine);
+
+    // Phase 1 (1.5 s): valid hold at 500 Hz, alternately XCDR1 and XCDR2. Unitree's SDK sends
+    // XCDR1, but XCDR2 (header 00 07, DHEADER before the motor_cmd array) is a standard
+    // encoding of the same @final type that the bridge's codec decodes to the same value: such
+    // a sample is a valid command and must be accepted, not counted as malformed (and it must
+    // not be misread: were it, the elbow check below would see the pose move).
+    let xcdr2 = Encoding { representation: Representation::Xcdr2, endianness: Endianness::Little };
+    let (hold1, hold2) = (xcdr1(&hold), cdr::encode(&hold, xcdr2));
+    assert_ne!(hold1[4..], hold2[4..], "XCDR2 and XCDR1 bodies of hg LowCmd_ differ (DHEADER)");
+    assert_eq!(cdr::decode::<hg::LowCmd_>(&hold2).expect("XCDR2 decodes").value, hold);
+    let t_valid = Instant::now();
+    let valid_sent = send_at(&writer, 500.0, 1.5, |i| if i % 2 == 0 { hold1.clone() } else { hold2.clone() });
+
+    // Phase 2 (2 s): only unsafe commands, each with a valid CRC and the left elbow sent 0.8 rad
+    // away from the hold: applying any of them would move the elbow.
+    let away = q[ELBOW] - 0.8;
+    type Mutation = fn(&mut hg::MotorCmd_, &mut hg::LowCmd_);
+    let unsafe_kinds: [(&str, Mutation); 9] = [
+        ("NaN target", |e, _| e.q = f32::NAN),
+        ("NaN gain elsewhere", |_, c| c.motor_cmd[3].kd = f32::NAN),
+        ("infinite velocity", |e, _| e.dq = f32::INFINITY),
+        ("absurd kp", |e, _| e.kp = 1.0e6),
+        ("negative kd", |e, _| e.kd = -5.0),
+        ("absurd feed-forward torque", |e, _| e.tau = 1.0e4),
+        ("target beyond the joint range", |e, _| e.q = 50.0),
+        ("unknown motor mode", |e, _| e.mode = 7),
+        ("NaN in an unused slot", |_, c| c.motor_cmd[30].q = f32::NAN),
+    ];
+    let unsafe_samples: Vec<(&str, Vec<u8>)> = unsafe_kinds
+        .iter()
+        .map(|(name, mutate)| {
+            let mut c = hold.clone();
+            c.motor_cmd[ELBOW].q = away;
+            let mut elbow = c.motor_cmd[ELBOW].clone();
+            mutate(&mut elbow, &mut c);
+            c.motor_cmd[ELBOW] = elbow;
+            crc::seal(&mut c);
+            // Each must really be unsafe by the project's own rules, or the test proves nothing.
+            assert!(!validate::h1_2_lowcmd(&c).is_empty(), "{name} passes validation");
+            (*name, xcdr1(&c))
+        })
+        .collect();
+    let t_unsafe = Instant::now();
+    let unsafe_sent = send_at(&writer, 200.0, 2.0, |i| unsafe_samples[i as usize % unsafe_samples.len()].1.clone());
+
+    // Phase 3 (2 s): malformed byte strings, interleaved with valid holds at 250 Hz.
+    let mut long = hold1.clone();
+    long.extend_from_slice(&[0; 8]);
+    let mut pl_cdr = hold1.clone();
+    pl_cdr[..2].copy_from_slice(&[0x00, 0x03]);
+    let mut unknown = hold1.clone();
+    unknown[..2].copy_from_slice(&[0x12, 0x34]);
+    let mut xcdr2_truncated = hold2.clone();
+    xcdr2_truncated.truncate(hold2.len() - 5);
+    let mut bad_padding = hold1.clone();
+    bad_padding[..4].copy_from_slice(&[0x00, 0x01, 0x00, 0x03]); // claims 3 padding bytes it lacks
+    bad_padding.truncate(4 + 2);
+    // (name, bytes, reaches the application): Cyclone DDS itself drops a DATA submessage whose
+    // encapsulation identifier it does not know (it logs "malformed packet received" on the
+    // bridge's stderr), so those samples never reach the bridge's counters; every other byte
+    // string is delivered as is and must be counted as malformed.
+    let malformed: Vec<(&str, Vec<u8>, bool)> = vec![
+        ("truncated to half", hold1[..hold1.len() / 2].to_vec(), true),
+        ("header only", hold1[..4].to_vec(), true),
+        ("8 trailing bytes", long, true),
+        ("PL_CDR header", pl_cdr, true),
+        ("XCDR2 truncated", xcdr2_truncated, true),
+        ("bad padding option", bad_padding, true),
+        ("unknown encapsulation", unknown, false),
+    ];
+    for (name, bytes, _) in &malformed {
+        assert!(cdr::decode::<hg::LowCmd_>(bytes).is_err(), "{name} decodes");
+    }
+    let (mut malformed_sent, mut dropped_by_dds_sent, mut valid_sent_3) = (0u64, 0u64, 0u64);
+    send_at(&writer, 500.0, 2.0, |i| {
+        if i % 2 == 0 {
+            valid_sent_3 += 1;
+            hold1.clone()
+        } else {
+            let (_, bytes, reaches) = &malformed[(i / 2) as usize % malformed.len()];
+            if *reaches {
+                malformed_sent += 1;
+            } else {
+                dropped_by_dds_sent += 1;
+            }
+            bytes.clone()
+        }
+    });
+    let t_end = Instant::now();
+    assert!(sim.alive(), "bridge died");
+    let report = monitor.stop();
+
+    report.assert_clean();
+    report.assert_rate(t_unsafe, t_end, "during unsafe and malformed commands");
+    // Elbow held throughout (after 0.3 s for the switch from the bridge's initial standing
+    // hold to this controller's gains): an applied unsafe command would pull it 0.8 rad away.
+    let excursion = report.elbow_excursion(t_valid + Duration::from_millis(300), t_end, q[ELBOW]);
+    eprintln!("elbow excursion from the hold: {excursion:.4} rad");
+    assert!(excursion < 0.05, "elbow moved {excursion:.3} rad from the hold while XCDR2/unsafe/malformed commands arrived");
+
+    let c = finish_ok(sim, Duration::from_secs(20));
+    eprintln!(
+        "sent valid {} unsafe {unsafe_sent} malformed {malformed_sent} (+{dropped_by_dds_sent} with an unknown encapsulation); bridge {c:?}",
+        valid_sent + valid_sent_3
+    );
+    let valid = valid_sent + valid_sent_3;
+    // At 200-500 Hz on loopback nothing should be lost; allow 2 % for scheduling hiccups. More
+    // than was sent, in any counter, would be a counting bug.
+    let near = |got: u64, sent: u64| got <= sent && got * 100 >= sent * 98;
+    assert!(near(c.rejected, unsafe_sent), "rejected {} of {unsafe_sent} unsafe commands", c.rejected);
+    assert!(near(c.malformed, malformed_sent), "malformed {} of {malformed_sent} malformed samples", c.malformed);
+    assert!(near(c.accepted, valid), "accepted {} of {valid} valid commands (half of phase 1 in XCDR2)", c.accepted);
+    assert_eq!(c.bad_crc, 0);
+    assert_eq!(c.received, c.accepted + c.rejected + c.bad_crc + c.malformed, "{c:?}");
+}
+
+/// Readers and participants join and leave while the bridge publishes.
+#[test]
+fn subscribers_joining_and_leaving() {
+    const DOMAIN: u32 = 74;
+    const CHURN_S: f64 = 5.0;
+    let _guard = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let mut sim = Sim::start(DOMAIN, 10.0, &[]);
+    let (p, monitor, writer, first) = connect(DOMAIN);
+    let hold = xcdr1(&hold_command(&current_q(&first), first.mode_machine));
+
+    // Valid commands keep flowing at 500 Hz during the churn (a controller stays connected).
+    let stop = Arc::new(AtomicBool::new(false));
+    let commander = {
+        let stop = stop.clone();
+        std::thread::spawn(move || {
+            let mut n = 0u64;
+            while !stop.load(Ordering::SeqCst) {
+                n += send_at(&writer, 500.0, 0.1, |_| hold.clone());
+            }
+            n
+        })
+    };
+
+    let t0 = Instant::now();
+    let mut cycles = 0u32;
+    let mut received_by_churners = 0usize;
+    while t0.elapsed().as_secs_f64() < CHURN_S {
+        // Alternate: a reader on our participant, a reliable reader (the bridge's writer is
+        // reliable and must keep state for it), a new participant with its own reader, and a
+        // reader that never takes anything (a stalled subscriber).
+        let reliable = ReaderOptions { reliability: Reliability::Reliable, ..ReaderOptions::default() };
+        match cycles % 4 {
+            0 => {
+                let r = p.reader(&TopicSpec::lowstate(Family::Hg)).expect("reader");
+                received_by_churners += usize::from(r.take(Duration::from_millis(300)).is_some());
+            }
+            1 => {
+                let r = p.reader_with(&TopicSpec::lowstate(Family::Hg), reliable).expect("reliable reader");
+                received_by_churners += usize::from(r.take(Duration::from_millis(300)).is_some());
+            }
+            2 => {
+                let q = Participant::new(DomainConfig::loopback(DOMAIN)).expect("second participant");
+                let r = q.reader_with(&TopicSpec::lowstate(Family::Hg), reliable).expect("reader");
+                received_by_churners += usize::from(r.take(Duration::from_millis(300)).is_some());
+            }
+            _ => {
+                let _r = p.reader(&TopicSpec::lowstate(Family::Hg)).expect("reader");
+                std::thread::sleep(Duration::from_millis(100));
+            }
+        }
+        cycles += 1;
+    }
+    let t1 = Instant::now();
+    stop.store(true, Ordering::SeqCst);
+    let commands = commander.join().expect("commander");
+    assert!(sim.alive(), "bridge died during subscriber churn");
+    let report = monitor.stop();
+
+    report.assert_clean();
+    report.assert_rate(t0, t1, "while subscribers join and leave");
+    // Readers that take were created 3 times in 4 cycles; each must have got data quickly.
+    let takers = (0..cycles).filter(|c| c % 4 != 3).count();
+    assert!(received_by_churners * 10 >= takers * 9, "only {received_by_churners} of {takers} new readers got a LowState within 300 ms");
+
+    let c = finish_ok(sim, Duration::from_secs(20));
+    eprintln!("churn: {cycles} cycles, {commands} commands; bridge {c:?}");
+    assert!(cycles >= 10, "only {cycles} join/leave cycles");
+    assert_eq!((c.rejected, c.bad_crc, c.malformed), (0, 0, 0), "{c:?}");
+    assert!(c.accepted * 100 >= commands * 98 && c.accepted <= commands, "accepted {} of {commands}", c.accepted);
+}
