@@ -146,3 +146,21 @@ fn snapshots() {
     }
     insta::assert_snapshot!("decode_errors", errors);
 }
+
+/// `validate` on golden messages: the non-finite and random-valued LowCmds are flagged (exit 1),
+/// an all-zero LowCmd is clean (exit 0). The listing is pinned for review.
+#[test]
+fn validate_lists_findings() {
+    let mut report = String::new();
+    for (case, ty) in [("hg_lowcmd_zero_x1le", "hg/LowCmd"), ("hg_lowcmd_nonfinite_x1le", "hg/LowCmd"), ("hg_lowcmd_badcrc_x1le", "hg/LowCmd"), ("hg_lowstate_zero_x1le", "hg/LowState")] {
+        let bytes = std::fs::read(golden(&format!("{case}.cdr"))).expect("cdr");
+        let out = ulab(&["codec", "validate", "--type", ty], &bytes);
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        let lines: Vec<&str> = stdout.lines().collect();
+        report.push_str(&format!("{case}: exit {:?}, {} line(s)\n", out.status.code(), lines.len()));
+        for l in lines.iter().take(6) {
+            report.push_str(&format!("  {l}\n"));
+        }
+    }
+    insta::assert_snapshot!("validate", report);
+}

@@ -1,8 +1,8 @@
-//! `ulab codec decode|encode|crc`: the byte-level contract scripts rely on.
+//! `ulab codec decode|encode|crc|validate`: the byte-level contract scripts rely on.
 
 use anyhow::{bail, Context, Result};
 use clap::{Subcommand, ValueEnum};
-use lowlevel_codec::{cdr, crc, json, Encoding, Endianness, Representation};
+use lowlevel_codec::{cdr, crc, json, validate, Encoding, Endianness, Representation};
 use std::io::{Read, Write};
 use std::process::ExitCode;
 use unitree_idl::{with_message_type, IdlStruct, MessageType};
@@ -37,6 +37,16 @@ enum Action {
         #[arg(long = "type", value_name = "T")]
         ty: MessageType,
     },
+    /// Read CDR bytes on stdin and list what makes the message unsafe to apply: non-finite
+    /// values, targets and gains beyond the robot's limits, unused slots not zero, a bad CRC.
+    /// Exit 0 when there is nothing to report, 1 otherwise.
+    Validate {
+        #[arg(long = "type", value_name = "T")]
+        ty: MessageType,
+        /// Robot whose limits apply to hg/LowCmd (only h1_2 is built in).
+        #[arg(long, default_value = "h1_2", value_parser = ["h1_2"])]
+        robot: String,
+    },
 }
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -62,8 +72,43 @@ pub fn run(args: Args) -> Result<ExitCode> {
             let value = with_message_type!(ty, T => crc_from_json::<T>(ty, &text))?;
             println!("{value}");
         }
+        Action::Validate { ty, robot: _ } => {
+            let bytes = read_stdin_bytes()?;
+            let findings = with_message_type!(ty, T => validate_bytes::<T>(ty, &bytes))?;
+            for line in &findings {
+                println!("{line}");
+            }
+            if !findings.is_empty() {
+                return Ok(ExitCode::from(1));
+            }
+            println!("ok: no findings");
+        }
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Findings as `name: description` lines, CRC first.
+fn validate_bytes<T: IdlStruct>(ty: MessageType, bytes: &[u8]) -> Result<Vec<String>> {
+    use std::any::Any;
+    let value = cdr::decode::<T>(bytes).with_context(|| format!("decoding {} bytes as {ty}", bytes.len()))?.value;
+    let mut lines = Vec::new();
+    if crc::check_any(&value) == Some(false) {
+        lines.push("bad_crc: the stored crc does not match the message".to_owned());
+    }
+    let any = &value as &dyn Any;
+    let findings = if let Some(v) = any.downcast_ref::<unitree_idl::hg::LowCmd_>() {
+        validate::h1_2_lowcmd(v)
+    } else if let Some(v) = any.downcast_ref::<unitree_idl::hg::LowState_>() {
+        validate::hg_lowstate(v)
+    } else if let Some(v) = any.downcast_ref::<unitree_idl::go::LowCmd_>() {
+        validate::go_lowcmd(v)
+    } else if let Some(v) = any.downcast_ref::<unitree_idl::go::LowState_>() {
+        validate::go_lowstate(v)
+    } else {
+        validate::non_finite(&value)
+    };
+    lines.extend(findings.iter().map(|f| format!("{}: {f}", f.name())));
+    Ok(lines)
 }
 
 fn decode_to_json<T: IdlStruct>(ty: MessageType, bytes: &[u8]) -> Result<String> {
