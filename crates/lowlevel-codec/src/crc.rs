@@ -83,18 +83,30 @@ fn swap_words(src: &[u8], dst: &mut [u8]) {
 /// Sequences have no flat image (they are `std::vector` in C++) and are skipped; no type that
 /// carries a CRC contains one.
 pub fn c_image<T: IdlStruct>(value: &T) -> Vec<u8> {
+    image_with::<T, false>(value)
+}
+
+/// The C struct image with every 32-bit word byte-swapped: the byte order in which Unitree's CRC
+/// reads it, so the CRC is plain CRC-32/MPEG-2 of these bytes with no extra pass.
+fn c_image_word_swapped<T: IdlStruct>(value: &T) -> Vec<u8> {
+    image_with::<T, true>(value)
+}
+
+fn image_with<T: IdlStruct, const SWAP: bool>(value: &T) -> Vec<u8> {
     // Zeroed up front: padding is whatever is not written.
-    let mut writer = CImage { out: vec![0; T::C_SIZE], pos: 0 };
+    let mut writer = CImage::<SWAP> { out: vec![0; T::C_SIZE], pos: 0 };
     value.walk(&mut writer);
     writer.out
 }
 
-struct CImage {
+/// Writes members at their C offsets; with `SWAP`, byte `i` goes to `i ^ 3` (its mirror within
+/// its 32-bit word), which turns every aligned word into its big-endian form.
+struct CImage<const SWAP: bool> {
     out: Vec<u8>,
     pos: usize,
 }
 
-impl CImage {
+impl<const SWAP: bool> CImage<SWAP> {
     #[inline(always)]
     fn pad_to(&mut self, align: usize) {
         self.pos = align_up(self.pos, align);
@@ -103,14 +115,20 @@ impl CImage {
     fn put<P: Primitive>(&mut self, value: P) {
         let bytes = value.to_bits().to_le_bytes();
         // Offsets come from the type's own layout, which C_SIZE was computed from.
-        if let Some(dst) = self.out.get_mut(self.pos..self.pos + P::SIZE) {
+        if SWAP {
+            for (k, b) in bytes[..P::SIZE].iter().enumerate() {
+                if let Some(dst) = self.out.get_mut((self.pos + k) ^ 3) {
+                    *dst = *b;
+                }
+            }
+        } else if let Some(dst) = self.out.get_mut(self.pos..self.pos + P::SIZE) {
             dst.copy_from_slice(&bytes[..P::SIZE]);
         }
         self.pos += P::SIZE;
     }
 }
 
-impl Visitor for CImage {
+impl<const SWAP: bool> Visitor for CImage<SWAP> {
     #[inline(always)]
     fn primitive<P: Primitive>(&mut self, _name: &'static str, value: &P) {
         self.pad_to(P::SIZE);
@@ -154,8 +172,8 @@ sealed!(hg::LowCmd_, hg::LowState_, go::LowCmd_, go::LowState_);
 
 /// Unitree's CRC of `value` (its stored `crc` is not part of the input).
 pub fn compute<T: Sealed>(value: &T) -> u32 {
-    let image = c_image(value);
-    crc32_words(&image[..image.len() - 4])
+    let image = c_image_word_swapped(value);
+    crc_fast::checksum(crc_fast::CrcAlgorithm::Crc32Mpeg2, &image[..image.len() - 4]) as u32
 }
 
 /// Sets the `crc` member so that the message verifies.
@@ -210,6 +228,22 @@ mod tests {
         assert_eq!(c_image(&hg::LowState_::default()).len(), 2092);
         assert_eq!(c_image(&go::LowCmd_::default()).len(), 812);
         assert_eq!(c_image(&go::LowState_::default()).len(), 1180);
+    }
+
+    /// The swapped image is the LE image with each word reversed, and `compute` (which hashes it
+    /// directly) agrees with the reference over the LE image.
+    #[test]
+    fn word_swapped_image_and_compute_agree_with_reference() {
+        let mut state = hg::LowState_::default();
+        state.tick = 0x0102_0304;
+        state.motor_state[3].temperature = [-2, 0x1234];
+        state.imu_state.temperature = -300;
+        state.motor_state[34].mode = 0xAB;
+        let le = c_image(&state);
+        let swapped = c_image_word_swapped(&state);
+        let expected: Vec<u8> = le.chunks_exact(4).flat_map(|w| [w[3], w[2], w[1], w[0]]).collect();
+        assert_eq!(swapped, expected);
+        assert_eq!(compute(&state), crc32_reference(&le[..le.len() - 4]));
     }
 
     /// CRC of all-zero messages, as published for Unitree's implementation.

@@ -10,15 +10,17 @@
 //! reports the torque it applied as `tau_est`. Every probe command sets, on one motor in mode 1
 //! with kp = kd = 0, a feed-forward torque that no other probe uses; the PD law then applies
 //! exactly `tau_ff` (0 * error adds nothing) and LowState carries it bit for bit. The other 26
-//! joints hold the standing pose. Probes go out at 500 Hz, like a controller's loop; when a
-//! probe is superseded by the next one before a physics step consumed it, its latency is taken
-//! to the first LowState reflecting any newer probe (the earliest state that shows the robot has
-//! moved past it), which is conservative.
+//! joints hold the standing pose. Probes go out at 500 Hz, like a controller's loop, each at a
+//! random point of its 2 ms slot (the bridge steps on its own clock). When two probes reach the
+//! bridge between the same two physics steps, only the newer is applied (latest command wins,
+//! as on the robot); the older one's latency is then taken to the first LowState reflecting the
+//! newer one, which is the first state computed after the bridge took the older one in.
 //!
 //! Prints a markdown table (ratios against the targets) for BENCHMARKS.md.
 
 use dds_transport::{DomainConfig, Family, Participant, TopicSpec};
 use lowlevel_codec::{cdr, crc, Encoding};
+use rand::{Rng, SeedableRng};
 use std::collections::HashMap;
 use std::io::Read;
 use std::process::{Child, Command, Stdio};
@@ -173,8 +175,7 @@ fn measure_latency(engine: &str, domain: u32) -> Latency {
     assert!(writer.wait_for_readers(1, Duration::from_secs(10)).expect("status"), "{engine}: lowcmd not matched");
 
     // Hold command (same gains as the client tests), probe motor in pure torque mode.
-    let mut cmd = hg::LowCmd_::default();
-    cmd.mode_machine = state.mode_machine;
+    let mut cmd = hg::LowCmd_ { mode_machine: state.mode_machine, ..Default::default() };
     for (i, m) in cmd.motor_cmd.iter_mut().take(h1_2::NUM_JOINTS).enumerate() {
         m.mode = 1;
         m.q = state.motor_state[i].q;
@@ -192,6 +193,8 @@ fn measure_latency(engine: &str, domain: u32) -> Latency {
     let mut index: HashMap<u32, usize> = HashMap::new();
     let mut cpu_start = None;
     let mut measure_from = None;
+    // Fixed seed: the same send phases on every run.
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
     let start = Instant::now();
     let mut k = 0usize;
     loop {
@@ -212,7 +215,9 @@ fn measure_latency(engine: &str, domain: u32) -> Latency {
         writer.write(&bytes).expect("write");
         sends.push(now);
         k += 1;
-        let next = start + Duration::from_secs_f64(k as f64 * period);
+        // Probe k goes out at a random point of its 2 ms slot: the bridge steps on its own
+        // 500 Hz clock, and a sender locked to one phase of it would measure that phase only.
+        let next = start + Duration::from_secs_f64((k as f64 + 0.9 * rng.gen::<f64>()) * period);
         if let Some(d) = next.checked_duration_since(Instant::now()) {
             std::thread::sleep(d);
         }
