@@ -11,12 +11,14 @@
 //!
 //! Needs `make`, a C compiler, Debian's cyclonedds-dev and cyclonedds-tools (idlc) 0.10.2.
 
+mod common;
+
+use common::{root, wait_with_timeout, KillOnDrop};
 use serde_json::Value;
-use std::io::Read;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, ExitStatus, Stdio};
+use std::process::{Command, Stdio};
 use std::sync::{Mutex, OnceLock};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 /// One simulator at a time: the 2-core machines cannot run two in real time.
 static SERIAL: Mutex<()> = Mutex::new(());
@@ -26,10 +28,6 @@ const DOMAIN: u32 = 71;
 const STATE_RATE: f64 = 500.0;
 /// How long the bridge runs; the client needs about 8 s after discovery.
 const SIM_SECONDS: u32 = 13;
-
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
 
 /// Builds the C client once per test binary, into cargo's per-target scratch directory.
 fn client_binary() -> PathBuf {
@@ -57,52 +55,6 @@ fn client_binary() -> PathBuf {
         .clone()
 }
 
-/// Waits for a child with a hard timeout (killed after it), reading its output on threads so
-/// that a full pipe never blocks it. Returns (exit status if it exited in time, stdout, stderr).
-fn wait_with_timeout(mut child: Child, timeout: Duration) -> (Option<ExitStatus>, String, String) {
-    // A stream that was not piped reads as empty.
-    let mut stdout = child.stdout.take();
-    let mut stderr = child.stderr.take();
-    let out = std::thread::spawn(move || {
-        let mut s = String::new();
-        if let Some(p) = &mut stdout {
-            let _ = p.read_to_string(&mut s);
-        }
-        s
-    });
-    let err = std::thread::spawn(move || {
-        let mut s = String::new();
-        if let Some(p) = &mut stderr {
-            let _ = p.read_to_string(&mut s);
-        }
-        s
-    });
-    let end = Instant::now() + timeout;
-    let status = loop {
-        match child.try_wait() {
-            Ok(Some(status)) => break Some(status),
-            Ok(None) if Instant::now() < end => std::thread::sleep(Duration::from_millis(50)),
-            _ => {
-                let _ = child.kill();
-                let _ = child.wait();
-                break None;
-            }
-        }
-    };
-    (status, out.join().unwrap_or_default(), err.join().unwrap_or_default())
-}
-
-/// Kills the bridge if the test panics before it exits by itself.
-struct Guard(Option<Child>);
-impl Drop for Guard {
-    fn drop(&mut self) {
-        if let Some(c) = &mut self.0 {
-            let _ = c.kill();
-            let _ = c.wait();
-        }
-    }
-}
-
 /// The number after `key ` in the bridge's final status line.
 fn counter(line: &str, key: &str) -> u64 {
     let pat = format!("{key} ");
@@ -120,7 +72,7 @@ fn cyclone_0_10_2_client_drives_mujoco() {
         .stderr(Stdio::piped())
         .spawn()
         .expect("start ulab sim");
-    let mut sim = Guard(Some(sim));
+    let mut sim = KillOnDrop(Some(sim));
 
     let client = Command::new(&client_bin)
         .args([&DOMAIN.to_string(), "lo"])

@@ -6,34 +6,20 @@
 //! * LowState samples decoded by the Python Cyclone DDS serializer equal our own decode of the
 //!   same wire bytes (captured here with our transport).
 
+mod common;
+
+use common::{python, root, tail, wait_with_timeout, KillOnDrop};
 use dds_transport::{DomainConfig, Participant, TopicSpec};
 use lowlevel_codec::{cdr, json};
 use serde_json::Value;
 use std::collections::HashMap;
-use std::path::PathBuf;
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 use unitree_idl::hg;
 
 /// One simulator at a time: the 2-core machines cannot run two in real time.
 static SERIAL: Mutex<()> = Mutex::new(());
-
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn python() -> PathBuf {
-    std::env::var_os("ULAB_PYTHON").map(PathBuf::from).unwrap_or_else(|| root().join(".venv/bin/python"))
-}
-
-struct Killed(Child);
-impl Drop for Killed {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
 
 const STATE_RATE: f64 = 500.0;
 
@@ -45,7 +31,7 @@ fn check_engine(engine: &str, domain: u32) {
         .stderr(Stdio::piped())
         .spawn()
         .expect("start ulab sim");
-    let mut sim = Killed(sim);
+    let mut sim = KillOnDrop(Some(sim));
 
     // Our own raw reader on the same domain captures the wire bytes, keyed by tick.
     let participant = Participant::new(DomainConfig::loopback(domain)).expect("participant");
@@ -70,8 +56,11 @@ fn check_engine(engine: &str, domain: u32) {
         .stderr(Stdio::piped())
         .spawn()
         .expect("start the Python SDK client");
-    let out = wait_with_timeout(client, Duration::from_secs(60));
-    let _ = sim.0.kill();
+    let (status, out, err) = wait_with_timeout(client, Duration::from_secs(60));
+    if !status.is_some_and(|s| s.success()) {
+        eprintln!("{engine}: client failed ({status:?}): {}", tail(&err));
+    }
+    drop(sim.0.take().map(|mut c| c.kill()));
     let report: Value = serde_json::from_str(out.lines().last().unwrap_or("")).unwrap_or_else(|e| panic!("{engine}: client output ...{}: {e}", tail(&out)));
     assert!(report.get("error").is_none(), "{engine}: {}", report["error"]);
 
@@ -114,48 +103,6 @@ fn check_engine(engine: &str, domain: u32) {
     let (held, bad, fin) = (c["held_target"].as_f64().expect("h"), c["corrupt_target"].as_f64().expect("c"), c["final"].as_f64().expect("f"));
     assert!((fin - held).abs() < 0.08 && (fin - bad).abs() > 0.5, "{engine}: corrupted-CRC command moved the elbow to {fin:.3} (held {held:.3}, corrupt {bad:.3})");
 
-}
-
-/// Waits for the client with a hard timeout, reading its output on threads so that a full pipe
-/// never blocks it.
-fn wait_with_timeout(mut child: Child, timeout: Duration) -> String {
-    use std::io::Read;
-    let mut stdout = child.stdout.take().expect("stdout");
-    let mut stderr = child.stderr.take().expect("stderr");
-    let out = std::thread::spawn(move || {
-        let mut s = String::new();
-        let _ = stdout.read_to_string(&mut s);
-        s
-    });
-    let err = std::thread::spawn(move || {
-        let mut s = String::new();
-        let _ = stderr.read_to_string(&mut s);
-        s
-    });
-    let end = Instant::now() + timeout;
-    let status = loop {
-        match child.try_wait() {
-            Ok(Some(status)) => break Some(status),
-            Ok(None) if Instant::now() < end => std::thread::sleep(Duration::from_millis(50)),
-            _ => {
-                let _ = child.kill();
-                let _ = child.wait();
-                break None;
-            }
-        }
-    };
-    let err = err.join().unwrap_or_default();
-    if !status.is_some_and(|s| s.success()) {
-        eprintln!("client failed ({status:?}): {}", tail(&err));
-    }
-    out.join().unwrap_or_default()
-}
-
-/// The last 2000 characters of a long text, for failure messages.
-fn tail(s: &str) -> &str {
-    let start = s.len().saturating_sub(2000);
-    let start = (start..s.len()).find(|&i| s.is_char_boundary(i)).unwrap_or(s.len());
-    &s[start..]
 }
 
 #[test]
