@@ -82,16 +82,12 @@ fn check_engine(engine: &str, domain: u32) {
     }
     assert!(compared >= 10, "{engine}: only {compared} samples matched by tick");
 
-    // Tracking is only meaningful while the robot stands: a fallen robot's arms hit the floor.
-    // Known difference (see issue 3/5 notes): under this client's leg gains the impulse-joint
-    // Rapier engine tips over where MuJoCo and Rapier multibody stand; that engine is then
-    // checked on the protocol only, and the fall is reported.
+    // Known engine difference (issue 5 material): under this client's gains the impulse-joint
+    // Rapier engine tips over backwards where MuJoCo and Rapier multibody stand. Joint-space
+    // tracking of the arms is still required on every engine; the fall is only reported.
     let rpy = report["rpy_after_moves"].as_array().expect("rpy");
-    let upright = rpy.iter().take(2).all(|a| a.as_f64().is_some_and(|a| a.abs() < 0.3));
-    if !upright {
-        assert_eq!(engine, "rapier-impulse", "{engine}: robot fell (rpy {rpy:?})");
-        eprintln!("{engine}: robot fell (rpy {rpy:?}); joint tracking not checked");
-        return;
+    if !rpy.iter().take(2).all(|a| a.as_f64().is_some_and(|a| a.abs() < 0.3)) {
+        eprintln!("{engine}: robot fell (torso rpy {rpy:?})");
     }
     // Arm joints with kp 120: gravity on the arm (< 5 N·m) and joint friction (0.2 N·m) leave
     // at most ~0.05 rad of steady-state error; 0.08 allows for the motion still settling.
