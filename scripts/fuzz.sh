@@ -19,10 +19,16 @@ run() {
   local target=$1 seconds=$2 work
   work=$(mktemp -d)
   mkdir -p "fuzz/artifacts/$target"
-  # Work corpus in a temp dir: the committed seeds and regressions are only read.
+  # Work corpus in a temp dir: the committed seeds and regressions are only read (if present:
+  # git does not keep empty folders, and libFuzzer refuses a missing one).
+  local dirs=("$work")
+  for d in "corpus/fuzz/$target" "corpus/regressions/$target"; do [ -d "$d" ] && dirs+=("$d"); done
+  local status=0
   "$BIN/$target" -max_total_time="$seconds" -print_final_stats=1 -artifact_prefix="fuzz/artifacts/$target/" \
-    "$work" "corpus/fuzz/$target" "corpus/regressions/$target" 2>&1 | grep -E "^(#[0-9]+.*DONE|stat::number_of_executed_units|==[0-9]+==|SUMMARY)" || true
-  local status=${PIPESTATUS[0]}
+    "${dirs[@]}" > "$work.log" 2>&1 || status=$?
+  grep -E "^(#[0-9]+.*DONE|stat::number_of_executed_units|==[0-9]+==|SUMMARY|ERROR)" "$work.log" || true
+  if [ "$status" != 0 ]; then tail -n 30 "$work.log"; echo "fuzz: $target failed (exit $status)" >&2; fi
+  rm -f "$work.log"
   rm -rf "$work"
   return "$status"
 }
