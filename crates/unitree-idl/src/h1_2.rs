@@ -27,9 +27,10 @@ pub const NUM_JOINTS: usize = 27;
 /// Index of the waist (torso yaw) joint, which carries the LowState IMU.
 pub const TORSO_SLOT: usize = 12;
 
-/// `mode_machine` the H1-2 reports in LowState (and expects echoed in LowCmd).
-/// Unitree's H1-2 deploy code reads it from the first LowState and copies it back; 6 is the
-/// value reported by H1-2 units in Unitree's examples.
+/// `mode_machine` the simulated H1-2 reports in LowState. Unitree's controllers read it from
+/// the first LowState and echo it in LowCmd, so any value works with them; no public figure for
+/// the H1-2 is known to us (G1 variants report 4, 5, 6 or 10 depending on hardware). 6 is the
+/// project's placeholder; `ulab sim --mode-machine` overrides it.
 pub const MODE_MACHINE: u8 = 6;
 
 /// Largest stiffness the project accepts for any joint (N·m/rad). No public limit exists; this

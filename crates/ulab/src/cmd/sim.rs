@@ -38,6 +38,9 @@ pub struct Args {
     /// Seconds without a valid command before damping mode.
     #[arg(long, default_value_t = 0.1)]
     pub command_timeout: f64,
+    /// `mode_machine` reported in LowState (no public H1-2 figure; controllers echo what they read).
+    #[arg(long, default_value_t = unitree_idl::h1_2::MODE_MACHINE)]
+    pub mode_machine: u8,
     /// Start in damping mode instead of holding the standing pose until the first command.
     #[arg(long)]
     pub no_hold: bool,
@@ -72,6 +75,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let config = BridgeConfig {
         command_timeout: args.command_timeout,
         hold_until_first_command: !args.no_hold,
+        mode_machine: args.mode_machine,
         protections: Protections {
             check_crc: !args.unsafe_skip_crc_check,
             check_limits: !args.unsafe_skip_limit_check,
