@@ -1,9 +1,10 @@
-//! Helpers shared by the interop tests: payload builders for hg LowCmd_/LowState_ (plain XCDR1
-//! little-endian, offsets checked against the Python Cyclone serializer), helper-process
-//! handling with hard timeouts.
+//! Helpers shared by the interop tests: hg LowCmd_/LowState_ payloads through the project's codec
+//! (XCDR1 little-endian, as Unitree's SDK sends them), helper-process handling with hard timeouts.
 #![allow(dead_code)]
 
+use lowlevel_codec::{cdr, Encoding};
 use std::io::Read;
+use unitree_idl::hg;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -12,46 +13,46 @@ use std::time::{Duration, Instant};
 pub const HG_LOWCMD_LEN: usize = 1004;
 /// Serialized size of hg LowState_ with its header.
 pub const HG_LOWSTATE_LEN: usize = 2092;
-const HDR: usize = 4;
 
-/// An hg LowCmd_: header CDR_LE, motor i q = q[i], kp of motor 0, crc.
+/// An hg LowCmd_ (XCDR1 little-endian, as Unitree's SDK sends it): every motor mode 1 with
+/// q = q(i), kp of motor 0, mode_machine 6, the given crc.
 pub fn hg_lowcmd(q: impl Fn(usize) -> f32, kp0: f32, crc: u32) -> Vec<u8> {
-    let mut b = vec![0u8; HG_LOWCMD_LEN];
-    b[1] = 1; // CDR_LE
-    b[HDR] = 0; // mode_pr
-    b[HDR + 1] = 6; // mode_machine
-    for i in 0..35 {
-        let mode_off = if i == 0 { 2 } else { 28 * i };
-        b[HDR + mode_off] = 1;
-        b[HDR + 28 * i + 4..HDR + 28 * i + 8].copy_from_slice(&q(i).to_le_bytes());
-    }
-    b[HDR + 16..HDR + 20].copy_from_slice(&kp0.to_le_bytes());
-    b[HDR + 996..HDR + 1000].copy_from_slice(&crc.to_le_bytes());
-    b
+    hg_lowcmd_with(q, kp0, crc, 0)
 }
 
 /// An hg LowCmd_ asking the C test peer to exit (reserve[0] = 0xDEADBEEF).
 pub fn hg_lowcmd_shutdown() -> Vec<u8> {
-    let mut b = hg_lowcmd(|_| 0.0, 0.0, 0);
-    b[HDR + 980..HDR + 984].copy_from_slice(&0xDEAD_BEEFu32.to_le_bytes());
-    b
+    hg_lowcmd_with(|_| 0.0, 0.0, 0, 0xDEAD_BEEF)
+}
+
+fn hg_lowcmd_with(q: impl Fn(usize) -> f32, kp0: f32, crc: u32, reserve0: u32) -> Vec<u8> {
+    let mut cmd = hg::LowCmd_ { mode_machine: 6, crc, ..Default::default() };
+    for (i, m) in cmd.motor_cmd.iter_mut().enumerate() {
+        m.mode = 1;
+        m.q = q(i);
+    }
+    cmd.motor_cmd[0].kp = kp0;
+    cmd.reserve[0] = reserve0;
+    cdr::encode(&cmd, Encoding::UNITREE)
+}
+
+fn hg_lowstate(b: &[u8]) -> Option<hg::LowState_> {
+    cdr::decode::<hg::LowState_>(b).ok().map(|d| d.value)
 }
 
 /// tick of a serialized hg LowState_.
 pub fn hg_lowstate_tick(b: &[u8]) -> Option<u32> {
-    Some(u32::from_le_bytes(b.get(HDR + 12..HDR + 16)?.try_into().ok()?))
+    hg_lowstate(b).map(|s| s.tick)
 }
 
 /// motor_state[i].q of a serialized hg LowState_.
 pub fn hg_lowstate_q(b: &[u8], i: usize) -> Option<f32> {
-    let o = HDR + 72 + 56 * i;
-    Some(f32::from_le_bytes(b.get(o..o + 4)?.try_into().ok()?))
+    hg_lowstate(b).and_then(|s| s.motor_state.get(i).map(|m| m.q))
 }
 
 /// reserve[k] of a serialized hg LowState_.
 pub fn hg_lowstate_reserve(b: &[u8], k: usize) -> Option<u32> {
-    let o = HDR + 2068 + 4 * k;
-    Some(u32::from_le_bytes(b.get(o..o + 4)?.try_into().ok()?))
+    hg_lowstate(b).and_then(|s| s.reserve.get(k).copied())
 }
 
 pub fn crate_dir() -> PathBuf {
