@@ -187,34 +187,27 @@ pub fn verify<T: Sealed>(value: &T) -> bool {
     compute(value) == value.crc()
 }
 
+/// `(computed, stored)` CRC of a message of any type, `None` for the types without a CRC.
+fn sealed_pair<T: IdlStruct>(value: &T) -> Option<(u32, u32)> {
+    fn pair<S: Sealed>(v: &S) -> (u32, u32) {
+        (compute(v), v.crc())
+    }
+    let any = value as &dyn core::any::Any;
+    any.downcast_ref::<hg::LowCmd_>()
+        .map(pair)
+        .or_else(|| any.downcast_ref::<hg::LowState_>().map(pair))
+        .or_else(|| any.downcast_ref::<go::LowCmd_>().map(pair))
+        .or_else(|| any.downcast_ref::<go::LowState_>().map(pair))
+}
+
 /// CRC status of any message type: `Some(ok)` for the four types that carry a CRC, else `None`.
 pub fn check_any<T: IdlStruct>(value: &T) -> Option<bool> {
-    use core::any::Any;
-    let any = value as &dyn Any;
-    if let Some(v) = any.downcast_ref::<hg::LowCmd_>() {
-        Some(verify(v))
-    } else if let Some(v) = any.downcast_ref::<hg::LowState_>() {
-        Some(verify(v))
-    } else if let Some(v) = any.downcast_ref::<go::LowCmd_>() {
-        Some(verify(v))
-    } else {
-        any.downcast_ref::<go::LowState_>().map(verify)
-    }
+    sealed_pair(value).map(|(computed, stored)| computed == stored)
 }
 
 /// CRC of any message type that carries one, `None` for the others.
 pub fn compute_any<T: IdlStruct>(value: &T) -> Option<u32> {
-    use core::any::Any;
-    let any = value as &dyn Any;
-    if let Some(v) = any.downcast_ref::<hg::LowCmd_>() {
-        Some(compute(v))
-    } else if let Some(v) = any.downcast_ref::<hg::LowState_>() {
-        Some(compute(v))
-    } else if let Some(v) = any.downcast_ref::<go::LowCmd_>() {
-        Some(compute(v))
-    } else {
-        any.downcast_ref::<go::LowState_>().map(compute)
-    }
+    sealed_pair(value).map(|(computed, _)| computed)
 }
 
 #[cfg(test)]
@@ -234,8 +227,7 @@ mod tests {
     /// directly) agrees with the reference over the LE image.
     #[test]
     fn word_swapped_image_and_compute_agree_with_reference() {
-        let mut state = hg::LowState_::default();
-        state.tick = 0x0102_0304;
+        let mut state = hg::LowState_ { tick: 0x0102_0304, ..Default::default() };
         state.motor_state[3].temperature = [-2, 0x1234];
         state.imu_state.temperature = -300;
         state.motor_state[34].mode = 0xAB;

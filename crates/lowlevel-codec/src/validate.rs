@@ -196,6 +196,23 @@ pub fn go_lowstate(state: &go::LowState_) -> Vec<Finding> {
     findings
 }
 
+/// The checks that apply to a message of any type: the type's own validator for the four
+/// low-level messages (H1-2 limits for hg LowCmd), non-finite values for every other type.
+pub fn any<T: IdlStruct>(value: &T) -> Vec<Finding> {
+    let any = value as &dyn core::any::Any;
+    if let Some(v) = any.downcast_ref::<hg::LowCmd_>() {
+        h1_2_lowcmd(v)
+    } else if let Some(v) = any.downcast_ref::<hg::LowState_>() {
+        hg_lowstate(v)
+    } else if let Some(v) = any.downcast_ref::<go::LowCmd_>() {
+        go_lowcmd(v)
+    } else if let Some(v) = any.downcast_ref::<go::LowState_>() {
+        go_lowstate(v)
+    } else {
+        non_finite(value)
+    }
+}
+
 /// Tolerance on |q| - 1: float32 rounding of a normalised quaternion is ~1e-7; 1e-3 allows
 /// for a sensor's own normalisation while flagging anything unnormalised.
 const QUATERNION_TOLERANCE: f32 = 1e-3;

@@ -89,24 +89,12 @@ pub fn run(args: Args) -> Result<ExitCode> {
 
 /// Findings as `name: description` lines, CRC first.
 fn validate_bytes<T: IdlStruct>(ty: MessageType, bytes: &[u8]) -> Result<Vec<String>> {
-    use std::any::Any;
     let value = cdr::decode::<T>(bytes).with_context(|| format!("decoding {} bytes as {ty}", bytes.len()))?.value;
     let mut lines = Vec::new();
     if crc::check_any(&value) == Some(false) {
         lines.push("bad_crc: the stored crc does not match the message".to_owned());
     }
-    let any = &value as &dyn Any;
-    let findings = if let Some(v) = any.downcast_ref::<unitree_idl::hg::LowCmd_>() {
-        validate::h1_2_lowcmd(v)
-    } else if let Some(v) = any.downcast_ref::<unitree_idl::hg::LowState_>() {
-        validate::hg_lowstate(v)
-    } else if let Some(v) = any.downcast_ref::<unitree_idl::go::LowCmd_>() {
-        validate::go_lowcmd(v)
-    } else if let Some(v) = any.downcast_ref::<unitree_idl::go::LowState_>() {
-        validate::go_lowstate(v)
-    } else {
-        validate::non_finite(&value)
-    };
+    let findings = validate::any(&value);
     lines.extend(findings.iter().map(|f| format!("{}: {f}", f.name())));
     Ok(lines)
 }

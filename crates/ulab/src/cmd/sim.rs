@@ -81,7 +81,6 @@ pub fn run(args: Args) -> Result<ExitCode> {
             check_limits: !args.unsafe_skip_limit_check,
             fresh_state: !args.unsafe_stale_state,
         },
-        ..BridgeConfig::default()
     };
     if config.protections != Protections::default() {
         eprintln!("sim: WARNING test-only switches active: {:?}", config.protections);
