@@ -146,6 +146,8 @@ pub struct SimRobot {
     damping_kd: Vec<f64>,
     /// PD target of the initial standing hold (see [`stand_target`]).
     stand: PdTarget,
+    /// PD target of the latest command, refilled in place at every step (no allocation).
+    target: PdTarget,
     /// Latest accepted command and when it arrived (caller's clock, s).
     command: Option<(hg::LowCmd_, f64)>,
     tau: Vec<f64>,
@@ -168,6 +170,7 @@ impl SimRobot {
             limits: model.joints.iter().map(|j| j.torque_limit).collect(),
             damping_kd: model.joints.iter().map(|j| j.kd).collect(),
             stand: stand_target(&model),
+            target: PdTarget::hold_standing(&model),
             engine,
             config,
             command: None,
@@ -245,19 +248,19 @@ impl SimRobot {
         let n = self.model.nj();
         let active = self.command_active(now);
         if let (true, Some((cmd, _))) = (active, &self.command) {
-            let mut target = PdTarget { q_des: vec![0.0; n], dq_des: vec![0.0; n], kp: vec![0.0; n], kd: vec![0.0; n], tau_ff: vec![0.0; n] };
+            let target = &mut self.target;
             for (i, joint) in self.model.joints.iter().enumerate() {
                 let m = &cmd.motor_cmd[joint.slot];
                 // mode 0: motor disabled, no torque at all (gains and feed-forward ignored).
-                if m.mode != 0 {
-                    target.q_des[i] = f64::from(m.q);
-                    target.dq_des[i] = f64::from(m.dq);
-                    target.kp[i] = f64::from(m.kp);
-                    target.kd[i] = f64::from(m.kd);
-                    target.tau_ff[i] = f64::from(m.tau);
-                }
+                let enabled = m.mode != 0;
+                let value = |x: f32| if enabled { f64::from(x) } else { 0.0 };
+                target.q_des[i] = value(m.q);
+                target.dq_des[i] = value(m.dq);
+                target.kp[i] = value(m.kp);
+                target.kd[i] = value(m.kd);
+                target.tau_ff[i] = value(m.tau);
             }
-            pd::pd_torques_into(&target, &state.q, &state.dq, &self.limits, &mut self.tau);
+            pd::pd_torques_into(target, &state.q, &state.dq, &self.limits, &mut self.tau);
             // Without the limit check a NaN command reaches here; never hand NaN to an engine.
             self.tau.iter_mut().filter(|t| !t.is_finite()).for_each(|t| *t = 0.0);
         } else if self.command.is_none() && self.config.hold_until_first_command {
