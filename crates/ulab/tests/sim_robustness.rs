@@ -10,10 +10,12 @@
 //! end the bridge must exit 0 by itself (`--duration`), without a panic, and its final counters
 //! (`cmds received N accepted N rejected N bad-crc N malformed N`) must account for what was sent.
 
+mod common;
+
+use common::{wait_with_timeout, KillOnDrop};
 use dds_transport::{DomainConfig, Family, Participant, RawWriter, ReaderOptions, Reliability, TopicSpec};
 use lowlevel_codec::{cdr, crc, validate, Encoding, Endianness, Representation};
-use std::io::Read;
-use std::process::{Child, Command, ExitStatus, Stdio};
+use std::process::{Command, ExitStatus, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
@@ -30,61 +32,32 @@ const ELBOW: usize = 16;
 // ---------------------------------------------------------------------------------------------
 // The bridge process.
 
-struct Sim {
-    child: Option<Child>,
-    stderr: Option<JoinHandle<String>>,
-}
+/// The bridge process; killed on drop if a test panics. It runs with `--quiet`, so its stderr is
+/// a few lines at most and is collected when it ends.
+struct Sim(KillOnDrop);
 
 impl Sim {
     /// Starts `ulab sim --engine mujoco` on `domain` for `seconds` of wall time.
     fn start(domain: u32, seconds: f64, extra: &[&str]) -> Sim {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_ulab"))
+        let child = Command::new(env!("CARGO_BIN_EXE_ulab"))
             .args(["sim", "--engine", "mujoco", "--domain", &domain.to_string(), "--duration", &seconds.to_string(), "--quiet"])
             .args(extra)
             .stdout(Stdio::null())
             .stderr(Stdio::piped())
             .spawn()
             .expect("start ulab sim");
-        // Read stderr on a thread so that a full pipe never blocks the bridge.
-        let mut err = child.stderr.take().expect("stderr piped");
-        let stderr = std::thread::spawn(move || {
-            let mut s = String::new();
-            let _ = err.read_to_string(&mut s);
-            s
-        });
-        Sim { child: Some(child), stderr: Some(stderr) }
+        Sim(KillOnDrop(Some(child)))
     }
 
     fn alive(&mut self) -> bool {
-        self.child.as_mut().is_some_and(|c| matches!(c.try_wait(), Ok(None)))
+        self.0 .0.as_mut().is_some_and(|c| matches!(c.try_wait(), Ok(None)))
     }
 
     /// Waits (bounded) for the bridge to end its `--duration`; returns its status and stderr.
     fn finish(mut self, timeout: Duration) -> (Option<ExitStatus>, String) {
-        let mut child = self.child.take().expect("child");
-        let end = Instant::now() + timeout;
-        let status = loop {
-            match child.try_wait() {
-                Ok(Some(s)) => break Some(s),
-                Ok(None) if Instant::now() < end => std::thread::sleep(Duration::from_millis(50)),
-                _ => {
-                    let _ = child.kill();
-                    let _ = child.wait();
-                    break None;
-                }
-            }
-        };
-        let err = self.stderr.take().map(|h| h.join().unwrap_or_default()).unwrap_or_default();
+        let child = self.0 .0.take().expect("child");
+        let (status, _, err) = wait_with_timeout(child, timeout);
         (status, err)
-    }
-}
-
-impl Drop for Sim {
-    fn drop(&mut self) {
-        if let Some(c) = &mut self.child {
-            let _ = c.kill();
-            let _ = c.wait();
-        }
     }
 }
 
@@ -538,20 +511,7 @@ fn subscribers_joining_and_leaving() {
     let t1 = Instant::now();
     stop.store(true, Ordering::SeqCst);
     let commands = commander.join().expect("commander");
-    let helper_out = {
-        let mut child = helper;
-        let mut out = String::new();
-        let end = Instant::now() + Duration::from_secs(20);
-        while matches!(child.try_wait(), Ok(None)) && Instant::now() < end {
-            std::thread::sleep(Duration::from_millis(50));
-        }
-        let _ = child.kill();
-        let _ = child.wait();
-        if let Some(mut o) = child.stdout.take() {
-            let _ = o.read_to_string(&mut out);
-        }
-        out
-    };
+    let (_, helper_out, _) = wait_with_timeout(helper, Duration::from_secs(20));
     assert!(sim.alive(), "bridge died during subscriber churn");
     let report = monitor.stop();
 
