@@ -516,6 +516,37 @@ pub fn link_poses(world: &PhysicsWorld, robot: &BuiltRobot) -> Vec<crate::engine
         .collect()
 }
 
+/// Clears the user forces and torques of every robot body (they persist across steps in Rapier).
+pub fn clear_user_forces(world: &mut PhysicsWorld, robot: &BuiltRobot) {
+    for &h in &robot.bodies {
+        if let Some(rb) = world.bodies.get_mut(h) {
+            rb.reset_forces(false);
+            rb.reset_torques(false);
+        }
+    }
+}
+
+/// Applies a joint torque `t` as equal and opposite body torques about the joint's world axis
+/// (child +, parent -): the generalized force of a revolute joint in any formulation.
+pub fn add_joint_torque(world: &mut PhysicsWorld, robot: &BuiltRobot, joint: &robot_model::Joint, t: f64) {
+    if t == 0.0 {
+        return;
+    }
+    let child = robot.bodies[joint.child_link];
+    let parent = robot.bodies[joint.parent_link];
+    let Some(rb) = world.bodies.get(child) else {
+        return;
+    };
+    let axis_w = q_from_r(rb.position().rotation) * joint.axis.into_inner();
+    let torque = v_to_r(&(axis_w * t));
+    if let Some(rb) = world.bodies.get_mut(child) {
+        rb.add_torque(torque, true);
+    }
+    if let Some(rb) = world.bodies.get_mut(parent) {
+        rb.add_torque(-torque, true);
+    }
+}
+
 /// Checks a torque vector's length and finiteness.
 pub fn check_tau(model: &RobotModel, tau: &[f64]) -> Result<(), EngineError> {
     if tau.len() != model.nj() {

@@ -21,7 +21,7 @@
 //! - A reset rebuilds the whole Rapier world, so no joint or contact warm start survives it.
 use crate::engine::{CommonSettings, Contact, Energy, Engine, EngineError, LinkPose, State};
 use crate::rapier_common::{
-    add_robot, armature_inertia, arr, bodies_com, bodies_energy, check_tau, iso_from_pose, link_masses, link_poses,
+    add_joint_torque, add_robot, armature_inertia, clear_user_forces, arr, bodies_com, bodies_energy, check_tau, iso_from_pose, link_masses, link_poses,
     link_velocities, new_world, read_contacts, revolute_joint, v_from_r, v_to_r, BuiltRobot, RapierSolverSettings,
     RAPIER_VERSION,
 };
@@ -224,12 +224,7 @@ impl RapierImpulseEngine {
 
     /// Applies `tau` (+ explicit viscous damping) as equal and opposite body torques; clears other user forces.
     fn apply_joint_torques(&mut self, tau: &[f64], dq: &[f64]) {
-        for &h in &self.robot.bodies {
-            if let Some(rb) = self.world.bodies.get_mut(h) {
-                rb.reset_forces(false);
-                rb.reset_torques(false);
-            }
-        }
+        clear_user_forces(&mut self.world, &self.robot);
         if self.settings.gyroscopic_forces && self.common.armature {
             for (li, link) in self.model.links.iter().enumerate() {
                 let pose = self.body_pose(li);
@@ -247,17 +242,7 @@ impl RapierImpulseEngine {
             if self.common.joint_damping {
                 t -= j.damping * dq.get(ji).copied().unwrap_or(0.0);
             }
-            if t == 0.0 {
-                continue;
-            }
-            let axis_w = self.body_pose(j.child_link).rotation * j.axis.into_inner();
-            let torque = v_to_r(&(axis_w * t));
-            if let Some(rb) = self.world.bodies.get_mut(self.robot.bodies[j.child_link]) {
-                rb.add_torque(torque, true);
-            }
-            if let Some(rb) = self.world.bodies.get_mut(self.robot.bodies[j.parent_link]) {
-                rb.add_torque(-torque, true);
-            }
+            add_joint_torque(&mut self.world, &self.robot, j, t);
         }
     }
 }

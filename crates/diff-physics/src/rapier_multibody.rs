@@ -22,7 +22,7 @@
 //!   so no warm start or contact history survives it.
 use crate::engine::{CommonSettings, Contact, Energy, Engine, EngineError, LinkPose, State};
 use crate::rapier_common::{
-    add_robot, arr, bodies_com, check_tau, iso_from_pose, link_masses, link_poses, link_poses_from_bodies, new_world, q_from_r, read_contacts,
+    add_joint_torque, add_robot, arr, clear_user_forces, bodies_com, check_tau, iso_from_pose, link_masses, link_poses, link_poses_from_bodies, new_world, read_contacts,
     revolute_joint, v_to_r, wxyz_to_quat, BuiltRobot, RapierSolverSettings, RAPIER_VERSION,
 };
 use nalgebra::{DMatrix, Isometry3, Matrix3, Translation3, Vector3};
@@ -327,30 +327,9 @@ impl RapierMultibodyEngine {
     }
 
     fn apply_joint_torques(&mut self, tau: &[f64]) {
-        for &h in &self.robot.bodies {
-            if let Some(rb) = self.world.bodies.get_mut(h) {
-                rb.reset_forces(false);
-                rb.reset_torques(false);
-            }
-        }
-        for (ji, j) in self.model.joints.iter().enumerate() {
-            let t = tau[ji];
-            if t == 0.0 {
-                continue;
-            }
-            let child = self.robot.bodies[j.child_link];
-            let parent = self.robot.bodies[j.parent_link];
-            let Some(rb) = self.world.bodies.get(child) else {
-                continue;
-            };
-            let axis_w = q_from_r(rb.position().rotation) * j.axis.into_inner();
-            let torque = v_to_r(&(axis_w * t));
-            if let Some(rb) = self.world.bodies.get_mut(child) {
-                rb.add_torque(torque, true);
-            }
-            if let Some(rb) = self.world.bodies.get_mut(parent) {
-                rb.add_torque(-torque, true);
-            }
+        clear_user_forces(&mut self.world, &self.robot);
+        for (j, &t) in self.model.joints.iter().zip(tau) {
+            add_joint_torque(&mut self.world, &self.robot, j, t);
         }
     }
 }
