@@ -44,8 +44,11 @@ impl core::fmt::Display for UnknownMessageType {
 
 impl std::error::Error for UnknownMessageType {}
 
+/// The one list of message types: generates [`MessageType`]'s tables and `with_message_type!`.
+/// `$d` is a literal `$` handed in by the invocation, so that the generated macro can declare
+/// its own metavariables.
 macro_rules! registry {
-    ($( $variant:ident => $name:literal, $ty:ty; )*) => {
+    ($d:tt $( $variant:ident => $name:literal, $module:ident :: $ty:ident; )*) => {
         impl MessageType {
             /// All types, hg first.
             pub const ALL: &'static [MessageType] = &[$( MessageType::$variant ),*];
@@ -57,7 +60,7 @@ macro_rules! registry {
 
             /// Fully qualified DDS type name (`unitree_hg::msg::dds_::LowCmd_`).
             pub const fn dds_type_name(self) -> &'static str {
-                match self { $( MessageType::$variant => <$ty as IdlStruct>::DDS_TYPE_NAME ),* }
+                match self { $( MessageType::$variant => <$module::$ty as IdlStruct>::DDS_TYPE_NAME ),* }
             }
 
             /// Looks a type up by short name (`hg/LowCmd`) or DDS type name.
@@ -70,10 +73,30 @@ macro_rules! registry {
             }
         }
 
+        /// Runs `$body` with the type alias `$T` bound to the Rust type of a [`MessageType`]
+        /// value: the one place that turns a runtime type name into generic code.
+        ///
+        /// ```
+        /// use unitree_idl::{with_message_type, IdlStruct, MessageType};
+        /// let members = with_message_type!(MessageType::HgLowCmd, T => T::MEMBERS.len());
+        /// assert_eq!(members, 5);
+        /// ```
+        #[macro_export]
+        macro_rules! with_message_type {
+            ($d kind:expr, $d T:ident => $d body:expr) => {
+                match $d kind {
+                    $( $d crate::MessageType::$variant => {
+                        type $d T = $d crate::$module::$ty;
+                        $d body
+                    } )*
+                }
+            };
+        }
     };
 }
 
 registry! {
+    $
     HgLowCmd => "hg/LowCmd", hg::LowCmd_;
     HgMotorCmd => "hg/MotorCmd", hg::MotorCmd_;
     HgLowState => "hg/LowState", hg::LowState_;
@@ -92,94 +115,6 @@ registry! {
     GoImuState => "go/IMUState", go::IMUState_;
     GoBmsCmd => "go/BmsCmd", go::BmsCmd_;
     GoBmsState => "go/BmsState", go::BmsState_;
-}
-
-/// Runs `$body` with the type alias `$T` bound to the Rust type of a [`MessageType`] value:
-/// the one place that turns a runtime type name into generic code.
-///
-/// ```
-/// use unitree_idl::{with_message_type, IdlStruct, MessageType};
-/// let members = with_message_type!(MessageType::HgLowCmd, T => T::MEMBERS.len());
-/// assert_eq!(members, 5);
-/// ```
-#[macro_export]
-macro_rules! with_message_type {
-    ($kind:expr, $T:ident => $body:expr) => {
-        match $kind {
-            $crate::MessageType::HgLowCmd => {
-                type $T = $crate::hg::LowCmd_;
-                $body
-            }
-            $crate::MessageType::HgMotorCmd => {
-                type $T = $crate::hg::MotorCmd_;
-                $body
-            }
-            $crate::MessageType::HgLowState => {
-                type $T = $crate::hg::LowState_;
-                $body
-            }
-            $crate::MessageType::HgMotorState => {
-                type $T = $crate::hg::MotorState_;
-                $body
-            }
-            $crate::MessageType::HgImuState => {
-                type $T = $crate::hg::IMUState_;
-                $body
-            }
-            $crate::MessageType::HgHandCmd => {
-                type $T = $crate::hg::HandCmd_;
-                $body
-            }
-            $crate::MessageType::HgHandState => {
-                type $T = $crate::hg::HandState_;
-                $body
-            }
-            $crate::MessageType::HgPressSensorState => {
-                type $T = $crate::hg::PressSensorState_;
-                $body
-            }
-            $crate::MessageType::HgBmsCmd => {
-                type $T = $crate::hg::BmsCmd_;
-                $body
-            }
-            $crate::MessageType::HgBmsState => {
-                type $T = $crate::hg::BmsState_;
-                $body
-            }
-            $crate::MessageType::HgMainBoardState => {
-                type $T = $crate::hg::MainBoardState_;
-                $body
-            }
-            $crate::MessageType::GoLowCmd => {
-                type $T = $crate::go::LowCmd_;
-                $body
-            }
-            $crate::MessageType::GoMotorCmd => {
-                type $T = $crate::go::MotorCmd_;
-                $body
-            }
-            $crate::MessageType::GoLowState => {
-                type $T = $crate::go::LowState_;
-                $body
-            }
-            $crate::MessageType::GoMotorState => {
-                type $T = $crate::go::MotorState_;
-                $body
-            }
-            $crate::MessageType::GoImuState => {
-                type $T = $crate::go::IMUState_;
-                $body
-            }
-            $crate::MessageType::GoBmsCmd => {
-                type $T = $crate::go::BmsCmd_;
-                $body
-            }
-            $crate::MessageType::GoBmsState => {
-                type $T = $crate::go::BmsState_;
-                $body
-            }
-        }
-    };
 }
 
 impl core::fmt::Display for MessageType {
