@@ -29,6 +29,12 @@ enum Command {
     Model(cmd::model::Args),
     /// Simulated robot behind rt/lowcmd and rt/lowstate (a bridge a stock Unitree SDK client drives).
     Sim(cmd::sim::Args),
+    /// Check how a DDS peer that plays the robot side handles good and bad traffic (report, fuzz, replay).
+    Conform(cmd::conform::Args),
+    /// Differential testing of physics engines driven by policy rollouts (run, fuzz, replay).
+    Diff(cmd::diff::Args),
+    /// Sim-to-real gap diagnosis from robot logs (diagnose, excite, bench).
+    Gap(cmd::gap::Args),
 }
 
 fn main() -> ExitCode {
@@ -40,6 +46,9 @@ fn main() -> ExitCode {
         Command::Log(args) => cmd::log::run(args),
         Command::Model(args) => cmd::model::run(args),
         Command::Sim(args) => cmd::sim::run(args),
+        Command::Conform(args) => cmd::conform::run(args),
+        Command::Diff(args) => cmd::diff::run(args),
+        Command::Gap(args) => cmd::gap::run(args),
     };
     match result {
         Ok(code) => code,

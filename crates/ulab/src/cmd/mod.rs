@@ -1,5 +1,8 @@
 //! Subcommands. One module per subcommand; each exposes `Args` and `run(Args) -> anyhow::Result<ExitCode>`.
 pub mod codec;
+pub mod conform;
+pub mod diff;
+pub mod gap;
 pub mod log;
 pub mod model;
 pub mod record;

@@ -1,0 +1,9 @@
+//! `ulab conform` (placeholder until its issue lands).
+use std::process::ExitCode;
+
+#[derive(Debug, clap::Args)]
+pub struct Args {}
+
+pub fn run(_args: Args) -> anyhow::Result<ExitCode> {
+    anyhow::bail!("`ulab conform` is not implemented yet")
+}
