@@ -1,0 +1,90 @@
+//! Markdown tables from the verdict lines the engine binaries print.
+
+use crate::{Verdict, BUGS};
+use std::fmt::Write as _;
+
+/// Parses JSON verdict lines (blank lines are skipped).
+pub fn parse_lines(text: &str) -> Result<Vec<Verdict>, serde_json::Error> {
+    text.lines()
+        .filter(|l| !l.trim().is_empty())
+        .map(serde_json::from_str)
+        .collect()
+}
+
+fn cell(v: &Verdict) -> String {
+    let value = v.value.map_or_else(|| "n/a".to_string(), |x| format!("{x:.3}"));
+    let word = if v.flagged { "**FLAGGED**" } else { "quiet" };
+    if v.value.is_none() && !v.flagged {
+        "n/a (analytic reference)".to_string()
+    } else {
+        format!("{value} → {word}")
+    }
+}
+
+fn find<'a>(all: &'a [Verdict], engine: &str, bug: &str) -> Option<&'a Verdict> {
+    all.iter().find(|v| v.engine == engine && v.bug == bug)
+}
+
+/// The headline table (one row per bug: last-bad and first-good versions), then the full matrix of
+/// every engine on every scene.
+pub fn markdown(all: &[Verdict], reference_engine: &str) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "| bug | scene | metric | threshold | {reference_engine} | last bad | verdict | first good | verdict | scene runtime bad / good (ms) | versions from |");
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|---|");
+    for bug in &BUGS {
+        let bad_engine = format!("rapier3d {}", bug.last_bad);
+        let good_engine = format!("rapier3d {}", bug.first_good);
+        let bad = find(all, &bad_engine, bug.id);
+        let good = find(all, &good_engine, bug.id);
+        let reference = find(all, reference_engine, bug.id);
+        let (metric, threshold) = bad.or(good).map_or(("?".to_string(), "?".to_string()), |v| {
+            (v.metric.clone(), v.threshold.clone())
+        });
+        let show = |v: Option<&Verdict>| v.map_or("not run".to_string(), cell);
+        let ms = |v: Option<&Verdict>| v.map_or("-".to_string(), |v| format!("{:.0}", v.runtime_ms));
+        let _ = writeln!(
+            s,
+            "| [{}]({}) | `{}` | {} | {} | {} | {} | {} | {} | {} | {} / {} | {} |",
+            bug.id,
+            bug.url,
+            bug.scene,
+            metric,
+            threshold,
+            show(reference),
+            bug.last_bad,
+            show(bad),
+            bug.first_good,
+            show(good),
+            ms(bad),
+            ms(good),
+            bug.note
+        );
+    }
+    let mut engines: Vec<&str> = Vec::new();
+    for v in all {
+        if !engines.contains(&v.engine.as_str()) {
+            engines.push(&v.engine);
+        }
+    }
+    let _ = writeln!(s);
+    let _ = write!(s, "| bug |");
+    for e in &engines {
+        let _ = write!(s, " {e} |");
+    }
+    let _ = writeln!(s);
+    let _ = writeln!(s, "|---|{}", "---|".repeat(engines.len()));
+    for bug in &BUGS {
+        let _ = write!(s, "| {} |", bug.id);
+        for e in &engines {
+            let _ = write!(s, " {} |", find(all, e, bug.id).map_or("-".to_string(), cell));
+        }
+        let _ = writeln!(s);
+    }
+    let _ = writeln!(s);
+    let _ = writeln!(s, "Details:");
+    let _ = writeln!(s);
+    for v in all {
+        let _ = writeln!(s, "- {} {}: {}", v.engine, v.bug, v.detail);
+    }
+    s
+}
