@@ -1,7 +1,29 @@
 //! `policy-runtime`: RL policies for the H1-2 (ONNX via tract, unitree_rl_gym LSTM from arrays) behind one
 //! controller interface, so that the engine-diff harness, the simulator and the gap benchmark drive robots the
 //! same way whatever produced the actions.
+//!
+//! * [`spec`]: policy spec files (TOML) — observation terms, history, action scale, joints, gains, period.
+//! * [`network`]: [`OnnxPolicy`] (tract) and [`LstmPolicy`] (rsl_rl recurrent actor from `.npz` arrays, or
+//!   from the TorchScript `.pt` via [`torchscript`]).
+//! * [`observation`]: projected gravity, gait phase, the observation history.
+//! * [`PolicyController`]: a spec and its network as a [`Controller`].
+//! * [`imu`]: torso IMU (LowState) → pelvis-frame [`RobotObservation`].
 #![forbid(unsafe_code)]
+
+pub mod controller;
+pub mod imu;
+pub mod network;
+pub mod observation;
+pub mod spec;
+pub mod torchscript;
+
+pub use controller::PolicyController;
+pub use imu::{pelvis_imu_from_torso, PelvisImu, WAIST_SLOT};
+pub use network::{LstmPolicy, OnnxPolicy, PolicyNetwork};
+pub use spec::{
+    HistoryLayout, JointSpec, LstmInitialState, ObservationTerm, PolicyKind, PolicySpec, SpecError,
+    TermKind,
+};
 
 use diff_physics::PdTarget;
 use thiserror::Error;
@@ -17,6 +39,9 @@ pub enum PolicyError {
     Observation(String),
     #[error("inference: {0}")]
     Inference(String),
+    /// A spec that is malformed or does not fit its model (typed, see [`SpecError`]).
+    #[error(transparent)]
+    InvalidSpec(#[from] SpecError),
 }
 
 /// What a controller sees at one control step. Everything is in the PELVIS frame and motor-slot order
