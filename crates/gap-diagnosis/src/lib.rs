@@ -1,2 +1,33 @@
-//! `gap-diagnosis`: Sim-to-real gap diagnosis: residual breakdown, effect library, held-out ranking, blind benchmark (issue 6).
+//! `gap-diagnosis`: sim-to-real gap diagnosis (issue 6).
+//!
+//! * [`log`]: the robot log (MCAP as `ulab record` writes it, or CSV);
+//! * [`plant`]: engine on a suspension rig + actuator/sensor effect layer + model-level effects;
+//! * [`effects`]: the effect library (parameters, ranges, scopes);
+//! * [`diagnose`]: where the gap lies, which effect explains it, how much it shrinks (held-out, with intervals);
+//! * [`excite`]: safe excitation plans; [`bench`]: the blind benchmark; [`report`]: Markdown, JSON and SVG plots.
 #![forbid(unsafe_code)]
+
+pub mod bench;
+pub mod diagnose;
+pub mod effects;
+pub mod excite;
+pub mod log;
+pub mod plant;
+pub mod report;
+
+pub use diagnose::{diagnose, DiagnoseOptions, Report};
+pub use effects::EffectKind;
+pub use log::RobotLog;
+
+/// Errors of the diagnosis.
+#[derive(Debug, thiserror::Error)]
+pub enum GapError {
+    #[error("log: {0}")]
+    Log(String),
+    #[error("engine: {0}")]
+    Engine(String),
+    #[error("input: {0}")]
+    Input(String),
+    #[error("i/o: {0}")]
+    Io(String),
+}

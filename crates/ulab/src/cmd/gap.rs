@@ -1,9 +1,325 @@
-//! `ulab gap` (placeholder until its issue lands).
+//! `ulab gap`: sim-to-real gap diagnosis (the work is in the `gap-diagnosis` crate).
+//!
+//! - `ulab gap diagnose --log real.mcap --robot h1_2 [--engine E] --out DIR [--format json]`
+//! - `ulab gap excite --robot h1_2 --out plan.mcap [--duration S] [--rate HZ]`
+//! - `ulab gap simulate --robot h1_2 --out real.mcap [--effect KIND:UNIT:VALUE]...`: a log of the benchmark's
+//!   reference plant (demo and test logs)
+//! - `ulab gap bench [--trials N] [--seed S] [--duration S] [--out DIR]`
+use super::recording::idl_text;
+use anyhow::{bail, Context, Result};
+use gap_diagnosis::bench::{self, BenchOptions, RealConfig};
+use gap_diagnosis::log::McapSchemas;
+use gap_diagnosis::plant::{joint_groups, EngineChoice, GROUPS};
+use gap_diagnosis::{effects::Scope, DiagnoseOptions, EffectKind, RobotLog};
+use robot_model::RobotModel;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use unitree_idl::MessageType;
 
 #[derive(Debug, clap::Args)]
-pub struct Args {}
+pub struct Args {
+    #[command(subcommand)]
+    command: GapCommand,
+}
 
-pub fn run(_args: Args) -> anyhow::Result<ExitCode> {
-    anyhow::bail!("`ulab gap` is not implemented yet")
+#[derive(Debug, clap::Subcommand)]
+enum GapCommand {
+    /// Where the gap lies, which unmodelled effect causes it, how far it shrinks (held-out windows).
+    Diagnose(DiagnoseArgs),
+    /// Write a safe excitation plan (chirps and steps per joint group, suspended robot) as an MCAP of rt/lowcmd.
+    Excite(ExciteArgs),
+    /// Write a log of the benchmark's reference plant (MuJoCo RK4 on the rig, sensor noise, 50 Hz jitter).
+    Simulate(SimulateArgs),
+    /// Blind benchmark: hidden effects, sealed labels, scored diagnoses.
+    Bench(BenchArgs),
+}
+
+#[derive(Debug, clap::Args)]
+struct DiagnoseArgs {
+    /// Log: MCAP written by `ulab record` (hg LowCmd on rt/lowcmd, hg LowState on rt/lowstate), or the directory
+    /// `ulab log export` writes from one (rt_lowcmd.csv, rt_lowstate.csv).
+    #[arg(long)]
+    log: PathBuf,
+    /// Built-in robot name or a sidecar TOML.
+    #[arg(long, default_value = "h1_2")]
+    robot: String,
+    /// Diagnosing simulator: mujoco (implicitfast), mujoco-rk4, mujoco-euler, mujoco-implicit.
+    #[arg(long, default_value = "mujoco")]
+    engine: String,
+    /// Output directory (report.md, report.json, SVG plots).
+    #[arg(long)]
+    out: PathBuf,
+    /// What to print: a summary (text) or the whole report (json).
+    #[arg(long, default_value = "text", value_parser = ["text", "json"])]
+    format: String,
+    /// Window length (s).
+    #[arg(long, default_value_t = 0.1)]
+    window: f64,
+    /// At most this many windows.
+    #[arg(long, default_value_t = 300)]
+    max_windows: usize,
+    /// Training and held-out segments alternate every this many seconds.
+    #[arg(long, default_value_t = 1.0)]
+    block: f64,
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+}
+
+#[derive(Debug, clap::Args)]
+struct ExciteArgs {
+    #[arg(long, default_value = "h1_2")]
+    robot: String,
+    #[arg(long)]
+    out: PathBuf,
+    /// Plan length (s).
+    #[arg(long, default_value_t = 60.0)]
+    duration: f64,
+    /// Command rate (Hz).
+    #[arg(long, default_value_t = 500.0)]
+    rate: f64,
+    /// Overwrite the output file.
+    #[arg(long)]
+    force: bool,
+}
+
+#[derive(Debug, clap::Args)]
+struct SimulateArgs {
+    #[arg(long, default_value = "h1_2")]
+    robot: String,
+    #[arg(long)]
+    out: PathBuf,
+    #[arg(long, default_value_t = 20.0)]
+    duration: f64,
+    /// Injected effect KIND:UNIT:VALUE (UNIT: a group left_leg|right_leg|torso|left_arm|right_arm, a motor
+    /// name, `robot` for latency (VALUE in ms) or imu_x|imu_y|imu_z). Repeatable.
+    #[arg(long)]
+    effect: Vec<String>,
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Overwrite the output file.
+    #[arg(long)]
+    force: bool,
+}
+
+#[derive(Debug, clap::Args)]
+struct BenchArgs {
+    #[arg(long, default_value = "h1_2")]
+    robot: String,
+    #[arg(long, default_value_t = 12)]
+    trials: usize,
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Length of each generated log (s).
+    #[arg(long, default_value_t = 20.0)]
+    duration: f64,
+    /// Directory for the logs, seals, reports and the table (default: a temporary directory).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    #[arg(long, default_value = "text", value_parser = ["text", "json"])]
+    format: String,
+}
+
+pub fn run(args: Args) -> Result<ExitCode> {
+    match args.command {
+        GapCommand::Diagnose(a) => diagnose(a),
+        GapCommand::Excite(a) => excite(a),
+        GapCommand::Simulate(a) => simulate(a),
+        GapCommand::Bench(a) => bench_cmd(a),
+    }
+}
+
+fn load(robot: &str) -> Result<RobotModel> {
+    if robot_model::BUILTIN_ROBOTS.contains(&robot) {
+        robot_model::builtin(robot).with_context(|| format!("loading built-in robot {robot}"))
+    } else {
+        RobotModel::load(Path::new(robot)).with_context(|| format!("loading robot model {robot}"))
+    }
+}
+
+fn schemas() -> McapSchemas {
+    McapSchemas { lowcmd: idl_text(MessageType::HgLowCmd), lowstate: idl_text(MessageType::HgLowState) }
+}
+
+fn write_log(path: &Path, log: &RobotLog, model: &RobotModel, force: bool) -> Result<()> {
+    if path.exists() && !force {
+        bail!("{} exists (use --force to overwrite)", path.display());
+    }
+    let f = std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
+    log.write_mcap(std::io::BufWriter::new(f), model, &schemas()).with_context(|| format!("writing {}", path.display()))
+}
+
+fn read_log(path: &Path, model: &RobotModel) -> Result<RobotLog> {
+    // A directory: the CSV pair `ulab log export` writes (rt_lowcmd.csv, rt_lowstate.csv).
+    let log = if path.is_dir() {
+        let read = |name: &str| std::fs::read_to_string(path.join(name)).with_context(|| format!("reading {}", path.join(name).display()));
+        RobotLog::from_export_csv(&read("rt_lowcmd.csv")?, &read("rt_lowstate.csv")?, model)
+    } else {
+        let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+        RobotLog::from_mcap(&bytes, model)
+    };
+    log.with_context(|| format!("reading the log {}", path.display()))
+}
+
+fn diagnose(a: DiagnoseArgs) -> Result<ExitCode> {
+    let model = load(&a.robot)?;
+    let engine = EngineChoice::parse(&a.engine).context("--engine")?;
+    if !(a.window.is_finite() && a.window > 0.0 && a.block.is_finite() && a.block > 0.0) {
+        bail!("--window and --block must be positive numbers of seconds");
+    }
+    let log = read_log(&a.log, &model)?;
+    let opts = DiagnoseOptions { engine, window_s: a.window, max_windows: a.max_windows.max(4), block_s: a.block, seed: a.seed, ..Default::default() };
+    let report = gap_diagnosis::diagnose(&model, &log, &opts).context("diagnosing")?;
+    gap_diagnosis::report::write_all(&report, &a.out).context("writing the report")?;
+    if a.format == "json" {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        println!("baseline held-out gap metric {:.3} [{:.3}, {:.3}]", report.baseline_metric.value, report.baseline_metric.lo, report.baseline_metric.hi);
+        if report.unexplained {
+            println!("no effect clears the noise floor: the gap is unexplained (abstention)");
+        }
+        for e in report.effects.iter().filter(|e| e.named) {
+            let top = e.params.iter().max_by(|x, y| x.held_out_reduction.total_cmp(&y.held_out_reduction));
+            println!(
+                "{:18} reduction {:5.1} % [{:.1}, {:.1}]  {}",
+                e.kind.name(),
+                100.0 * e.reduction.value,
+                100.0 * e.reduction.lo,
+                100.0 * e.reduction.hi,
+                top.map(|p| format!("{} = {:.4} ± {:.4}", p.unit, p.value, p.sd)).unwrap_or_default()
+            );
+        }
+        println!("report: {}", a.out.join("report.md").display());
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn excite(a: ExciteArgs) -> Result<ExitCode> {
+    let model = load(&a.robot)?;
+    if !(a.duration.is_finite() && a.duration > 0.0 && a.duration <= 3600.0) {
+        bail!("--duration must be in (0, 3600] s");
+    }
+    if !(a.rate.is_finite() && a.rate >= 1.0 && a.rate <= 2000.0) {
+        bail!("--rate must be in [1, 2000] Hz");
+    }
+    let plan = gap_diagnosis::excite::plan(&model, a.duration, a.rate);
+    let log = RobotLog { commands: plan, states: Vec::new() };
+    write_log(&a.out, &log, &model, a.force)?;
+    eprintln!(
+        "{}: {} commands over {:.1} s (suspended robot: chirps 0.3-3 Hz and steps per group {:?}, then all together)",
+        a.out.display(),
+        log.commands.len(),
+        a.duration,
+        GROUPS
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Parses KIND:UNIT:VALUE into the effect set.
+fn parse_effect(text: &str, model: &RobotModel, fx: &mut gap_diagnosis::plant::Effects) -> Result<()> {
+    let parts: Vec<&str> = text.split(':').collect();
+    let [kind, unit, value] = parts[..] else { bail!("--effect {text:?}: expected KIND:UNIT:VALUE") };
+    let kind = EffectKind::parse(kind).with_context(|| {
+        format!("--effect {text:?}: unknown kind (one of {})", EffectKind::ALL.map(|k| k.name()).join(", "))
+    })?;
+    let value: f64 = value.parse().ok().filter(|v: &f64| v.is_finite()).with_context(|| format!("--effect {text:?}: bad value"))?;
+    let (lo, hi, _) = kind.range();
+    let internal = if kind == EffectKind::Latency { value / 2.0 } else { value };
+    if !kind.identifiable_suspended() {
+        bail!("--effect {text:?}: {} needs ground contact, which the suspended rig does not have", kind.name());
+    }
+    if kind != EffectKind::ImuBias && kind != EffectKind::ImuMisalignment && !(lo..=hi).contains(&internal) {
+        bail!("--effect {text:?}: value outside the supported range [{lo}, {hi}]");
+    }
+    let groups = joint_groups(model);
+    match kind.scope() {
+        Scope::Global => kind.set(fx, 0, internal),
+        Scope::Imu => {
+            let axis = ["imu_x", "imu_y", "imu_z"].iter().position(|a| *a == unit).with_context(|| format!("--effect {text:?}: unit must be imu_x|imu_y|imu_z"))?;
+            kind.set(fx, axis, internal);
+        }
+        Scope::Joint | Scope::Group => {
+            if let Some(g) = GROUPS.iter().position(|g| *g == unit) {
+                (0..model.nj()).filter(|&j| groups[j] == g).for_each(|j| kind.set(fx, j, internal));
+            } else if let Some(j) = model.joints.iter().position(|j| j.motor_name == unit) {
+                kind.set(fx, j, internal);
+            } else {
+                bail!("--effect {text:?}: unknown unit {unit:?} (a group {GROUPS:?} or a motor name)");
+            }
+        }
+    }
+    Ok(())
+}
+
+fn simulate(a: SimulateArgs) -> Result<ExitCode> {
+    let model = load(&a.robot)?;
+    if !(a.duration.is_finite() && a.duration >= 1.0 && a.duration <= 600.0) {
+        bail!("--duration must be in [1, 600] s");
+    }
+    let mut cfg = RealConfig::new(&model, a.duration, a.seed);
+    for e in &a.effect {
+        parse_effect(e, &model, &mut cfg.effects)?;
+    }
+    let log = bench::generate_log(&model, &cfg).context("running the reference plant")?;
+    write_log(&a.out, &log, &model, a.force)?;
+    eprintln!("{}: {:.1} s, {} commands, {} states", a.out.display(), log.duration(), log.commands.len(), log.states.len());
+    Ok(ExitCode::SUCCESS)
+}
+
+fn bench_cmd(a: BenchArgs) -> Result<ExitCode> {
+    let model = load(&a.robot)?;
+    if a.trials == 0 {
+        bail!("--trials must be at least 1");
+    }
+    if !(a.duration.is_finite() && a.duration >= 4.0 && a.duration <= 600.0) {
+        bail!("--duration must be in [4, 600] s");
+    }
+    let dir = match &a.out {
+        Some(d) => d.clone(),
+        None => std::env::temp_dir().join(format!("ulab-gap-bench-{}", std::process::id())),
+    };
+    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    let opts = BenchOptions { trials: a.trials, seed: a.seed, duration: a.duration, diagnose: DiagnoseOptions { seed: a.seed, ..Default::default() } };
+    let mut scores = Vec::new();
+    let mut seals = Vec::new();
+    let started = std::time::Instant::now();
+    for i in 0..a.trials {
+        // Each generated log goes to disk as MCAP and is read back: the diagnosis sees exactly what a recording gives.
+        let mut via_mcap = |i: usize, log: &RobotLog| -> Result<RobotLog, gap_diagnosis::GapError> {
+            let p = dir.join(format!("trial_{i:03}.mcap"));
+            let f = std::fs::File::create(&p).map_err(|e| gap_diagnosis::GapError::Io(format!("{}: {e}", p.display())))?;
+            log.write_mcap(std::io::BufWriter::new(f), &model, &schemas())?;
+            let bytes = std::fs::read(&p).map_err(|e| gap_diagnosis::GapError::Io(format!("{}: {e}", p.display())))?;
+            RobotLog::from_mcap(&bytes, &model)
+        };
+        let (seal, score, report) = bench::run_trial(&model, i, &opts, &mut via_mcap).with_context(|| format!("trial {i}"))?;
+        gap_diagnosis::report::write_all(&report, &dir.join(format!("trial_{i:03}"))).context("writing a trial report")?;
+        eprintln!(
+            "trial {i}: injected [{}] -> ranked [{}] ({:.1} s)",
+            score.injected.iter().map(|x| format!("{}@{}={:.3}", x.kind.name(), x.unit, x.value)).collect::<Vec<_>>().join(", "),
+            score.ranked.iter().map(|k| k.name()).collect::<Vec<_>>().join(", "),
+            score.diagnose_s
+        );
+        seals.push(seal);
+        scores.push(score);
+    }
+    let summary = bench::summarize(&scores);
+    let table = bench::table(&summary);
+    std::fs::write(dir.join("seals.json"), serde_json::to_string_pretty(&seals)?)?;
+    std::fs::write(dir.join("scores.json"), serde_json::to_string_pretty(&scores)?)?;
+    std::fs::write(dir.join("table.md"), &table)?;
+    if a.format == "json" {
+        println!("{}", serde_json::to_string_pretty(&serde_json::json!({"summary": summary, "trials": scores}))?);
+    } else {
+        println!(
+            "ulab gap bench --trials {} --seed {} --duration {} ({} s logs, reference plant MuJoCo RK4 + noise + 50 Hz jitter; diagnosing engine MuJoCo implicitfast; {:.0} s total)\n",
+            a.trials,
+            a.seed,
+            a.duration,
+            a.duration,
+            started.elapsed().as_secs_f64()
+        );
+        print!("{table}");
+        println!("\nfiles: {}", dir.display());
+    }
+    Ok(ExitCode::SUCCESS)
 }

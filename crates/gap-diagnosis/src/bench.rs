@@ -1,0 +1,428 @@
+//! The blind benchmark: "real" logs from a reference plant that differs from the diagnosing simulator (another
+//! MuJoCo integrator, sensor noise, 50 Hz command timing jitter) with a hidden random subset of effects at random
+//! magnitudes, labels sealed (salted SHA-256) before diagnosis, then scored.
+use crate::diagnose::{diagnose, DiagnoseOptions, Report};
+use crate::effects::{EffectKind, Scope};
+use crate::excite;
+use crate::log::{Command, Measurement, RobotLog};
+use crate::plant::{imu_reading, joint_groups, EngineChoice, Effects, Rig, DT, GROUPS};
+use crate::GapError;
+use rand::{Rng, SeedableRng};
+use rand_distr_free::normal;
+use robot_model::RobotModel;
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+
+/// Standard deviations of the sensor noise of the reference plant.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct SensorNoise {
+    pub q: f64,
+    pub dq: f64,
+    pub tau: f64,
+    pub gyro: f64,
+    pub quat: f64,
+}
+
+impl Default for SensorNoise {
+    fn default() -> Self {
+        SensorNoise { q: 2e-4, dq: 0.01, tau: 0.1, gyro: 0.003, quat: 5e-4 }
+    }
+}
+
+/// The reference ("real") plant.
+#[derive(Debug, Clone)]
+pub struct RealConfig {
+    pub engine: EngineChoice,
+    pub effects: Effects,
+    pub noise: SensorNoise,
+    /// Command rate (Hz) of the controller driving the plan.
+    pub cmd_rate_hz: f64,
+    /// Uniform timing jitter of each command (± s).
+    pub jitter_s: f64,
+    pub duration: f64,
+    pub seed: u64,
+}
+
+impl RealConfig {
+    pub fn new(model: &RobotModel, duration: f64, seed: u64) -> Self {
+        RealConfig {
+            engine: EngineChoice { integrator: "RK4".into() },
+            effects: Effects::none(model.nj()),
+            noise: SensorNoise::default(),
+            cmd_rate_hz: 50.0,
+            jitter_s: 0.002,
+            duration,
+            seed,
+        }
+    }
+}
+
+mod rand_distr_free {
+    use rand::Rng;
+    /// A standard normal sample (Box–Muller), so no extra crate is needed.
+    pub fn normal(rng: &mut impl Rng) -> f64 {
+        let u1: f64 = rng.gen_range(1e-12..1.0);
+        let u2: f64 = rng.gen_range(0.0..1.0);
+        (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+    }
+}
+
+/// Runs the excitation plan through the reference plant and returns the log the robot would have produced.
+pub fn generate_log(model: &RobotModel, cfg: &RealConfig) -> Result<RobotLog, GapError> {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(cfg.seed);
+    let fx = &cfg.effects;
+    let real_model = fx.apply_to_model(model);
+    let mut rig = Rig::new(&real_model, &cfg.engine)?;
+    let q0 = model.default_q();
+    let nj = model.nj();
+    rig.reset(&q0, &vec![0.0; nj])?;
+    let amp = excite::amplitudes(model);
+    let groups = joint_groups(model);
+    // Command times: nominal rate with jitter.
+    let n_cmd = (cfg.duration * cfg.cmd_rate_hz).floor() as usize;
+    let mut cmds: Vec<Command> = (0..n_cmd)
+        .map(|i| {
+            let nominal = i as f64 / cfg.cmd_rate_hz;
+            let t = if i == 0 { 0.0 } else { (nominal + rng.gen_range(-cfg.jitter_s..=cfg.jitter_s)).max(0.0) };
+            excite::command_at(model, &amp, &groups, cfg.duration, t)
+        })
+        .collect();
+    cmds.sort_by(|a, b| a.t.total_cmp(&b.t));
+    let mut log = RobotLog { commands: cmds, states: Vec::new() };
+    let steps = (cfg.duration / DT).round() as usize;
+    let lat = fx.latency_steps as f64 * DT;
+    let mut tau = vec![0.0; nj];
+    let n = &cfg.noise;
+    for i in 0..steps {
+        let t = i as f64 * DT;
+        let Some(ci) = log.command_at(t - lat + 1e-9) else {
+            // Before the first command reaches the motors: hold with the first command's gains at the start pose.
+            let mut c = log.commands[0].clone();
+            c.q = q0.clone();
+            tau.copy_from_slice(rig.step(&c, fx)?);
+            continue;
+        };
+        let cmd = log.commands[ci].clone();
+        tau.copy_from_slice(rig.step(&cmd, fx)?);
+        let (q, dq) = rig.joints();
+        let (quat, gyro) = imu_reading(model, &q, &dq, fx)?;
+        let nq = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(quat[0], quat[1], quat[2], quat[3]))
+            * nalgebra::UnitQuaternion::from_scaled_axis(nalgebra::Vector3::new(normal(&mut rng), normal(&mut rng), normal(&mut rng)) * n.quat);
+        log.states.push(Measurement {
+            t: t + DT,
+            q: (0..nj).map(|j| q[j] + fx.encoder_offset[j] + n.q * normal(&mut rng)).collect(),
+            dq: (0..nj).map(|j| dq[j] + n.dq * normal(&mut rng)).collect(),
+            tau: (0..nj).map(|j| tau[j] + n.tau * normal(&mut rng)).collect(),
+            quat: [nq.w, nq.i, nq.j, nq.k],
+            gyro: [0, 1, 2].map(|k| gyro[k] + n.gyro * normal(&mut rng)),
+            acc: [0.0, 0.0, robot_model::GRAVITY_EARTH],
+        });
+    }
+    Ok(log)
+}
+
+/// One injected effect: kind, the unit it acts on (group, joint, `robot`, `imu`) and its magnitude.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct Injected {
+    pub kind: EffectKind,
+    pub unit: String,
+    pub value: f64,
+}
+
+/// Joints whose encoder offset changes a gravity torque enough to be seen on the rig.
+fn gravity_loaded(model: &RobotModel) -> Vec<usize> {
+    model
+        .joints
+        .iter()
+        .enumerate()
+        .filter(|(_, j)| ["hip_pitch", "knee", "shoulder_pitch", "elbow"].iter().any(|k| j.motor_name.ends_with(k)))
+        .map(|(i, _)| i)
+        .collect()
+}
+
+/// Draws one effect of `kind` at a random clearly-present magnitude and applies it to `fx`.
+pub fn inject(model: &RobotModel, kind: EffectKind, fx: &mut Effects, rng: &mut impl Rng) -> Injected {
+    let groups = joint_groups(model);
+    let sign = |rng: &mut dyn rand::RngCore| if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
+    let value = match kind {
+        EffectKind::Armature => rng.gen_range(2.0..3.5),
+        EffectKind::Damping => rng.gen_range(1.5..4.0),
+        EffectKind::Friction => rng.gen_range(1.0..3.0),
+        EffectKind::TorqueSaturation => rng.gen_range(0.3..0.5),
+        EffectKind::Latency => rng.gen_range(6..=14) as f64,
+        EffectKind::GainScale => {
+            if rng.gen_bool(0.5) {
+                rng.gen_range(0.6..0.75)
+            } else {
+                rng.gen_range(1.3..1.5)
+            }
+        }
+        EffectKind::Backlash => rng.gen_range(0.02..0.05),
+        EffectKind::EncoderOffset => sign(rng) * rng.gen_range(0.04..0.08),
+        EffectKind::ImuBias => sign(rng) * rng.gen_range(0.05..0.2),
+        EffectKind::ImuMisalignment => sign(rng) * rng.gen_range(0.03..0.1),
+        EffectKind::LinkMass => rng.gen_range(1.3..1.7),
+        EffectKind::LinkCom => sign(rng) * rng.gen_range(0.03..0.07),
+        EffectKind::ContactFriction | EffectKind::ContactStiffness => kind.range().2,
+    };
+    let unit = match kind.scope() {
+        Scope::Global => {
+            kind.set(fx, 0, value);
+            "robot".to_string()
+        }
+        Scope::Imu => {
+            let axis = rng.gen_range(0..3);
+            kind.set(fx, axis, value);
+            "imu".to_string()
+        }
+        Scope::Joint => {
+            let cand = gravity_loaded(model);
+            let j = cand[rng.gen_range(0..cand.len())];
+            kind.set(fx, j, value);
+            model.joints[j].motor_name.clone()
+        }
+        Scope::Group => {
+            // Torso is a single joint; the limbs are where group effects are physical.
+            let g = [0usize, 1, 3, 4][rng.gen_range(0..4)];
+            (0..model.nj()).filter(|&j| groups[j] == g).for_each(|j| kind.set(fx, j, value));
+            GROUPS[g].to_string()
+        }
+    };
+    Injected { kind, unit, value: if kind == EffectKind::Latency { value * DT * 1e3 } else { value } }
+}
+
+/// Effect kinds the benchmark injects (the ones identifiable on the suspended rig).
+pub fn injectable() -> Vec<EffectKind> {
+    EffectKind::ALL.into_iter().filter(|k| k.identifiable_suspended()).collect()
+}
+
+/// Labels of one trial.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct Labels {
+    pub trial: usize,
+    pub injected: Vec<Injected>,
+}
+
+/// Sealed labels: a salted SHA-256 of the labels' JSON, published before the diagnosis runs.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Seal {
+    pub trial: usize,
+    pub sha256: String,
+}
+
+fn hex(b: &[u8]) -> String {
+    b.iter().map(|x| format!("{x:02x}")).collect()
+}
+
+/// Seals labels with a salt; returns the seal and the salted text needed to open it.
+pub fn seal(labels: &Labels, salt: &[u8; 16]) -> Result<(Seal, String), GapError> {
+    let text = format!("{}:{}", hex(salt), serde_json::to_string(labels).map_err(|e| GapError::Io(e.to_string()))?);
+    let h = Sha256::digest(text.as_bytes());
+    Ok((Seal { trial: labels.trial, sha256: hex(&h) }, text))
+}
+
+/// Opens a seal: checks the hash and returns the labels.
+pub fn open(seal: &Seal, text: &str) -> Result<Labels, GapError> {
+    if hex(&Sha256::digest(text.as_bytes())) != seal.sha256 {
+        return Err(GapError::Input(format!("trial {}: the labels do not match their seal", seal.trial)));
+    }
+    let json = text.split_once(':').map(|(_, j)| j).ok_or_else(|| GapError::Input("malformed sealed labels".into()))?;
+    serde_json::from_str(json).map_err(|e| GapError::Input(format!("sealed labels: {e}")))
+}
+
+/// Score of one trial.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct TrialScore {
+    pub trial: usize,
+    pub injected: Vec<Injected>,
+    pub ranked: Vec<EffectKind>,
+    /// Top-ranked unit of each injected kind, when that kind was named.
+    pub attributed_units: Vec<Option<String>>,
+    pub top1: bool,
+    pub top3: bool,
+    /// Every injected kind within the top `injected.len()` ranks.
+    pub all_found: bool,
+    pub joints_correct: usize,
+    pub joints_total: usize,
+    /// Relative parameter errors of the injected kinds that were named (|fit - true| / |true - none|).
+    pub param_errors: Vec<f64>,
+    /// Named effects on a no-effect control.
+    pub false_confident: usize,
+    pub abstained: bool,
+    pub held_out_reduction: f64,
+    pub diagnose_s: f64,
+}
+
+/// Scores a report against opened labels.
+pub fn score(labels: &Labels, report: &Report) -> TrialScore {
+    let inj = &labels.injected;
+    let ranked = report.ranked.clone();
+    let mut attributed_units = Vec::new();
+    let (mut jc, mut jt) = (0, 0);
+    let mut param_errors = Vec::new();
+    for i in inj {
+        let r = report.effects.iter().find(|e| e.kind == i.kind && e.named);
+        let top = r.and_then(|r| r.params.iter().max_by(|a, b| a.held_out_reduction.total_cmp(&b.held_out_reduction)));
+        attributed_units.push(top.map(|p| p.unit.clone()));
+        if matches!(i.kind.scope(), Scope::Group | Scope::Joint) {
+            jt += 1;
+            if top.is_some_and(|p| p.unit == i.unit) {
+                jc += 1;
+            }
+        }
+        if let Some(r) = r {
+            let null = i.kind.range().2;
+            let fit = match i.kind.scope() {
+                Scope::Imu => r.params.iter().map(|p| p.value).max_by(|a, b| a.abs().total_cmp(&b.abs())).unwrap_or(null),
+                _ => r.params.iter().find(|p| p.unit == i.unit).map_or(null, |p| p.value),
+            };
+            let null = if i.kind == EffectKind::Latency { 0.0 } else { null };
+            param_errors.push((fit - i.value).abs() / (i.value - null).abs().max(1e-9));
+        }
+    }
+    let kinds: Vec<EffectKind> = inj.iter().map(|i| i.kind).collect();
+    TrialScore {
+        trial: labels.trial,
+        injected: inj.clone(),
+        attributed_units,
+        top1: !kinds.is_empty() && ranked.first().is_some_and(|k| kinds.contains(k)),
+        top3: !kinds.is_empty() && ranked.iter().take(3).any(|k| kinds.contains(k)),
+        all_found: !kinds.is_empty() && kinds.iter().all(|k| ranked.iter().take(kinds.len()).any(|r| r == k)),
+        joints_correct: jc,
+        joints_total: jt,
+        param_errors,
+        false_confident: if kinds.is_empty() { ranked.len() } else { 0 },
+        abstained: report.unexplained,
+        held_out_reduction: report.best_combination.as_ref().map_or(0.0, |c| c.reduction.value),
+        diagnose_s: report.elapsed_s,
+        ranked,
+    }
+}
+
+/// Benchmark settings.
+#[derive(Debug, Clone)]
+pub struct BenchOptions {
+    pub trials: usize,
+    pub seed: u64,
+    /// Length of each generated log (s).
+    pub duration: f64,
+    pub diagnose: DiagnoseOptions,
+}
+
+/// Number of hidden effects of trial `i`: the pattern single, single, pair, no-effect control repeats.
+pub fn trial_plan(i: usize) -> usize {
+    match i % 4 {
+        0 | 1 => 1,
+        2 => 2,
+        _ => 0,
+    }
+}
+
+/// Draws the hidden effects of trial `i`.
+pub fn draw_trial(model: &RobotModel, i: usize, seed: u64) -> (Effects, Labels) {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ (0x9e37_79b9_7f4a_7c15u64.wrapping_mul(i as u64 + 1)));
+    let mut fx = Effects::none(model.nj());
+    let kinds = injectable();
+    let n = trial_plan(i);
+    // Singles cycle through every kind so a short benchmark still covers them all.
+    let mut chosen: Vec<EffectKind> = Vec::new();
+    if n >= 1 {
+        chosen.push(kinds[(i / 4 * 2 + i % 4) % kinds.len()]);
+    }
+    while chosen.len() < n {
+        let k = kinds[rng.gen_range(0..kinds.len())];
+        if !chosen.contains(&k) {
+            chosen.push(k);
+        }
+    }
+    let injected = chosen.into_iter().map(|k| inject(model, k, &mut fx, &mut rng)).collect();
+    (fx, Labels { trial: i, injected })
+}
+
+/// Runs one trial end to end (generate, seal, diagnose, open, score). The caller may write the log with
+/// `on_log` (e.g. as MCAP, so the diagnosis reads it through the same path as a recorded log).
+pub fn run_trial(
+    model: &RobotModel,
+    i: usize,
+    opts: &BenchOptions,
+    on_log: &mut dyn FnMut(usize, &RobotLog) -> Result<RobotLog, GapError>,
+) -> Result<(Seal, TrialScore, Report), GapError> {
+    let (fx, labels) = draw_trial(model, i, opts.seed);
+    let mut salt = [0u8; 16];
+    rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed.wrapping_add(7919 * i as u64)).fill(&mut salt);
+    let (sealed, text) = seal(&labels, &salt)?;
+    drop(labels);
+    let cfg = RealConfig { effects: fx, seed: opts.seed.wrapping_mul(31).wrapping_add(i as u64), ..RealConfig::new(model, opts.duration, 0) };
+    let log = generate_log(model, &cfg)?;
+    let log = on_log(i, &log)?;
+    let report = diagnose(model, &log, &opts.diagnose)?;
+    let labels = open(&sealed, &text)?;
+    let s = score(&labels, &report);
+    Ok((sealed, s, report))
+}
+
+/// Aggregate results.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct BenchSummary {
+    pub trials: usize,
+    pub singles: usize,
+    pub pairs: usize,
+    pub controls: usize,
+    pub top1_single: f64,
+    pub top3_single: f64,
+    pub both_pairs: f64,
+    pub top3_pairs: f64,
+    pub joint_accuracy: f64,
+    pub median_param_error: f64,
+    pub false_confident_controls: usize,
+    pub abstention_effects: f64,
+    pub abstention_controls: f64,
+    pub mean_held_out_reduction: f64,
+    pub mean_diagnose_s: f64,
+}
+
+pub fn summarize(scores: &[TrialScore]) -> BenchSummary {
+    let frac = |xs: Vec<bool>| if xs.is_empty() { f64::NAN } else { xs.iter().filter(|x| **x).count() as f64 / xs.len() as f64 };
+    let singles: Vec<&TrialScore> = scores.iter().filter(|s| s.injected.len() == 1).collect();
+    let pairs: Vec<&TrialScore> = scores.iter().filter(|s| s.injected.len() == 2).collect();
+    let controls: Vec<&TrialScore> = scores.iter().filter(|s| s.injected.is_empty()).collect();
+    let effects: Vec<&TrialScore> = scores.iter().filter(|s| !s.injected.is_empty()).collect();
+    let mut pe: Vec<f64> = scores.iter().flat_map(|s| s.param_errors.clone()).collect();
+    pe.sort_by(f64::total_cmp);
+    let (jc, jt) = scores.iter().fold((0, 0), |a, s| (a.0 + s.joints_correct, a.1 + s.joints_total));
+    BenchSummary {
+        trials: scores.len(),
+        singles: singles.len(),
+        pairs: pairs.len(),
+        controls: controls.len(),
+        top1_single: frac(singles.iter().map(|s| s.top1).collect()),
+        top3_single: frac(singles.iter().map(|s| s.top3).collect()),
+        both_pairs: frac(pairs.iter().map(|s| s.all_found).collect()),
+        top3_pairs: frac(pairs.iter().map(|s| s.injected.iter().all(|i| s.ranked.iter().take(3).any(|r| *r == i.kind))).collect()),
+        joint_accuracy: if jt == 0 { f64::NAN } else { jc as f64 / jt as f64 },
+        median_param_error: pe.get(pe.len() / 2).copied().unwrap_or(f64::NAN),
+        false_confident_controls: controls.iter().map(|s| s.false_confident).sum(),
+        abstention_effects: frac(effects.iter().map(|s| s.abstained).collect()),
+        abstention_controls: frac(controls.iter().map(|s| s.abstained).collect()),
+        mean_held_out_reduction: if effects.is_empty() { f64::NAN } else { effects.iter().map(|s| s.held_out_reduction).sum::<f64>() / effects.len() as f64 },
+        mean_diagnose_s: if scores.is_empty() { f64::NAN } else { scores.iter().map(|s| s.diagnose_s).sum::<f64>() / scores.len() as f64 },
+    }
+}
+
+/// The results table (Markdown).
+pub fn table(s: &BenchSummary) -> String {
+    let pct = |x: f64| if x.is_nan() { "n/a".to_string() } else { format!("{:.0} %", 100.0 * x) };
+    let mut t = String::from("| metric | value | target |\n|---|---|---|\n");
+    t += &format!("| trials (single / pair / control) | {} ({} / {} / {}) | |\n", s.trials, s.singles, s.pairs, s.controls);
+    t += &format!("| top-1 effect, single effects | {} | ≥ 90 % |\n", pct(s.top1_single));
+    t += &format!("| top-3 effect, single effects | {} | |\n", pct(s.top3_single));
+    t += &format!("| both effects in the top 2, pairs | {} | ≥ 70 % |\n", pct(s.both_pairs));
+    t += &format!("| both effects in the top 3, pairs | {} | |\n", pct(s.top3_pairs));
+    t += &format!("| joint/group attribution | {} | |\n", pct(s.joint_accuracy));
+    t += &format!("| median relative parameter error | {:.2} | |\n", s.median_param_error);
+    t += &format!("| confident attributions on no-effect controls | {} | 0 |\n", s.false_confident_controls);
+    t += &format!("| abstention rate, effect trials / controls | {} / {} | |\n", pct(s.abstention_effects), pct(s.abstention_controls));
+    t += &format!("| mean held-out gap reduction (best combination) | {} | |\n", pct(s.mean_held_out_reduction));
+    t += &format!("| mean diagnosis time per log | {:.1} s | |\n", s.mean_diagnose_s);
+    t
+}

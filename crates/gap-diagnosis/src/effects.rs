@@ -1,0 +1,187 @@
+//! The effect library: each unmodelled effect with its physical parameter, unit of fitting (whole robot, joint
+//! group, joint, IMU), search range and "no effect" value.
+use crate::plant::Effects;
+use serde::{Deserialize, Serialize};
+
+/// What one fitted parameter applies to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Scope {
+    /// One value for the whole robot.
+    Global,
+    /// One value per joint group ([`crate::plant::GROUPS`]).
+    Group,
+    /// One value per joint.
+    Joint,
+    /// Three values on the IMU, fitted in closed form.
+    Imu,
+}
+
+/// Effect kinds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, PartialOrd, Ord)]
+#[serde(rename_all = "snake_case")]
+pub enum EffectKind {
+    Armature,
+    Damping,
+    Friction,
+    TorqueSaturation,
+    Latency,
+    GainScale,
+    Backlash,
+    EncoderOffset,
+    ImuBias,
+    ImuMisalignment,
+    LinkMass,
+    LinkCom,
+    ContactFriction,
+    ContactStiffness,
+}
+
+impl EffectKind {
+    pub const ALL: [EffectKind; 14] = [
+        EffectKind::Armature,
+        EffectKind::Damping,
+        EffectKind::Friction,
+        EffectKind::TorqueSaturation,
+        EffectKind::Latency,
+        EffectKind::GainScale,
+        EffectKind::Backlash,
+        EffectKind::EncoderOffset,
+        EffectKind::ImuBias,
+        EffectKind::ImuMisalignment,
+        EffectKind::LinkMass,
+        EffectKind::LinkCom,
+        EffectKind::ContactFriction,
+        EffectKind::ContactStiffness,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            EffectKind::Armature => "armature",
+            EffectKind::Damping => "damping",
+            EffectKind::Friction => "friction",
+            EffectKind::TorqueSaturation => "torque_saturation",
+            EffectKind::Latency => "latency",
+            EffectKind::GainScale => "gain_scale",
+            EffectKind::Backlash => "backlash",
+            EffectKind::EncoderOffset => "encoder_offset",
+            EffectKind::ImuBias => "imu_bias",
+            EffectKind::ImuMisalignment => "imu_misalignment",
+            EffectKind::LinkMass => "link_mass",
+            EffectKind::LinkCom => "link_com",
+            EffectKind::ContactFriction => "contact_friction",
+            EffectKind::ContactStiffness => "contact_stiffness",
+        }
+    }
+
+    pub fn parse(s: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|k| k.name() == s)
+    }
+
+    pub fn scope(self) -> Scope {
+        match self {
+            EffectKind::Latency => Scope::Global,
+            EffectKind::EncoderOffset => Scope::Joint,
+            EffectKind::ImuBias | EffectKind::ImuMisalignment => Scope::Imu,
+            _ => Scope::Group,
+        }
+    }
+
+    /// What the parameter means, with its unit.
+    pub fn parameter(self) -> &'static str {
+        match self {
+            EffectKind::Armature => "armature multiplier (reflected rotor inertia, x model value)",
+            EffectKind::Damping => "extra viscous damping (N·m·s/rad)",
+            EffectKind::Friction => "extra Coulomb friction (N·m), stiction 1.5x near zero speed",
+            EffectKind::TorqueSaturation => "available torque (x nominal limit) with a torque-speed line",
+            EffectKind::Latency => "command latency (ms)",
+            EffectKind::GainScale => "kp/kd multiplier",
+            EffectKind::Backlash => "dead band width (rad)",
+            EffectKind::EncoderOffset => "encoder offset (rad)",
+            EffectKind::ImuBias => "gyroscope bias (rad/s, IMU frame)",
+            EffectKind::ImuMisalignment => "IMU mounting rotation (rad, rotation vector)",
+            EffectKind::LinkMass => "link mass and inertia multiplier",
+            EffectKind::LinkCom => "link COM shift along the link z axis (m)",
+            EffectKind::ContactFriction => "foot-ground friction coefficient",
+            EffectKind::ContactStiffness => "foot-ground contact time constant (s)",
+        }
+    }
+
+    /// Needs a new engine (model-level effect).
+    pub fn model_level(self) -> bool {
+        matches!(self, EffectKind::Armature | EffectKind::LinkMass | EffectKind::LinkCom)
+    }
+
+    /// Fitting range `(lo, hi)` and the no-effect value.
+    pub fn range(self) -> (f64, f64, f64) {
+        match self {
+            EffectKind::Armature => (0.3, 4.0, 1.0),
+            EffectKind::Damping => (-0.8, 4.0, 0.0),
+            EffectKind::Friction => (0.0, 4.0, 0.0),
+            EffectKind::TorqueSaturation => (0.2, 1.0, 1.0),
+            EffectKind::Latency => (0.0, 15.0, 0.0),
+            EffectKind::GainScale => (0.5, 1.6, 1.0),
+            EffectKind::Backlash => (0.0, 0.06, 0.0),
+            EffectKind::EncoderOffset => (-0.1, 0.1, 0.0),
+            EffectKind::ImuBias => (-0.5, 0.5, 0.0),
+            EffectKind::ImuMisalignment => (-0.2, 0.2, 0.0),
+            EffectKind::LinkMass => (0.6, 1.8, 1.0),
+            EffectKind::LinkCom => (-0.08, 0.08, 0.0),
+            EffectKind::ContactFriction => (0.2, 1.5, 1.0),
+            EffectKind::ContactStiffness => (0.005, 0.05, 0.02),
+        }
+    }
+
+    /// Can be identified on the suspension rig (no foot contact).
+    pub fn identifiable_suspended(self) -> bool {
+        !matches!(self, EffectKind::ContactFriction | EffectKind::ContactStiffness)
+    }
+
+    /// Sets the parameter of joint `j` (Group/Joint scopes) or the global value.
+    pub fn set(self, fx: &mut Effects, j: usize, v: f64) {
+        match self {
+            EffectKind::Armature => fx.armature_scale[j] = v,
+            EffectKind::Damping => fx.damping[j] = v,
+            EffectKind::Friction => fx.coulomb[j] = v,
+            EffectKind::TorqueSaturation => fx.torque_scale[j] = v,
+            EffectKind::Latency => fx.latency_steps = v.round().max(0.0) as usize,
+            EffectKind::GainScale => fx.gain_scale[j] = v,
+            EffectKind::Backlash => fx.backlash[j] = v,
+            EffectKind::EncoderOffset => fx.encoder_offset[j] = v,
+            EffectKind::ImuBias => fx.imu_gyro_bias[j.min(2)] = v,
+            EffectKind::ImuMisalignment => fx.imu_misalignment[j.min(2)] = v,
+            EffectKind::LinkMass => fx.mass_scale[j] = v,
+            EffectKind::LinkCom => fx.com_shift[j] = v,
+            EffectKind::ContactFriction | EffectKind::ContactStiffness => {}
+        }
+    }
+
+    /// Reads the parameter of joint `j` back.
+    pub fn get(self, fx: &Effects, j: usize) -> f64 {
+        match self {
+            EffectKind::Armature => fx.armature_scale[j],
+            EffectKind::Damping => fx.damping[j],
+            EffectKind::Friction => fx.coulomb[j],
+            EffectKind::TorqueSaturation => fx.torque_scale[j],
+            EffectKind::Latency => fx.latency_steps as f64,
+            EffectKind::GainScale => fx.gain_scale[j],
+            EffectKind::Backlash => fx.backlash[j],
+            EffectKind::EncoderOffset => fx.encoder_offset[j],
+            EffectKind::ImuBias => fx.imu_gyro_bias[j.min(2)],
+            EffectKind::ImuMisalignment => fx.imu_misalignment[j.min(2)],
+            EffectKind::LinkMass => fx.mass_scale[j],
+            EffectKind::LinkCom => fx.com_shift[j],
+            EffectKind::ContactFriction | EffectKind::ContactStiffness => self.range().2,
+        }
+    }
+
+    /// Copies this kind's parameters from `src` into `dst`.
+    pub fn copy(self, src: &Effects, dst: &mut Effects) {
+        let n = src.damping.len();
+        match self.scope() {
+            Scope::Global => self.set(dst, 0, self.get(src, 0)),
+            Scope::Imu => (0..3).for_each(|k| self.set(dst, k, self.get(src, k))),
+            _ => (0..n).for_each(|j| self.set(dst, j, self.get(src, j))),
+        }
+    }
+}
