@@ -7,7 +7,7 @@
 # New crashes land in fuzz/artifacts/TARGET/; copy minimized ones to corpus/regressions/TARGET/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-TARGETS=(decode_any crc roundtrip)
+TARGETS=(decode_any crc roundtrip engine_divergence)
 export RUSTFLAGS="--cfg fuzzing -Cpasses=sancov-module -Cllvm-args=-sanitizer-coverage-level=4 \
 -Cllvm-args=-sanitizer-coverage-inline-8bit-counters -Cllvm-args=-sanitizer-coverage-pc-table \
 -Cllvm-args=-sanitizer-coverage-trace-compares -Cdebug-assertions -Coverflow-checks"

@@ -1,9 +1,330 @@
-//! `ulab diff` (placeholder until its issue lands).
+//! `ulab diff`: differential testing of physics engines driven by policy rollouts (issue 5).
+//!
+//! - `ulab diff --robot h1_2 [--policy SPEC] --engines mujoco,rapier-multibody,rapier-impulse [--episodes N]
+//!   [--seconds T] [--seed S] --out DIR`: windowed divergence, invariants, outcome distributions, triaged and
+//!   minimized entries; writes `DIR/report.md`, `report.json`, SVG plots and `repro_*.json`. Without
+//!   `--policy` the built-in excitation input drives the robot.
+//! - `ulab diff fuzz ... --out DIR [--iterations N] [--corpus DIR]`: feedback-driven perturbation search,
+//!   then the same report over what it found; the corpus goes to `DIR/corpus/`.
+//! - `ulab diff replay FILE`: recomputes a reproducer; exit 0 if bit-identical, 1 if not.
+//! - `ulab diff bench`: rollouts per second per engine, on one thread and on all cores.
+//!
+//! Exit codes: 0 report written (or replay identical), 1 candidate engine bugs with `--fail-on-bug` (or a
+//! replay that differs), 2 errors.
+use anyhow::{bail, Context, Result};
+use engine_diff::harness::{builtin_factories, excitation_factory, ControllerFactory, EngineFactory, HarnessConfig};
+use engine_diff::report::{analyse, write_outputs, Analysis};
+use engine_diff::scenario::Scenario;
+use engine_diff::triage::{AllowList, Class};
+use rayon::prelude::*;
+use robot_model::RobotModel;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::Arc;
 
 #[derive(Debug, clap::Args)]
-pub struct Args {}
+#[command(args_conflicts_with_subcommands = true)]
+pub struct Args {
+    #[command(subcommand)]
+    command: Option<Sub>,
+    #[command(flatten)]
+    run: RunArgs,
+}
 
-pub fn run(_args: Args) -> anyhow::Result<ExitCode> {
-    anyhow::bail!("`ulab diff` is not implemented yet")
+#[derive(Debug, clap::Subcommand)]
+enum Sub {
+    /// Search perturbations for the largest divergence per unit of perturbation, then report.
+    Fuzz(FuzzArgs),
+    /// Recompute a reproducer file and compare bit for bit (exit 1 if it differs).
+    Replay(ReplayArgs),
+    /// Rollouts per second per engine (one thread and all cores), time outside the engines.
+    Bench(BenchArgs),
+}
+
+#[derive(Debug, Clone, clap::Args)]
+struct Common {
+    /// Built-in robot name, or a path to a sidecar TOML.
+    #[arg(long, default_value = "h1_2")]
+    robot: String,
+    /// Policy spec TOML (robots/h1_2/policies/*.toml); default: the built-in excitation input.
+    #[arg(long)]
+    policy: Option<PathBuf>,
+    /// Engines, lead first (comma-separated).
+    #[arg(long, default_value = "mujoco,rapier-multibody,rapier-impulse")]
+    engines: String,
+    /// Steps per divergence window (k of the k-step divergence).
+    #[arg(long, default_value_t = 50)]
+    window: usize,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    jobs: Option<usize>,
+}
+
+#[derive(Debug, clap::Args)]
+struct RunArgs {
+    #[command(flatten)]
+    common: Common,
+    /// Episodes (one seed each: S, S+1, ...).
+    #[arg(long, default_value_t = 4)]
+    episodes: usize,
+    /// Seconds per episode.
+    #[arg(long, default_value_t = 1.0)]
+    seconds: f64,
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Output directory.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Entries to minimize (the largest; the rest are triaged only).
+    #[arg(long, default_value_t = 8)]
+    minimize: usize,
+    /// Exit 1 when an entry is triaged as a candidate engine bug.
+    #[arg(long)]
+    fail_on_bug: bool,
+}
+
+#[derive(Debug, clap::Args)]
+struct FuzzArgs {
+    #[command(flatten)]
+    common: Common,
+    /// Inputs to evaluate.
+    #[arg(long, default_value_t = 32)]
+    iterations: usize,
+    /// Seconds per input.
+    #[arg(long, default_value_t = 0.4)]
+    seconds: f64,
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Seed corpus: a folder of scenario JSON files (default: built-in seeds).
+    #[arg(long)]
+    corpus: Option<PathBuf>,
+    #[arg(long)]
+    out: PathBuf,
+    #[arg(long, default_value_t = 6)]
+    minimize: usize,
+    #[arg(long)]
+    fail_on_bug: bool,
+}
+
+#[derive(Debug, clap::Args)]
+struct ReplayArgs {
+    /// A `repro_*.json` written by `ulab diff` or `ulab diff fuzz`.
+    file: PathBuf,
+    #[arg(long, default_value = "h1_2")]
+    robot: String,
+}
+
+#[derive(Debug, clap::Args)]
+struct BenchArgs {
+    #[command(flatten)]
+    common: Common,
+    #[arg(long, default_value_t = 0.5)]
+    seconds: f64,
+    /// Rollouts per measurement.
+    #[arg(long, default_value_t = 4)]
+    rollouts: usize,
+}
+
+pub fn run(args: Args) -> Result<ExitCode> {
+    match args.command {
+        Some(Sub::Fuzz(a)) => fuzz(a),
+        Some(Sub::Replay(a)) => replay(a),
+        Some(Sub::Bench(a)) => bench(a),
+        None => diff(args.run),
+    }
+}
+
+fn load_model(robot: &str) -> Result<RobotModel> {
+    if robot_model::BUILTIN_ROBOTS.contains(&robot) {
+        robot_model::builtin(robot).with_context(|| format!("loading built-in robot {robot}"))
+    } else {
+        RobotModel::load(Path::new(robot)).with_context(|| format!("loading robot model {robot}"))
+    }
+}
+
+/// A policy spec as a controller factory (loaded once, cloned per episode and engine).
+fn policy_factory(spec: &Path) -> Result<(String, Box<ControllerFactory>)> {
+    let pc = policy_runtime::PolicyController::load(spec).with_context(|| format!("loading policy spec {}", spec.display()))?;
+    let name = policy_runtime::Controller::name(&pc).to_string();
+    let f: Box<ControllerFactory> = Box::new(move |_s: &Scenario| Ok(Box::new(pc.clone()) as Box<dyn policy_runtime::Controller>));
+    Ok((name, f))
+}
+
+struct Setup {
+    model: RobotModel,
+    factories: Vec<Arc<dyn EngineFactory>>,
+    ctrl: Box<ControllerFactory>,
+    ctrl_name: String,
+    cfg: HarnessConfig,
+    is_policy: bool,
+}
+
+fn setup(c: &Common) -> Result<Setup> {
+    if let Some(j) = c.jobs {
+        if j == 0 {
+            bail!("--jobs must be at least 1");
+        }
+        // Only the first call configures the global pool; later ones (tests in one process) keep it.
+        let _ = rayon::ThreadPoolBuilder::new().num_threads(j).build_global();
+    }
+    if c.window == 0 || c.window > 10_000 {
+        bail!("--window must be in 1..=10000 steps");
+    }
+    let model = load_model(&c.robot)?;
+    let names: Vec<String> = c.engines.split(',').map(|s| s.trim().to_string()).filter(|s| !s.is_empty()).collect();
+    if names.len() < 2 {
+        bail!("--engines needs at least two engines (the first is the lead)");
+    }
+    let factories = builtin_factories(&names).context("--engines")?;
+    let (ctrl_name, ctrl, is_policy) = match &c.policy {
+        Some(p) => {
+            let (n, f) = policy_factory(p)?;
+            (n, f, true)
+        }
+        None => ("excitation".to_string(), excitation_factory(&model), false),
+    };
+    let cfg = HarnessConfig { window_steps: c.window, ..HarnessConfig::default() };
+    Ok(Setup { model, factories, ctrl, ctrl_name, cfg, is_policy })
+}
+
+fn check_seconds(s: f64) -> Result<()> {
+    if !(s.is_finite() && s > 0.0 && s <= 600.0) {
+        bail!("--seconds must be in (0, 600]");
+    }
+    Ok(())
+}
+
+fn summarize(out: &Path, report: &engine_diff::report::Report, fail_on_bug: bool) -> ExitCode {
+    let bugs = report.entries.iter().filter(|e| e.triage == Class::CandidateEngineBug).count();
+    let expected = report.entries.iter().filter(|e| matches!(e.triage, Class::ExpectedDifference { .. })).count();
+    let translation = report.entries.len() - bugs - expected;
+    println!(
+        "{} entries: {bugs} candidate engine bug(s), {expected} expected difference(s), {translation} translation problem(s); report in {}",
+        report.entries.len(),
+        out.join("report.md").display()
+    );
+    if fail_on_bug && bugs > 0 {
+        ExitCode::from(1)
+    } else {
+        ExitCode::SUCCESS
+    }
+}
+
+fn diff(a: RunArgs) -> Result<ExitCode> {
+    let Some(out) = a.out.clone() else { bail!("--out DIR is required") };
+    check_seconds(a.seconds)?;
+    if a.episodes == 0 || a.episodes > 10_000 {
+        bail!("--episodes must be in 1..=10000");
+    }
+    let s = setup(&a.common)?;
+    let scenarios: Vec<Scenario> = (0..a.episodes as u64)
+        .map(|i| if s.is_policy { Scenario::policy(a.seed + i, a.seconds) } else { Scenario::excitation(a.seed + i, a.seconds) })
+        .collect();
+    let episodes = scenarios
+        .par_iter()
+        .map(|sc| engine_diff::harness::run_episode(&s.model, &s.factories, s.ctrl.as_ref(), sc, &s.cfg))
+        .collect::<Result<Vec<_>, _>>()
+        .context("running episodes")?;
+    let allow = AllowList::builtin().context("allow-list")?;
+    let an = Analysis { model: &s.model, factories: &s.factories, controller: s.ctrl.as_ref(), controller_name: &s.ctrl_name, cfg: &s.cfg, allow: &allow, minimize_limit: a.minimize };
+    let (report, repros) = analyse(&an, &episodes).context("analysing")?;
+    write_outputs(&out, &report, &repros, &episodes).with_context(|| format!("writing {}", out.display()))?;
+    Ok(summarize(&out, &report, a.fail_on_bug))
+}
+
+fn read_corpus(dir: &Path) -> Result<Vec<Scenario>> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+        .with_context(|| format!("reading corpus {}", dir.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "json"))
+        .collect();
+    files.sort();
+    let mut out = Vec::new();
+    for f in files {
+        let text = std::fs::read_to_string(&f).with_context(|| format!("reading {}", f.display()))?;
+        // Corpus files hold either a scenario or a corpus entry (with its feedback).
+        let v: serde_json::Value = serde_json::from_str(&text).with_context(|| format!("parsing {}", f.display()))?;
+        let sc: Scenario = serde_json::from_value(v.get("scenario").cloned().unwrap_or(v)).with_context(|| format!("{} is not a scenario", f.display()))?;
+        sc.validate().with_context(|| format!("{}", f.display()))?;
+        out.push(sc);
+    }
+    if out.is_empty() {
+        bail!("corpus {} holds no scenario (*.json)", dir.display());
+    }
+    Ok(out)
+}
+
+fn fuzz(a: FuzzArgs) -> Result<ExitCode> {
+    check_seconds(a.seconds)?;
+    if a.iterations == 0 {
+        bail!("--iterations must be at least 1");
+    }
+    let s = setup(&a.common)?;
+    let seeds: Vec<Scenario> = match &a.corpus {
+        Some(d) => read_corpus(d)?.into_iter().map(|mut x| {
+            x.seconds = a.seconds;
+            x
+        }).collect(),
+        None => (0..2u64).map(|i| if s.is_policy { Scenario::policy(a.seed + i, a.seconds) } else { Scenario::excitation(a.seed + i, a.seconds) }).collect(),
+    };
+    let bar = indicatif::ProgressBar::new(a.iterations.max(seeds.len()) as u64);
+    bar.set_style(indicatif::ProgressStyle::with_template("fuzz {bar:40} {pos}/{len} inputs {elapsed}").unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()));
+    let fcfg = engine_diff::fuzz::FuzzConfig { iterations: a.iterations, batch: rayon::current_num_threads().max(1) * 2, seed: a.seed };
+    let progress = |n: usize| bar.set_position(n as u64);
+    let outcome = engine_diff::fuzz::fuzz(&s.model, &s.factories, s.ctrl.as_ref(), &s.cfg, &fcfg, seeds, &progress).context("fuzzing")?;
+    bar.finish_and_clear();
+    let corpus_dir = a.out.join("corpus");
+    std::fs::create_dir_all(&corpus_dir).with_context(|| format!("creating {}", corpus_dir.display()))?;
+    for (i, e) in outcome.corpus.iter().enumerate() {
+        let p = corpus_dir.join(format!("{i:04}.json"));
+        std::fs::write(&p, serde_json::to_string_pretty(e)?).with_context(|| format!("writing {}", p.display()))?;
+    }
+    println!(
+        "fuzz: {} inputs evaluated ({} failed in an engine), corpus {}, {} contact patterns, best divergence/unit {:.3}",
+        outcome.evaluated,
+        outcome.failed,
+        outcome.corpus.len(),
+        outcome.patterns.len(),
+        outcome.corpus.first().map(|c| c.score).unwrap_or(0.0)
+    );
+    let allow = AllowList::builtin().context("allow-list")?;
+    let an = Analysis { model: &s.model, factories: &s.factories, controller: s.ctrl.as_ref(), controller_name: &s.ctrl_name, cfg: &s.cfg, allow: &allow, minimize_limit: a.minimize };
+    let (report, repros) = analyse(&an, &outcome.episodes).context("analysing")?;
+    write_outputs(&a.out, &report, &repros, &outcome.episodes).with_context(|| format!("writing {}", a.out.display()))?;
+    Ok(summarize(&a.out, &report, a.fail_on_bug))
+}
+
+fn replay(a: ReplayArgs) -> Result<ExitCode> {
+    let text = std::fs::read_to_string(&a.file).with_context(|| format!("reading {}", a.file.display()))?;
+    let r: engine_diff::repro::Reproducer = serde_json::from_str(&text).with_context(|| format!("parsing reproducer {}", a.file.display()))?;
+    let model = load_model(&a.robot)?;
+    let o = r.replay(&model).context("replaying")?;
+    println!(
+        "{} {} / {} {}: value {:e} (bound {:e}) after {} step(s)",
+        r.finding.kind, r.finding.engine, r.finding.lead, r.finding.quantity, o.value, r.finding.bound, r.steps
+    );
+    if o.identical {
+        println!("identical: every state entry and the value match bit for bit");
+        Ok(ExitCode::SUCCESS)
+    } else {
+        for m in &o.mismatches {
+            println!("DIFFERS: {m}");
+        }
+        Ok(ExitCode::from(1))
+    }
+}
+
+fn bench(a: BenchArgs) -> Result<ExitCode> {
+    check_seconds(a.seconds)?;
+    if a.rollouts == 0 {
+        bail!("--rollouts must be at least 1");
+    }
+    let s = setup(&a.common)?;
+    let threads = a.common.jobs.unwrap_or_else(rayon::current_num_threads);
+    let rows = engine_diff::bench::run(&s.model, &s.factories, s.ctrl.as_ref(), &s.cfg, a.seconds, a.rollouts, threads).context("benchmark")?;
+    println!("{:<52} {:>7} {:>9} {:>12} {:>12} {:>14}", "rollout", "threads", "rollouts", "rollouts/s", "steps/s", "outside engine");
+    for r in rows {
+        println!("{:<52} {:>7} {:>9} {:>12.3} {:>12.0} {:>13.1}%", format!("{} ({} s, {})", r.what, r.seconds_per_rollout, s.ctrl_name), r.threads, r.rollouts, r.rollouts_per_s, r.steps_per_s, 100.0 * r.outside_engine);
+    }
+    Ok(ExitCode::SUCCESS)
 }

@@ -1,0 +1,160 @@
+//! Feedback-driven search over perturbations: a corpus of scenarios is mutated and scheduled by divergence
+//! per unit of perturbation and by new contact patterns, evaluated in parallel (rayon).
+use crate::harness::{self, ControllerFactory, EngineFactory, EpisodeResult, HarnessConfig};
+use crate::scenario::Scenario;
+use crate::triage::AllowList;
+use crate::DiffError;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+use robot_model::RobotModel;
+use serde::{Deserialize, Serialize};
+use std::collections::{BTreeMap, BTreeSet};
+use std::sync::Arc;
+
+/// Fuzzing settings.
+#[derive(Debug, Clone)]
+pub struct FuzzConfig {
+    /// Inputs evaluated in total.
+    pub iterations: usize,
+    /// Inputs evaluated per round (in parallel).
+    pub batch: usize,
+    pub seed: u64,
+}
+
+/// A corpus entry with its feedback.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct CorpusEntry {
+    pub scenario: Scenario,
+    /// Largest bound ratio over the rollout (one-step divergence, findings).
+    pub divergence: f64,
+    pub magnitude: f64,
+    /// `divergence / (1 + magnitude)`: what the search maximises.
+    pub score: f64,
+    pub patterns: Vec<String>,
+}
+
+/// What a fuzzing run found.
+#[derive(Debug)]
+pub struct FuzzOutcome {
+    pub corpus: Vec<CorpusEntry>,
+    /// For every finding group, the episode with the best score in which it occurred.
+    pub episodes: Vec<EpisodeResult>,
+    pub evaluated: usize,
+    pub failed: usize,
+    pub patterns: BTreeSet<String>,
+}
+
+fn entry_of(r: &EpisodeResult, friction: f64) -> CorpusEntry {
+    let divergence = r.worst_ratio();
+    let magnitude = r.scenario.magnitude(friction);
+    CorpusEntry { scenario: r.scenario.clone(), divergence, magnitude, score: divergence / (1.0 + magnitude), patterns: r.contact_patterns.iter().cloned().collect() }
+}
+
+/// Runs the search. `progress(done)` is called after every evaluated input.
+pub fn fuzz(
+    model: &RobotModel,
+    factories: &[Arc<dyn EngineFactory>],
+    ctrl: &ControllerFactory,
+    cfg: &HarnessConfig,
+    fcfg: &FuzzConfig,
+    seeds: Vec<Scenario>,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Result<FuzzOutcome, DiffError> {
+    if seeds.is_empty() {
+        return Err(DiffError::Input("fuzzing needs at least one seed scenario".into()));
+    }
+    let cfg = HarnessConfig { free_runs: false, ..cfg.clone() };
+    let friction = model.contact.friction;
+    let mut rng = ChaCha8Rng::seed_from_u64(fcfg.seed);
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    let eval = |s: &Scenario| {
+        let r = harness::run_episode(model, factories, ctrl, s, &cfg);
+        progress(done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1);
+        r
+    };
+    let mut corpus: Vec<CorpusEntry> = Vec::new();
+    let mut patterns = BTreeSet::new();
+    let mut best: BTreeMap<(String, String, String, String), (f64, usize)> = BTreeMap::new();
+    let mut kept: Vec<EpisodeResult> = Vec::new();
+    let mut failed = 0;
+    let mut absorb = |r: EpisodeResult, corpus: &mut Vec<CorpusEntry>, parent_score: f64, patterns: &mut BTreeSet<String>| {
+        let e = entry_of(&r, friction);
+        let novel = r.contact_patterns.iter().any(|p| !patterns.contains(p));
+        patterns.extend(r.contact_patterns.iter().cloned());
+        if novel || e.score > parent_score || corpus.is_empty() {
+            corpus.push(e.clone());
+        }
+        // Keep the episode if it holds the best-per-unit instance of some finding group.
+        let mut useful = false;
+        for f in &r.findings {
+            let per_unit = f.ratio() / (1.0 + e.magnitude);
+            let slot = best.entry(f.group_key()).or_insert((f64::NEG_INFINITY, usize::MAX));
+            if per_unit > slot.0 {
+                *slot = (per_unit, kept.len());
+                useful = true;
+            }
+        }
+        if useful {
+            kept.push(r);
+        }
+    };
+    let first: Vec<Result<EpisodeResult, DiffError>> = seeds.par_iter().map(&eval).collect();
+    let mut evaluated = first.len();
+    for r in first {
+        match r {
+            Ok(r) => absorb(r, &mut corpus, f64::NEG_INFINITY, &mut patterns),
+            Err(DiffError::Engine(_)) => failed += 1,
+            Err(e) => return Err(e),
+        }
+    }
+    while evaluated < fcfg.iterations.max(seeds.len()) && !corpus.is_empty() {
+        let n = fcfg.batch.max(1).min(fcfg.iterations.saturating_sub(evaluated).max(1));
+        // Parents by weight 1 + score (+1 for entries that brought the rarest patterns first: novelty).
+        let weights: Vec<f64> = corpus.iter().map(|c| 1.0 + c.score.min(100.0)).collect();
+        let total: f64 = weights.iter().sum();
+        let mut children = Vec::new();
+        for _ in 0..n {
+            let mut x = rng.gen_range(0.0..total);
+            let mut pi = 0;
+            for (i, w) in weights.iter().enumerate() {
+                if x < *w {
+                    pi = i;
+                    break;
+                }
+                x -= w;
+            }
+            let mut child = corpus[pi].scenario.clone();
+            for _ in 0..rng.gen_range(1..=3) {
+                child.mutate(&mut rng);
+            }
+            children.push((corpus[pi].score, child));
+        }
+        let results: Vec<(f64, Result<EpisodeResult, DiffError>)> = children.par_iter().map(|(ps, c)| (*ps, eval(c))).collect();
+        evaluated += results.len();
+        for (ps, r) in results {
+            match r {
+                Ok(r) => absorb(r, &mut corpus, ps, &mut patterns),
+                Err(DiffError::Engine(_)) => failed += 1,
+                Err(e) => return Err(e),
+            }
+        }
+    }
+    // Only the episodes that still hold a best instance.
+    let keep: BTreeSet<usize> = best.values().map(|v| v.1).collect();
+    let episodes = kept.into_iter().enumerate().filter(|(i, _)| keep.contains(i)).map(|(_, e)| e).collect();
+    corpus.sort_by(|a, b| b.score.total_cmp(&a.score));
+    Ok(FuzzOutcome { corpus, episodes, evaluated, failed, patterns })
+}
+
+/// The oracle of the `engine_divergence` cargo-fuzz target: per-engine invariants plus the one-step
+/// cross-engine bound, with the allow-list applied (translation checks are left to `ulab diff`). Returns
+/// the findings that are neither allow-listed nor within their bounds.
+pub fn oracle_findings(result: &EpisodeResult, allow: &AllowList) -> Vec<harness::Finding> {
+    result
+        .findings
+        .iter()
+        .filter(|f| f.kind != "k_step_bound" && allow.matching(f).is_none())
+        .cloned()
+        .collect()
+}

@@ -1,0 +1,267 @@
+//! Triage of findings: (a) translation problem (the model-equivalence check fails in that state), (b)
+//! expected modelling difference (an allow-list entry with rationale and citation), (c) candidate engine
+//! bug; and minimization (smallest perturbation, fewest bodies in contact, shortest window).
+use crate::harness::{self, Bounds, ControllerFactory, Div, EngineFactory, Finding, HarnessConfig, WindowInput, WindowRecord};
+use crate::scenario::Scenario;
+use crate::DiffError;
+use diff_physics::{CommonSettings, State};
+use robot_model::RobotModel;
+use serde::{Deserialize, Serialize};
+use std::sync::Arc;
+
+/// One allow-list entry: which findings it covers, why, and where that is documented.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct AllowEntry {
+    pub id: String,
+    /// Engines (compared with the lead) the entry covers.
+    pub engines: Vec<String>,
+    /// Finding kinds: `one_step_bound`, `k_step_bound`, `invariant`.
+    pub kinds: Vec<String>,
+    /// Quantities (empty: any).
+    #[serde(default)]
+    pub quantities: Vec<String>,
+    /// Contact phases (empty: any; `contact` = any phase with a ground contact).
+    #[serde(default)]
+    pub phases: Vec<String>,
+    /// The entry covers a finding only up to this multiple of its bound; beyond, it is a candidate bug.
+    pub max_ratio: f64,
+    pub rationale: String,
+    /// Public documentation or issue threads (URLs).
+    pub citation: Vec<String>,
+}
+
+#[derive(Debug, Deserialize)]
+struct AllowFile {
+    entry: Vec<AllowEntry>,
+}
+
+/// The allow-list (one data file: `crates/engine-diff/allowlist.toml`).
+#[derive(Debug, Clone, Serialize)]
+pub struct AllowList {
+    pub entries: Vec<AllowEntry>,
+}
+
+impl AllowList {
+    /// The project's allow-list, compiled in.
+    pub fn builtin() -> Result<Self, DiffError> {
+        Self::parse(include_str!("../allowlist.toml"))
+    }
+
+    /// Parses and checks an allow-list: every entry needs an id, engines, kinds, a positive ratio cap, a
+    /// rationale and at least one https citation.
+    pub fn parse(text: &str) -> Result<Self, DiffError> {
+        let f: AllowFile = toml::from_str(text).map_err(|e| DiffError::AllowList(e.to_string()))?;
+        let mut ids = std::collections::BTreeSet::new();
+        for e in &f.entry {
+            let bad = |why: &str| Err(DiffError::AllowList(format!("entry {:?}: {why}", e.id)));
+            if e.id.trim().is_empty() || !ids.insert(e.id.clone()) {
+                return bad("missing or duplicate id");
+            }
+            if e.engines.is_empty() || e.kinds.is_empty() {
+                return bad("engines and kinds must not be empty");
+            }
+            if let Some(k) = e.kinds.iter().find(|k| !["one_step_bound", "k_step_bound", "invariant"].contains(&k.as_str())) {
+                return bad(&format!("unknown kind {k:?}"));
+            }
+            if !(e.max_ratio.is_finite() && e.max_ratio > 0.0) {
+                return bad("max_ratio must be positive and finite");
+            }
+            if e.rationale.trim().len() < 40 {
+                return bad("rationale too short");
+            }
+            if e.citation.is_empty() || e.citation.iter().any(|c| !c.starts_with("https://")) {
+                return bad("needs at least one https citation");
+            }
+        }
+        Ok(AllowList { entries: f.entry })
+    }
+
+    /// The entry covering a finding, if any.
+    pub fn matching(&self, f: &Finding) -> Option<&AllowEntry> {
+        self.entries.iter().find(|e| {
+            let phase_ok = e.phases.is_empty()
+                || e.phases.iter().any(|p| p == &f.phase || (p == "contact" && f.phase != "flight"));
+            e.engines.iter().any(|x| x == &f.engine)
+                && e.kinds.iter().any(|k| k == &f.kind)
+                && (e.quantities.is_empty() || e.quantities.iter().any(|q| q == &f.quantity))
+                && phase_ok
+                && f.ratio() <= e.max_ratio
+        })
+    }
+}
+
+/// Triage class.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(tag = "class", rename_all = "snake_case")]
+pub enum Class {
+    /// (a) The engines do not hold the same robot in this state.
+    TranslationProblem { detail: String },
+    /// (b) A documented modelling difference.
+    ExpectedDifference { id: String, rationale: String, citation: Vec<String> },
+    /// (c) Neither: looks like an engine bug.
+    CandidateEngineBug,
+}
+
+impl Class {
+    pub fn label(&self) -> &'static str {
+        match self {
+            Class::TranslationProblem { .. } => "(a) translation problem",
+            Class::ExpectedDifference { .. } => "(b) expected modelling difference",
+            Class::CandidateEngineBug => "(c) candidate engine bug",
+        }
+    }
+}
+
+/// Model equivalence at a state, for the named engines: per-link masses, link-frame FK positions and the
+/// COM against `robot-model`'s reference (the checks of `diff_physics::oracle::model_equivalence`, here at
+/// the finding's state rather than random ones). Tolerances as there: 1e-9 kg, 1e-9 m. `None`: all equal.
+pub fn model_equivalence_at(model: &RobotModel, factories: &[&Arc<dyn EngineFactory>], state: &State, common: &CommonSettings) -> Result<Option<String>, DiffError> {
+    let coords = state.coords();
+    let fk = model.fk(&coords)?;
+    let com = model.com(&coords)?;
+    let mut problems = Vec::new();
+    for f in factories {
+        let mut e = f.build(model, &CommonSettings { ground: false, ..common.clone() })?;
+        e.reset(&State::at_rest(coords.clone()))?;
+        let masses = e.link_masses();
+        let dm = masses.iter().zip(&model.links).map(|(m, l)| (m - l.inertial.mass).abs()).fold(0.0, f64::max);
+        let poses = e.link_poses();
+        let dp = poses
+            .iter()
+            .zip(&fk.link_poses)
+            .map(|(p, r)| {
+                let t = r.translation.vector;
+                ((p.pos[0] - t.x).powi(2) + (p.pos[1] - t.y).powi(2) + (p.pos[2] - t.z).powi(2)).sqrt()
+            })
+            .fold(0.0, f64::max);
+        let c = e.com();
+        let dc = ((c[0] - com.x).powi(2) + (c[1] - com.y).powi(2) + (c[2] - com.z).powi(2)).sqrt();
+        let counts_ok = masses.len() == model.links.len() && poses.len() == fk.link_poses.len();
+        if !counts_ok || harness::exceeds(dm, 1e-9) || harness::exceeds(dp, 1e-9) || harness::exceeds(dc, 1e-9) {
+            problems.push(format!("{}: mass Δ {dm:.3e} kg, link FK Δ {dp:.3e} m, COM Δ {dc:.3e} m", f.name()));
+        }
+    }
+    Ok(if problems.is_empty() { None } else { Some(problems.join("; ")) })
+}
+
+/// Classifies a finding whose window starts at `state`.
+pub fn classify(model: &RobotModel, factories: &[Arc<dyn EngineFactory>], common: &CommonSettings, allow: &AllowList, f: &Finding, state: &State) -> Result<Class, DiffError> {
+    let involved: Vec<&Arc<dyn EngineFactory>> = factories.iter().filter(|x| x.name() == f.engine || x.name() == f.lead).collect();
+    if let Some(detail) = model_equivalence_at(model, &involved, state, common)? {
+        return Ok(Class::TranslationProblem { detail });
+    }
+    Ok(match allow.matching(f) {
+        Some(e) => Class::ExpectedDifference { id: e.id.clone(), rationale: e.rationale.clone(), citation: e.citation.clone() },
+        None => Class::CandidateEngineBug,
+    })
+}
+
+/// A finding reduced to its smallest reproducing form.
+#[derive(Debug, Clone)]
+pub struct Minimized {
+    /// Perturbation scale kept (1 = as found; 0 = the unperturbed input still shows it).
+    pub scale: f64,
+    pub scenario: Scenario,
+    pub finding: Finding,
+    pub window: WindowInput,
+    /// Shortest number of steps of that window that still shows the finding.
+    pub steps: usize,
+}
+
+/// Value of a finding's quantity after a replay of `steps` steps (same definitions as the episode).
+pub fn finding_value(kind: &str, quantity: &str, engine_index: usize, run: &harness::WindowRun) -> f64 {
+    match kind {
+        "invariant" => run.invariants.get(engine_index).and_then(|v| v.iter().find(|(q, _, _)| q == quantity)).map(|x| x.1).unwrap_or(0.0),
+        _ => {
+            let (Some(l), Some(o)) = (run.after_k.first(), run.after_k.get(engine_index)) else { return 0.0 };
+            let d = Div::between(&l.0, &l.1, &o.0, &o.1);
+            match quantity {
+                "base linear velocity" => d.base_lin_vel,
+                "joint velocity" => d.max_dq(),
+                "base angular velocity" => d.base_ang_vel,
+                _ => d.max_link(),
+            }
+        }
+    }
+}
+
+/// The bound of a finding's quantity for a window of `steps` steps.
+pub fn finding_bound(f: &Finding, dt: f64, steps: usize) -> f64 {
+    match f.kind.as_str() {
+        "k_step_bound" => Bounds::new(dt, steps).k_step_link_pos,
+        _ => f.bound,
+    }
+}
+
+/// Minimizes a finding: (1) the smallest perturbation scale in {0, 1/8, 1/4, 1/2, 1} at which an episode
+/// (cut just after the finding's window) still shows the same kind/engine/quantity; (2) among those windows,
+/// the one with the fewest bodies in contact (then the largest ratio); (3) the shortest prefix of that window
+/// still exceeding the bound (one-step findings are one step by definition).
+pub fn minimize(
+    model: &RobotModel,
+    factories: &[Arc<dyn EngineFactory>],
+    ctrl: &ControllerFactory,
+    cfg: &HarnessConfig,
+    scenario: &Scenario,
+    f: &Finding,
+) -> Result<Minimized, DiffError> {
+    let cfg = HarnessConfig { free_runs: false, ..cfg.clone() };
+    let dt = cfg.common.timestep;
+    let window_s = cfg.window_steps as f64 * dt;
+    let friction = model.contact.friction;
+    let mut chosen: Option<(f64, Scenario, Finding, WindowRecord)> = None;
+    for a in [0.0, 0.125, 0.25, 0.5, 1.0] {
+        let mut s = scenario.scaled(a, friction);
+        s.seconds = (f.t0 + window_s).min(scenario.seconds);
+        let r = harness::run_episode(model, factories, ctrl, &s, &cfg)?;
+        let best = r
+            .findings
+            .iter()
+            .filter(|g| g.kind == f.kind && g.engine == f.engine && g.quantity == f.quantity)
+            .min_by(|x, y| x.contact_bodies.cmp(&y.contact_bodies).then(y.ratio().total_cmp(&x.ratio())));
+        if let Some(g) = best {
+            if let Some(w) = r.windows.get(g.window) {
+                chosen = Some((a, s.clone(), g.clone(), w.clone()));
+                break;
+            }
+        }
+    }
+    let Some((scale, s, g, w)) = chosen else {
+        return Err(DiffError::Input(format!("finding {} / {} / {} did not reproduce", f.kind, f.engine, f.quantity)));
+    };
+    let m = harness::scenario_model(model, &s);
+    let mut engines = harness::build_engines(factories, &m, &cfg.common)?;
+    let ei = factories.iter().position(|x| x.name() == g.engine).unwrap_or(1);
+    let steps = match g.kind.as_str() {
+        "one_step_bound" => 1,
+        "k_step_bound" => {
+            let run = harness::replay_window(&mut engines, &m, &w.input, w.input.steps, dt, true)?;
+            let mut best = w.input.steps;
+            for (i, row) in run.trace.iter().enumerate() {
+                if let (Some(l), Some(o)) = (row.first(), row.get(ei)) {
+                    let d = Div::between(&l.0, &l.1, &o.0, &o.1);
+                    if d.max_link() > Bounds::new(dt, i + 1).k_step_link_pos {
+                        best = i + 1;
+                        break;
+                    }
+                }
+            }
+            best
+        }
+        _ => {
+            // Invariants: bisect on the prefix length (the worst value over a prefix only grows).
+            let (mut lo, mut hi) = (1usize, w.input.steps);
+            while lo < hi {
+                let mid = (lo + hi) / 2;
+                let run = harness::replay_window(&mut engines, &m, &w.input, mid, dt, false)?;
+                if finding_value(&g.kind, &g.quantity, ei, &run) > g.bound {
+                    hi = mid;
+                } else {
+                    lo = mid + 1;
+                }
+            }
+            lo
+        }
+    };
+    Ok(Minimized { scale, scenario: s, finding: g, window: w.input, steps })
+}
