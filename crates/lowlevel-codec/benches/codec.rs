@@ -143,6 +143,12 @@ fn main() {
     let crc_hw = median_ns(|| {
         black_box(crc32fast::hash(black_box(words)));
     });
+    // What `seal`/`verify` hash: the image builder writes every word already swapped (a store in another
+    // byte order, no extra pass), so only the kernel runs on it.
+    let swapped_image: Vec<u8> = words.chunks_exact(4).flat_map(|w| [w[3], w[2], w[1], w[0]]).collect();
+    let crc_sealed = median_ns(|| {
+        black_box(crc_fast::checksum(crc_fast::CrcAlgorithm::Crc32Mpeg2, black_box(&swapped_image)));
+    });
     let memcpy_state = median_ns(|| dst.copy_from_slice(black_box(&state_bytes)));
     let memcpy_cmd = median_ns(|| dst_cmd.copy_from_slice(black_box(&cmd_bytes)));
     let dec_state = median_ns(|| {
@@ -162,6 +168,7 @@ fn main() {
     println!("| measure | ns | ratio | target |");
     println!("|---|---:|---:|---|");
     println!("| CRC fast (clmul via crc-fast, word swap), {:.2} GB/s | {crc_fast:.0} | {:.1}x faster than bit-serial | >= 20x |", gbps(crc_fast), crc_ref / crc_fast);
+    println!("| CRC as seal/verify run it (kernel on the word-swapped image), {:.2} GB/s | {crc_sealed:.0} | {:.2}x crc32fast, {:.0}x bit-serial | >= 0.5x, >= 20x |", gbps(crc_sealed), crc_hw / crc_sealed, crc_ref / crc_sealed);
     println!("| CRC bit-serial reference, {:.2} GB/s | {crc_ref:.0} | 1 | |", gbps(crc_ref));
     println!("| crc32fast (hardware yardstick), {:.2} GB/s | {crc_hw:.0} | ours = {:.2}x its speed | >= 0.5x |", gbps(crc_hw), crc_hw / crc_fast);
     println!("| memcpy hg LowState | {memcpy_state:.0} | 1 | |");
