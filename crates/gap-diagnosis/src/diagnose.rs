@@ -90,17 +90,19 @@ pub struct EffectResult {
     pub kind: EffectKind,
     pub parameter: String,
     pub scope: Scope,
-    /// Named (confident): the held-out reduction's lower bound clears the noise floor.
+    /// Named (confident): the held-out reduction's lower bound clears the noise floor (for an effect added to
+    /// the best combination after the first: the reduction of the residual the effects before it leave).
     pub named: bool,
-    /// Relative held-out reduction of the gap metric (0..1), with a bootstrap interval.
+    /// Relative held-out reduction of the gap metric (0..1), with a bootstrap interval; for an effect added to the
+    /// combination after the first, relative to the residual that remains with the effects before it.
     pub reduction: Estimate,
-    /// Held-out gap metric with this effect added.
+    /// Held-out gap metric with this effect added (to the effects before it, when named given them).
     pub metric_after: Estimate,
     /// Relative noise floor the reduction had to clear.
     pub noise_floor: f64,
     /// The units kept (reduction above the unit floor), with values.
     pub params: Vec<FittedParam>,
-    /// Why it was not fitted or not named.
+    /// Why it was not fitted or not named, or, when named given other effects, which.
     pub note: Option<String>,
 }
 
@@ -499,7 +501,7 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
             });
             continue;
         }
-        let (fx, sds) = fit_kind(&ctx, kind, &base_train, &mut rng)?;
+        let (fx, sds) = fit_kind(&ctx, kind, &null, &base_train, &mut rng)?;
         // Held-out: per-unit reductions decide which units are kept.
         let after = ctx.eval_many(std::slice::from_ref(&fx), &ctx.test)?.remove(0);
         let units = units_of(&ctx, kind);
@@ -558,8 +560,11 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
         } else {
             Some(format!("held-out reduction {:.3} (lower bound {:.3}) does not clear the noise floor {:.3}", red.value, red.lo, floor))
         };
-        if named {
+        // Every effect that cut some unit's own residual stays a candidate of the conditional selection below.
+        if !params.is_empty() {
             fitted.push((kind, kept.clone()));
+        }
+        if named {
             test_scores.push((kind, after_tot.clone()));
         }
         results.push(EffectResult {
@@ -576,11 +581,14 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
     }
     results.sort_by(|a, b| (b.named, b.reduction.value).partial_cmp(&(a.named, a.reduction.value)).unwrap_or(std::cmp::Ordering::Equal));
     let ranked: Vec<EffectKind> = results.iter().filter(|r| r.named).map(|r| r.kind).collect();
-    let abstentions: Vec<(EffectKind, String)> = results.iter().filter(|r| !r.named).map(|r| (r.kind, r.note.clone().unwrap_or_default())).collect();
 
-    // ---- Best combination: forward selection over the named effects; each step adds the effect with the largest
-    // held-out gain given those already in, while that gain clears the noise floor. The ranking follows the
-    // selection order (effects that add explanatory power first), then the other named effects.
+    // ---- Best combination: conditional forward selection. It starts from the best named effect; each step then
+    // judges every candidate (any effect that cut some unit's own residual, named alone or not) against the
+    // residual that REMAINS with the effects already in: the candidates' fits are evaluated on top of the
+    // combination, the best few joint/group/global candidates are also refitted with the combination applied (an
+    // effect fitted alone absorbs part of a confusable one on the same joints), and the winner must cut the
+    // remaining held-out residual by more than that residual's own noise floor. A small effect beside a large one
+    // (an IMU bias beside joint damping) is thus judged against what is left, not against the whole initial gap.
     let mut best_combination = None;
     let mut ranked = ranked;
     if !ranked.is_empty() {
@@ -589,12 +597,14 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
         let mut combo = get(first).unwrap_or_else(|| null.clone());
         let mut members = vec![first];
         let mut cur: Vec<f64> = test_scores.iter().find(|(k, _)| *k == first).map(|(_, s)| s.clone()).unwrap_or_default();
-        loop {
-            let cands: Vec<EffectKind> = ranked.iter().copied().filter(|k| !members.contains(k)).collect();
+        // Conditional results of the effects added after the first: (kind, gain, floor, metric after, refit params).
+        let mut added: Vec<(EffectKind, Estimate, f64, Estimate, Option<Vec<FittedParam>>)> = Vec::new();
+        while members.len() < MAX_COMBINATION {
+            let cands: Vec<EffectKind> = fitted.iter().map(|(k, _)| *k).filter(|k| !members.contains(k)).collect();
             if cands.is_empty() {
                 break;
             }
-            let trials: Vec<Effects> = cands
+            let mut trials: Vec<Effects> = cands
                 .iter()
                 .map(|&k| {
                     let mut t = combo.clone();
@@ -605,17 +615,78 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
                 })
                 .collect();
             let res = ctx.eval_many(&trials, &ctx.test)?;
-            let tots: Vec<Vec<f64>> = res.iter().map(|r| r.iter().map(|s| total(s)).collect()).collect();
+            let mut tots: Vec<Vec<f64>> = res.iter().map(|r| r.iter().map(|s| total(s)).collect()).collect();
+            let mut refit_params: Vec<Option<Vec<FittedParam>>> = vec![None; cands.len()];
+            // Refit the most promising non-IMU candidates given the combination (the IMU fits are closed-form on
+            // their own channel and do not depend on it).
+            let mut order: Vec<usize> = (0..cands.len()).filter(|&i| cands[i].scope() != Scope::Imu).collect();
+            order.sort_by(|&x, &y| tots[x].iter().sum::<f64>().total_cmp(&tots[y].iter().sum::<f64>()));
+            order.truncate(REFIT_CANDIDATES);
+            if !order.is_empty() {
+                let combo_train: Scores = ctx.eval_many(std::slice::from_ref(&combo), &ctx.train)?.remove(0);
+                let mut refits = Vec::new();
+                for &i in &order {
+                    let kind = cands[i];
+                    let (fx, sds) = fit_kind(&ctx, kind, &combo, &combo_train, &mut rng)?;
+                    let mut t = combo.clone();
+                    let mut params = Vec::new();
+                    let (lo, hi, v0) = kind.range();
+                    for u in 0..units_of(&ctx, kind).len() {
+                        let v = unit_value(kind, &fx, &ctx, u);
+                        if (v - v0).abs() >= RESOLUTION_FRAC * (hi - lo) {
+                            set_unit(kind, &mut t, &ctx, u, v);
+                            params.push(FittedParam { unit: unit_name(&ctx, kind, u), value: report_value(kind, v), sd: report_value(kind, sds[u]), held_out_reduction: 0.0 });
+                        }
+                    }
+                    if !params.is_empty() {
+                        refits.push((i, t, params));
+                    }
+                }
+                let cfgs: Vec<Effects> = refits.iter().map(|(_, t, _)| t.clone()).collect();
+                let res = ctx.eval_many(&cfgs, &ctx.test)?;
+                for ((i, t, params), r) in refits.into_iter().zip(res) {
+                    let tot: Vec<f64> = r.iter().map(|s| total(s)).collect();
+                    if tot.iter().sum::<f64>() < tots[i].iter().sum::<f64>() {
+                        trials[i] = t;
+                        tots[i] = tot;
+                        refit_params[i] = Some(params);
+                    }
+                }
+            }
             let Some((i, _)) = tots.iter().enumerate().min_by(|a, b| a.1.iter().sum::<f64>().total_cmp(&b.1.iter().sum::<f64>())) else { break };
             let gain = bootstrap_ratio(&cur, &tots[i], opts.bootstrap, &mut rng);
-            if gain.lo <= noise_floor(&cur) {
+            let floor = noise_floor(&cur);
+            if gain.lo <= floor {
                 break;
             }
+            let per_window = (cur.iter().sum::<f64>() - tots[i].iter().sum::<f64>()) / cur.len().max(1) as f64;
+            let params = refit_params[i].take().map(|mut ps| {
+                ps.iter_mut().for_each(|p| p.held_out_reduction = per_window);
+                ps
+            });
+            added.push((cands[i], gain, floor, bootstrap_mean(&tots[i], opts.bootstrap, &mut rng), params));
             combo = trials[i].clone();
             members.push(cands[i]);
             cur = tots[i].clone();
         }
-        let rest: Vec<EffectKind> = ranked.iter().copied().filter(|k| !members.contains(k)).collect();
+        // Effects added conditionally are named with their conditional reduction and floor.
+        let before: Vec<EffectKind> = members.clone();
+        for (n, (kind, gain, floor, metric_after, params)) in added.into_iter().enumerate() {
+            if let Some(r) = results.iter_mut().find(|r| r.kind == kind) {
+                let given: Vec<&str> = before[..=n].iter().map(|k| k.name()).collect();
+                r.named = true;
+                r.reduction = gain;
+                r.noise_floor = floor;
+                r.metric_after = metric_after;
+                if let Some(p) = params {
+                    r.params = p;
+                }
+                r.note = Some(format!("named given {}: reduction of the remaining held-out residual", given.join(" + ")));
+            }
+        }
+        results.sort_by(|a, b| (b.named, b.reduction.value).partial_cmp(&(a.named, a.reduction.value)).unwrap_or(std::cmp::Ordering::Equal));
+        let named: Vec<EffectKind> = results.iter().filter(|r| r.named).map(|r| r.kind).collect();
+        let rest: Vec<EffectKind> = named.iter().copied().filter(|k| !members.contains(k)).collect();
         ranked = members.iter().copied().chain(rest).collect();
         best_combination = Some(Combination {
             effects: members,
@@ -623,6 +694,7 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
             reduction: bootstrap_ratio(&base_test_tot, &cur, opts.bootstrap, &mut rng),
         });
     }
+    let abstentions: Vec<(EffectKind, String)> = results.iter().filter(|r| !r.named).map(|r| (r.kind, r.note.clone().unwrap_or_default())).collect();
     Ok(Report {
         schema_version: SCHEMA_VERSION.into(),
         robot: model.name.clone(),
@@ -649,6 +721,10 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
 pub const UNIT_FLOOR_FRAC: f64 = 0.10;
 /// An effect must cut the whole held-out gap by at least this fraction (lower bound of the interval).
 pub const EFFECT_FLOOR_FRAC: f64 = 0.03;
+/// At most this many effects in the best combination.
+pub const MAX_COMBINATION: usize = 3;
+/// Candidates refitted with the combination applied at each selection step (the best by their own fits).
+pub const REFIT_CANDIDATES: usize = 2;
 /// A fitted value closer to the no-effect value than this fraction of the search range is below resolution.
 pub const RESOLUTION_FRAC: f64 = 0.04;
 
@@ -715,12 +791,13 @@ fn report_value(kind: EffectKind, v: f64) -> f64 {
 
 /// Fits one effect on the training windows; returns the configuration (every unit at its fitted value) and the
 /// per-unit bootstrap standard deviation.
-fn fit_kind(ctx: &Ctx<'_>, kind: EffectKind, base_train: &Scores, rng: &mut impl Rng) -> Result<(Effects, Vec<f64>), GapError> {
+/// `base` holds effects already accepted (their units stay as they are) and `base_train` its training scores.
+fn fit_kind(ctx: &Ctx<'_>, kind: EffectKind, base: &Effects, base_train: &Scores, rng: &mut impl Rng) -> Result<(Effects, Vec<f64>), GapError> {
     if kind.scope() == Scope::Imu {
         return fit_imu(ctx, kind);
     }
     let units = units_of(ctx, kind);
-    let mut fx = Effects::none(ctx.nj());
+    let mut fx = base.clone();
     let mut sds = vec![0.0; units.len()];
     // Joint-scope effects are fitted on one joint per limb at a time (the k-th joint of every group together):
     // neighbouring joints of a chain would otherwise trade the effect between them.
@@ -732,7 +809,7 @@ fn fit_kind(ctx: &Ctx<'_>, kind: EffectKind, base_train: &Scores, rng: &mut impl
         vec![vec![true; units.len()]]
     };
     for mask in sets {
-        let (vals, sd) = fit_units(ctx, kind, base_train, rng, &mask)?;
+        let (vals, sd) = fit_units(ctx, kind, base, base_train, rng, &mask)?;
         for u in (0..units.len()).filter(|&u| mask[u]) {
             set_unit(kind, &mut fx, ctx, u, vals[u]);
             sds[u] = sd[u];
@@ -743,9 +820,8 @@ fn fit_kind(ctx: &Ctx<'_>, kind: EffectKind, base_train: &Scores, rng: &mut impl
 
 /// Grid search then lockstep golden-section refinement of the units in `mask` (the others stay at no effect);
 /// returns every unit's value and bootstrap standard deviation.
-fn fit_units(ctx: &Ctx<'_>, kind: EffectKind, base_train: &Scores, rng: &mut impl Rng, mask: &[bool]) -> Result<(Vec<f64>, Vec<f64>), GapError> {
-    let nj = ctx.nj();
-    let null = Effects::none(nj);
+fn fit_units(ctx: &Ctx<'_>, kind: EffectKind, base: &Effects, base_train: &Scores, rng: &mut impl Rng, mask: &[bool]) -> Result<(Vec<f64>, Vec<f64>), GapError> {
+    let null = base.clone();
     let units = units_of(ctx, kind);
     let (lo, hi, v0) = kind.range();
     let unit_score = |s: &Scores, u: usize| -> f64 { s.iter().map(|w| units[u].iter().map(|&c| w[c]).sum::<f64>()).sum() };
