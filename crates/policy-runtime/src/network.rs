@@ -5,9 +5,7 @@
 use crate::spec::LstmInitialState;
 use crate::PolicyError;
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
-use std::sync::Arc;
-use tract_onnx::prelude::*;
+use std::path::Path;
 
 fn model_err(path: &Path, reason: impl std::fmt::Display) -> PolicyError {
     PolicyError::Model {
@@ -16,118 +14,163 @@ fn model_err(path: &Path, reason: impl std::fmt::Display) -> PolicyError {
     }
 }
 
-/// A feed-forward ONNX policy with one input `[1, n]` and one output `[1, m]` (rsl_rl's ONNX export).
-#[derive(Debug, Clone)]
-pub struct OnnxPolicy {
-    path: PathBuf,
-    plan: Arc<TypedRunnableModel>,
-    input_dim: usize,
-    output_dim: usize,
-}
+#[cfg(feature = "onnx")]
+pub use onnx::OnnxPolicy;
+#[cfg(not(feature = "onnx"))]
+pub use no_onnx::OnnxPolicy;
 
-impl OnnxPolicy {
-    /// Loads, type-checks and optimizes the model for a batch of one.
-    pub fn load(path: &Path) -> Result<Self, PolicyError> {
-        if !path.is_file() {
-            return Err(crate::SpecError::MissingFile {
-                path: path.display().to_string(),
+/// ONNX inference with tract (feature `onnx`, on by default; the fuzz build leaves it out because the engine
+/// fuzz target never runs a policy and instrumenting tract doubles its build time).
+#[cfg(feature = "onnx")]
+mod onnx {
+    use super::model_err;
+    use crate::PolicyError;
+    use std::path::{Path, PathBuf};
+    use std::sync::Arc;
+    use tract_onnx::prelude::*;
+
+    /// A feed-forward ONNX policy with one input `[1, n]` and one output `[1, m]` (rsl_rl's ONNX export).
+    #[derive(Debug, Clone)]
+    pub struct OnnxPolicy {
+        path: PathBuf,
+        plan: Arc<TypedRunnableModel>,
+        input_dim: usize,
+        output_dim: usize,
+    }
+
+    impl OnnxPolicy {
+        /// Loads, type-checks and optimizes the model for a batch of one.
+        pub fn load(path: &Path) -> Result<Self, PolicyError> {
+            if !path.is_file() {
+                return Err(crate::SpecError::MissingFile {
+                    path: path.display().to_string(),
+                }
+                .into());
             }
-            .into());
+            let model = tract_onnx::onnx()
+                .model_for_path(path)
+                .map_err(|e| model_err(path, format!("{e:#}")))?;
+            let typed = model
+                .into_typed()
+                .map_err(|e| model_err(path, format!("{e:#}")))?;
+            if typed.inputs.len() != 1 || typed.outputs.len() != 1 {
+                return Err(model_err(
+                    path,
+                    format!(
+                        "expected one input and one output, found {} and {}",
+                        typed.inputs.len(),
+                        typed.outputs.len()
+                    ),
+                ));
+            }
+            let input_dim = flat_dim(&typed, typed.inputs[0], path, "input")?;
+            let output_dim = flat_dim(&typed, typed.outputs[0], path, "output")?;
+            let plan = typed
+                .into_optimized()
+                .and_then(|m| m.into_runnable())
+                .map_err(|e| model_err(path, format!("{e:#}")))?;
+            Ok(OnnxPolicy {
+                path: path.to_path_buf(),
+                plan,
+                input_dim,
+                output_dim,
+            })
         }
-        let model = tract_onnx::onnx()
-            .model_for_path(path)
+
+        pub fn input_dim(&self) -> usize {
+            self.input_dim
+        }
+
+        pub fn output_dim(&self) -> usize {
+            self.output_dim
+        }
+
+        /// One forward pass on one observation vector.
+        pub fn forward(&self, obs: &[f32]) -> Result<Vec<f32>, PolicyError> {
+            if obs.len() != self.input_dim {
+                return Err(PolicyError::Inference(format!(
+                    "{}: observation has {} values, the network takes {}",
+                    self.path.display(),
+                    obs.len(),
+                    self.input_dim
+                )));
+            }
+            let input = Tensor::from_shape(&[1, self.input_dim], obs)
+                .map_err(|e| PolicyError::Inference(format!("{e:#}")))?;
+            let out = self
+                .plan
+                .run(tvec!(input.into_tvalue()))
+                .map_err(|e| PolicyError::Inference(format!("{e:#}")))?;
+            let first = out
+                .first()
+                .ok_or_else(|| PolicyError::Inference("network returned no output".into()))?;
+            let view = first
+                .to_plain_array_view::<f32>()
+                .map_err(|e| PolicyError::Inference(format!("{e:#}")))?;
+            let v: Vec<f32> = view.iter().copied().collect();
+            if v.len() != self.output_dim {
+                return Err(PolicyError::Inference(format!(
+                    "network returned {} values, expected {}",
+                    v.len(),
+                    self.output_dim
+                )));
+            }
+            Ok(v)
+        }
+    }
+
+    /// Number of values in a `[1, n]` (or `[n]`) fact with concrete dimensions.
+    fn flat_dim(
+        model: &TypedModel,
+        outlet: OutletId,
+        path: &Path,
+        what: &str,
+    ) -> Result<usize, PolicyError> {
+        let fact = model
+            .outlet_fact(outlet)
             .map_err(|e| model_err(path, format!("{e:#}")))?;
-        let typed = model
-            .into_typed()
-            .map_err(|e| model_err(path, format!("{e:#}")))?;
-        if typed.inputs.len() != 1 || typed.outputs.len() != 1 {
-            return Err(model_err(
+        let dims = fact.shape.as_concrete().ok_or_else(|| {
+            model_err(
                 path,
-                format!(
-                    "expected one input and one output, found {} and {}",
-                    typed.inputs.len(),
-                    typed.outputs.len()
-                ),
-            ));
+                format!("{what} shape {:?} is not concrete", fact.shape),
+            )
+        })?;
+        match dims {
+            [n] | [1, n] => Ok(*n),
+            other => Err(model_err(
+                path,
+                format!("{what} shape {other:?}: expected [1, n]"),
+            )),
         }
-        let input_dim = flat_dim(&typed, typed.inputs[0], path, "input")?;
-        let output_dim = flat_dim(&typed, typed.outputs[0], path, "output")?;
-        let plan = typed
-            .into_optimized()
-            .and_then(|m| m.into_runnable())
-            .map_err(|e| model_err(path, format!("{e:#}")))?;
-        Ok(OnnxPolicy {
-            path: path.to_path_buf(),
-            plan,
-            input_dim,
-            output_dim,
-        })
-    }
-
-    pub fn input_dim(&self) -> usize {
-        self.input_dim
-    }
-
-    pub fn output_dim(&self) -> usize {
-        self.output_dim
-    }
-
-    /// One forward pass on one observation vector.
-    pub fn forward(&self, obs: &[f32]) -> Result<Vec<f32>, PolicyError> {
-        if obs.len() != self.input_dim {
-            return Err(PolicyError::Inference(format!(
-                "{}: observation has {} values, the network takes {}",
-                self.path.display(),
-                obs.len(),
-                self.input_dim
-            )));
-        }
-        let input = Tensor::from_shape(&[1, self.input_dim], obs)
-            .map_err(|e| PolicyError::Inference(format!("{e:#}")))?;
-        let out = self
-            .plan
-            .run(tvec!(input.into_tvalue()))
-            .map_err(|e| PolicyError::Inference(format!("{e:#}")))?;
-        let first = out
-            .first()
-            .ok_or_else(|| PolicyError::Inference("network returned no output".into()))?;
-        let view = first
-            .to_plain_array_view::<f32>()
-            .map_err(|e| PolicyError::Inference(format!("{e:#}")))?;
-        let v: Vec<f32> = view.iter().copied().collect();
-        if v.len() != self.output_dim {
-            return Err(PolicyError::Inference(format!(
-                "network returned {} values, expected {}",
-                v.len(),
-                self.output_dim
-            )));
-        }
-        Ok(v)
     }
 }
 
-/// Number of values in a `[1, n]` (or `[n]`) fact with concrete dimensions.
-fn flat_dim(
-    model: &TypedModel,
-    outlet: OutletId,
-    path: &Path,
-    what: &str,
-) -> Result<usize, PolicyError> {
-    let fact = model
-        .outlet_fact(outlet)
-        .map_err(|e| model_err(path, format!("{e:#}")))?;
-    let dims = fact.shape.as_concrete().ok_or_else(|| {
-        model_err(
-            path,
-            format!("{what} shape {:?} is not concrete", fact.shape),
-        )
-    })?;
-    match dims {
-        [n] | [1, n] => Ok(*n),
-        other => Err(model_err(
-            path,
-            format!("{what} shape {other:?}: expected [1, n]"),
-        )),
+/// Stand-in for builds without the `onnx` feature: loading fails with a clear error, so no value exists.
+#[cfg(not(feature = "onnx"))]
+mod no_onnx {
+    use super::model_err;
+    use crate::PolicyError;
+    use std::path::Path;
+
+    /// Uninhabited: `load` always fails in this build.
+    #[derive(Debug, Clone)]
+    pub struct OnnxPolicy {
+        never: std::convert::Infallible,
+    }
+
+    impl OnnxPolicy {
+        pub fn load(path: &Path) -> Result<Self, PolicyError> {
+            Err(model_err(path, "this build has no ONNX runtime (policy-runtime without its `onnx` feature)"))
+        }
+        pub fn input_dim(&self) -> usize {
+            match self.never {}
+        }
+        pub fn output_dim(&self) -> usize {
+            match self.never {}
+        }
+        pub fn forward(&self, _obs: &[f32]) -> Result<Vec<f32>, PolicyError> {
+            match self.never {}
+        }
     }
 }
 
