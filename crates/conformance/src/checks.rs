@@ -387,8 +387,8 @@ fn state_joint_limits(samples: &[StateSample]) -> CheckResult {
 
 fn discovery_types_qos(target: &Target) -> Result<CheckResult, ConformError> {
     let eps = target.remote_endpoints()?;
-    let writers: Vec<_> = eps.iter().filter(|e| e.kind == EndpointKind::Publication && e.topic_name == "rt/lowstate").collect();
-    let readers: Vec<_> = eps.iter().filter(|e| e.kind == EndpointKind::Subscription && e.topic_name == "rt/lowcmd").collect();
+    let writers: Vec<_> = eps.iter().filter(|e| e.kind == EndpointKind::Publication && e.topic_name == unitree_idl::topics::LOWSTATE).collect();
+    let readers: Vec<_> = eps.iter().filter(|e| e.kind == EndpointKind::Subscription && e.topic_name == unitree_idl::topics::LOWCMD).collect();
     let mut problems = Vec::new();
     for w in &writers {
         if w.type_name != dds_transport::topics::HG_LOWSTATE_TYPE {

@@ -16,8 +16,7 @@ pub fn check_network(cfg: &DomainConfig) -> Result<(), ConformError> {
 /// otherwise only with `allow_robot` and `allow_robot_fuzz` both set.
 pub fn check_fuzz(cfg: &DomainConfig, allow_robot_fuzz: bool) -> Result<(), ConformError> {
     check_network(cfg)?;
-    let exposed = cfg.domain == 0 || !is_loopback_interface(&cfg.interface);
-    if exposed && !allow_robot_fuzz {
+    if is_exposed(cfg) && !allow_robot_fuzz {
         return Err(ConformError::Refused(format!(
             "fuzzing domain {} on `{}` may send harmful commands to a real robot; it needs --allow-robot-fuzz as well as --allow-robot",
             cfg.domain, cfg.interface

@@ -94,7 +94,7 @@ impl Target {
         let left = deadline.saturating_duration_since(Instant::now()).max(Duration::from_secs(1));
         target.command_reader_matched = target.writer.wait_for_readers(1, left)?;
         // Discovery data of the target's endpoints arrives with matching; give it a moment.
-        let _ = target.discovery.wait_for(Duration::from_secs(1), |e| !e.local && e.topic_name == "rt/lowcmd")?;
+        let _ = target.discovery.wait_for(Duration::from_secs(1), |e| !e.local && e.topic_name == unitree_idl::topics::LOWCMD)?;
         target.drain();
         Ok(target)
     }
@@ -199,7 +199,7 @@ impl Target {
             .discovery
             .endpoints()?
             .into_iter()
-            .filter(|e| !e.local && (e.topic_name == "rt/lowcmd" || e.topic_name == "rt/lowstate"))
+            .filter(|e| !e.local && (e.topic_name == unitree_idl::topics::LOWCMD || e.topic_name == unitree_idl::topics::LOWSTATE))
             .collect())
     }
 }

@@ -291,3 +291,15 @@ pub trait Engine: std::fmt::Debug {
         None
     }
 }
+
+/// Rotation angle between two unit quaternions, from the relative rotation `conj(a)·b` with atan2 (exactly 0
+/// for equal inputs; acos of the dot product would resolve only ~1e-8 rad).
+pub fn quat_angle(a: [f64; 4], b: [f64; 4]) -> f64 {
+    let [aw, ax, ay, az] = a;
+    let [bw, bx, by, bz] = b;
+    let w = aw * bw + ax * bx + ay * by + az * bz;
+    let x = aw * bx - bw * ax - (ay * bz - az * by);
+    let y = aw * by - bw * ay - (az * bx - ax * bz);
+    let z = aw * bz - bw * az - (ax * by - ay * bx);
+    2.0 * (x * x + y * y + z * z).sqrt().atan2(w.abs())
+}

@@ -6,7 +6,7 @@
 //! engine.
 use crate::engine::*;
 use crate::pd::{pd_torques, PdTarget};
-use nalgebra::{DMatrix, DVector, UnitQuaternion, Quaternion, Vector3};
+use nalgebra::{DMatrix, DVector, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use robot_model::{GenCoords, RobotModel};
@@ -141,12 +141,6 @@ pub fn random_state(model: &RobotModel, rng: &mut impl Rng) -> State {
     }
     s.dq = (0..model.nj()).map(|_| rng.gen_range(-2.0..2.0)).collect();
     s
-}
-
-fn quat_angle(a: [f64; 4], b: [f64; 4]) -> f64 {
-    let qa = UnitQuaternion::from_quaternion(Quaternion::new(a[0], a[1], a[2], a[3]));
-    let qb = UnitQuaternion::from_quaternion(Quaternion::new(b[0], b[1], b[2], b[3]));
-    qa.angle_to(&qb)
 }
 
 fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {

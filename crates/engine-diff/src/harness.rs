@@ -94,18 +94,6 @@ fn dist3(a: [f64; 3], b: [f64; 3]) -> f64 {
     ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }
 
-/// Rotation angle between two unit quaternions, from the relative rotation `conj(a)·b` with atan2 (exactly 0
-/// for equal inputs; acos of the dot product would resolve only ~1e-8 rad).
-fn quat_angle(a: [f64; 4], b: [f64; 4]) -> f64 {
-    let [aw, ax, ay, az] = a;
-    let [bw, bx, by, bz] = b;
-    let w = aw * bw + ax * bx + ay * by + az * bz;
-    let x = aw * bx - bw * ax - (ay * bz - az * by);
-    let y = aw * by - bw * ay - (az * bx - ax * bz);
-    let z = aw * bz - bw * az - (ax * by - ay * bx);
-    2.0 * (x * x + y * y + z * z).sqrt().atan2(w.abs())
-}
-
 impl Div {
     pub fn between(lead: &State, lead_links: &[LinkPose], other: &State, other_links: &[LinkPose]) -> Div {
         let abs = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| (x - y).abs()).collect::<Vec<_>>();
@@ -114,7 +102,7 @@ impl Div {
             dq: abs(&lead.dq, &other.dq),
             link_pos: lead_links.iter().zip(other_links).map(|(a, b)| dist3(a.pos, b.pos)).collect(),
             base_pos: dist3(lead.base_pos, other.base_pos),
-            base_rot: quat_angle(lead.base_quat, other.base_quat),
+            base_rot: diff_physics::engine::quat_angle(lead.base_quat, other.base_quat),
             base_lin_vel: dist3(lead.base_lin_vel, other.base_lin_vel),
             base_ang_vel: dist3(lead.base_ang_vel, other.base_ang_vel),
         }

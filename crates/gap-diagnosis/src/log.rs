@@ -10,9 +10,9 @@ use std::io::Write;
 use unitree_idl::hg::{LowCmd_, LowState_};
 
 /// DDS topic of commands.
-pub const LOWCMD_TOPIC: &str = "rt/lowcmd";
+pub const LOWCMD_TOPIC: &str = unitree_idl::topics::LOWCMD;
 /// DDS topic of states.
-pub const LOWSTATE_TOPIC: &str = "rt/lowstate";
+pub const LOWSTATE_TOPIC: &str = unitree_idl::topics::LOWSTATE;
 /// MCAP channel metadata key for the DDS type name (the same key `ulab record` writes).
 pub const DDS_TYPE_KEY: &str = "dds_type_name";
 
