@@ -1,18 +1,21 @@
-//! Unitree SDK2 topic and DDS type names.
+//! Unitree SDK2 topics as the transport sees them: a DDS topic name and a DDS type name. The names themselves
+//! are defined once, in `unitree-idl`.
+
+use unitree_idl::IdlStruct;
 
 /// Low-level command topic (controller to robot).
-pub const TOPIC_LOWCMD: &str = "rt/lowcmd";
+pub const TOPIC_LOWCMD: &str = unitree_idl::topics::LOWCMD;
 /// Low-level state topic (robot to controller).
-pub const TOPIC_LOWSTATE: &str = "rt/lowstate";
+pub const TOPIC_LOWSTATE: &str = unitree_idl::topics::LOWSTATE;
 
 /// DDS type name of the humanoid ("hg": H1-2, G1) low-level command.
-pub const HG_LOWCMD_TYPE: &str = "unitree_hg::msg::dds_::LowCmd_";
+pub const HG_LOWCMD_TYPE: &str = unitree_idl::hg::LowCmd_::DDS_TYPE_NAME;
 /// DDS type name of the humanoid ("hg") low-level state.
-pub const HG_LOWSTATE_TYPE: &str = "unitree_hg::msg::dds_::LowState_";
+pub const HG_LOWSTATE_TYPE: &str = unitree_idl::hg::LowState_::DDS_TYPE_NAME;
 /// DDS type name of the quadruped/H1 ("go") low-level command.
-pub const GO_LOWCMD_TYPE: &str = "unitree_go::msg::dds_::LowCmd_";
+pub const GO_LOWCMD_TYPE: &str = unitree_idl::go::LowCmd_::DDS_TYPE_NAME;
 /// DDS type name of the quadruped/H1 ("go") low-level state.
-pub const GO_LOWSTATE_TYPE: &str = "unitree_go::msg::dds_::LowState_";
+pub const GO_LOWSTATE_TYPE: &str = unitree_idl::go::LowState_::DDS_TYPE_NAME;
 
 /// Which family of Unitree messages a robot speaks.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]

@@ -1,11 +1,11 @@
 //! The robot log the diagnosis reads: hg LowCmd on `rt/lowcmd` and hg LowState on `rt/lowstate`, from an MCAP
-//! written by `ulab record` (CDR with encapsulation header, message encoding `cdr`, log time = reception time)
-//! or from the CSV documented in [`CSV_COLUMNS_DOC`]. Generated logs (bench, tests) are written in exactly the
+//! in the `recording` crate's format (what `ulab record` writes) or from the CSV `ulab log export` writes
+//! (columns named by `recording::columns`, documented in [`CSV_COLUMNS_DOC`]). Generated logs (bench, tests) are written in exactly the
 //! same MCAP form, so real and generated logs go through one reader.
 use crate::GapError;
 use lowlevel_codec::cdr::{Encoding, Endianness, Representation};
+use recording::columns::{array_column, element_column};
 use robot_model::RobotModel;
-use std::collections::BTreeMap;
 use std::io::Write;
 use unitree_idl::hg::{LowCmd_, LowState_};
 
@@ -13,8 +13,6 @@ use unitree_idl::hg::{LowCmd_, LowState_};
 pub const LOWCMD_TOPIC: &str = unitree_idl::topics::LOWCMD;
 /// DDS topic of states.
 pub const LOWSTATE_TOPIC: &str = unitree_idl::topics::LOWSTATE;
-/// MCAP channel metadata key for the DDS type name (the same key `ulab record` writes).
-pub const DDS_TYPE_KEY: &str = "dds_type_name";
 
 /// One LowCmd, joints in model (slot) order. Motors in mode 0 are stored with zero gains and torque.
 #[derive(Debug, Clone, PartialEq)]
@@ -129,24 +127,18 @@ impl RobotLog {
         Ok(log)
     }
 
-    /// Writes the MCAP form `ulab record` writes. `schemas` are the OMG IDL texts stored as channel schemas
-    /// (the CLI passes the ones `ulab record` uses; the reader never needs them).
-    pub fn write_mcap<W: Write + std::io::Seek>(&self, out: W, model: &RobotModel, schemas: &McapSchemas) -> Result<(), GapError> {
+    /// Writes the MCAP form `ulab record` writes.
+    pub fn write_mcap<W: Write + std::io::Seek>(&self, out: W, model: &RobotModel) -> Result<(), GapError> {
         let io = |e: mcap::McapError| GapError::Io(e.to_string());
         let opts = mcap::WriteOptions::new().library(concat!("ulab gap ", env!("CARGO_PKG_VERSION"))).chunk_size(Some(256 * 1024));
         let mut w = opts.create(out).map_err(io)?;
         let mut ids = [0u16; 2];
-        for (k, (topic, ty, idl)) in [
-            (LOWCMD_TOPIC, unitree_idl::MessageType::HgLowCmd.dds_type_name(), &schemas.lowcmd),
-            (LOWSTATE_TOPIC, unitree_idl::MessageType::HgLowState.dds_type_name(), &schemas.lowstate),
-        ]
-        .into_iter()
-        .enumerate()
+        for (k, (topic, kind)) in
+            [(LOWCMD_TOPIC, unitree_idl::MessageType::HgLowCmd), (LOWSTATE_TOPIC, unitree_idl::MessageType::HgLowState)]
+                .into_iter()
+                .enumerate()
         {
-            let sid = w.add_schema(ty, "omgidl", idl.as_bytes()).map_err(io)?;
-            let mut meta = BTreeMap::new();
-            meta.insert(DDS_TYPE_KEY.to_owned(), ty.to_owned());
-            ids[k] = w.add_channel(sid, topic, "cdr", &meta).map_err(io)?;
+            ids[k] = recording::add_topic(&mut w, topic, kind.dds_type_name()).map_err(io)?;
         }
         let enc = Encoding { representation: Representation::Xcdr1, endianness: Endianness::Little };
         // Merge by time so that the file is in log-time order like a recording.
@@ -195,7 +187,7 @@ impl RobotLog {
             Ok(ns.saturating_sub(t0) as f64 * 1e-9)
         };
         let tcol = col(&hdr, "log_time_ns")?;
-        let field = |hdr: &[String], arr: &str, j: usize, f: &str| col(hdr, &format!("{arr}[{}].{f}", model.joints[j].slot));
+        let field = |hdr: &[String], arr: &str, j: usize, f: &str| col(hdr, &element_column(arr, model.joints[j].slot, f));
         let idx = |hdr: &[String], arr: &str, f: &str| -> Result<Vec<usize>, GapError> { (0..nj).map(|j| field(hdr, arr, j, f)).collect() };
         let (iq, idq, ikp, ikd, itau, imode) = (
             idx(&hdr, "motor_cmd", "q")?,
@@ -220,7 +212,7 @@ impl RobotLog {
         }
         let (hdr, rows) = st_rows;
         let tcol = col(&hdr, "log_time_ns")?;
-        let imu = |f: &str, n: usize| -> Result<Vec<usize>, GapError> { (0..n).map(|i| col(&hdr, &format!("imu_state.{f}[{i}]"))).collect() };
+        let imu = |f: &str, n: usize| -> Result<Vec<usize>, GapError> { (0..n).map(|i| col(&hdr, &array_column(&format!("imu_state.{f}"), i))).collect() };
         let (iquat, igyro, iacc) = (imu("quaternion", 4)?, imu("gyroscope", 3)?, imu("accelerometer", 3)?);
         let (iq, idq, itau) = (idx(&hdr, "motor_state", "q")?, idx(&hdr, "motor_state", "dq")?, idx(&hdr, "motor_state", "tau_est")?);
         for r in &rows {
@@ -252,13 +244,6 @@ fn csv_rows(text: &str, name: &str) -> Result<(Vec<String>, Vec<Vec<String>>), G
     let hdr: Vec<String> = lines.next().ok_or_else(|| GapError::Log(format!("{name} is empty")))?.split(',').map(|s| s.trim().to_string()).collect();
     let rows: Vec<Vec<String>> = lines.map(|l| l.split(',').map(|s| s.trim().to_string()).collect()).collect();
     Ok((hdr, rows))
-}
-
-/// OMG IDL schema texts stored with the channels.
-#[derive(Debug, Clone, Default)]
-pub struct McapSchemas {
-    pub lowcmd: String,
-    pub lowstate: String,
 }
 
 fn slot_of(model: &RobotModel, j: usize, len: usize) -> Result<usize, GapError> {

@@ -4,7 +4,6 @@
 //! A log without any effect must give no confident attribution.
 use gap_diagnosis::bench::{generate_log, RealConfig};
 use gap_diagnosis::effects::Scope;
-use gap_diagnosis::log::McapSchemas;
 use gap_diagnosis::plant::{joint_groups, Effects, GROUPS};
 use gap_diagnosis::{diagnose, DiagnoseOptions, EffectKind, Report, RobotLog};
 use robot_model::RobotModel;
@@ -40,7 +39,7 @@ fn run(fx: Effects, seed: u64) -> Report {
     let cfg = RealConfig { effects: fx, ..RealConfig::new(&m, DURATION, seed) };
     let log = generate_log(&m, &cfg).expect("generate");
     let mut buf = std::io::Cursor::new(Vec::new());
-    log.write_mcap(&mut buf, &m, &McapSchemas::default()).expect("write mcap");
+    log.write_mcap(&mut buf, &m).expect("write mcap");
     let back = RobotLog::from_mcap(buf.get_ref(), &m).expect("read mcap");
     assert_eq!(back.states.len(), log.states.len());
     assert_eq!(back.commands.len(), log.commands.len());

@@ -3,20 +3,12 @@
 
 mod common;
 
-use common::wait_with_timeout;
-use std::process::{Command, Stdio};
+use common::run_ulab;
 use std::time::Duration;
 
 fn conform(args: &[&str]) -> (Option<i32>, String) {
-    let child = Command::new(env!("CARGO_BIN_EXE_ulab"))
-        .arg("conform")
-        .args(args)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("start ulab conform");
-    let (status, _out, err) = wait_with_timeout(child, Duration::from_secs(60));
-    (status.and_then(|s| s.code()), err)
+    let (code, _out, err) = run_ulab(&[&["conform"], args].concat(), Duration::from_secs(60));
+    (code, err)
 }
 
 #[test]

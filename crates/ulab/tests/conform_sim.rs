@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{tail, wait_with_timeout, KillOnDrop};
+use common::{run_ulab, tail, KillOnDrop};
 use std::collections::BTreeSet;
 use std::path::PathBuf;
 use std::process::{Command, Stdio};
@@ -60,15 +60,7 @@ fn out_dir(name: &str) -> PathBuf {
 
 /// Runs `ulab conform ARGS`; returns (exit code, stdout, stderr).
 fn conform(args: &[&str], timeout_s: u64) -> (Option<i32>, String, String) {
-    let child = Command::new(env!("CARGO_BIN_EXE_ulab"))
-        .arg("conform")
-        .args(args)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("start ulab conform");
-    let (status, out, err) = wait_with_timeout(child, Duration::from_secs(timeout_s));
-    (status.and_then(|s| s.code()), out, err)
+    run_ulab(&[&["conform"], args].concat(), Duration::from_secs(timeout_s))
 }
 
 /// Runs the default checks against a bridge with `switches` and returns the failing ids.

@@ -5,16 +5,13 @@
 //! - `ulab gap simulate --robot h1_2 --out real.mcap [--effect KIND:UNIT:VALUE]...`: a log of the benchmark's
 //!   reference plant (demo and test logs)
 //! - `ulab gap bench [--trials N] [--seed S] [--duration S] [--out DIR]`
-use super::recording::idl_text;
 use anyhow::{bail, Context, Result};
 use gap_diagnosis::bench::{self, BenchOptions, RealConfig};
-use gap_diagnosis::log::McapSchemas;
 use gap_diagnosis::plant::{joint_groups, EngineChoice, GROUPS};
 use gap_diagnosis::{effects::Scope, DiagnoseOptions, EffectKind, RobotLog};
 use robot_model::RobotModel;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use unitree_idl::MessageType;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -136,16 +133,12 @@ fn load(robot: &str) -> Result<RobotModel> {
     }
 }
 
-fn schemas() -> McapSchemas {
-    McapSchemas { lowcmd: idl_text(MessageType::HgLowCmd), lowstate: idl_text(MessageType::HgLowState) }
-}
-
 fn write_log(path: &Path, log: &RobotLog, model: &RobotModel, force: bool) -> Result<()> {
     if path.exists() && !force {
         bail!("{} exists (use --force to overwrite)", path.display());
     }
     let f = std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
-    log.write_mcap(std::io::BufWriter::new(f), model, &schemas()).with_context(|| format!("writing {}", path.display()))
+    log.write_mcap(std::io::BufWriter::new(f), model).with_context(|| format!("writing {}", path.display()))
 }
 
 fn read_log(path: &Path, model: &RobotModel) -> Result<RobotLog> {
@@ -287,7 +280,7 @@ fn bench_cmd(a: BenchArgs) -> Result<ExitCode> {
         let mut via_mcap = |i: usize, log: &RobotLog| -> Result<RobotLog, gap_diagnosis::GapError> {
             let p = dir.join(format!("trial_{i:03}.mcap"));
             let f = std::fs::File::create(&p).map_err(|e| gap_diagnosis::GapError::Io(format!("{}: {e}", p.display())))?;
-            log.write_mcap(std::io::BufWriter::new(f), &model, &schemas())?;
+            log.write_mcap(std::io::BufWriter::new(f), &model)?;
             let bytes = std::fs::read(&p).map_err(|e| gap_diagnosis::GapError::Io(format!("{}: {e}", p.display())))?;
             RobotLog::from_mcap(&bytes, &model)
         };

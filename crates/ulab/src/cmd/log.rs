@@ -1,7 +1,8 @@
 //! `ulab log`: look into MCAP recordings. `export --format csv` writes one row per message with
 //! one named column per field (`motor_state[3].q`), decoded by our codec.
 
-use super::recording::{column_names, decode_flat, kind_of, DDS_TYPE_KEY};
+use recording::columns::{column_names, decode_flat};
+use recording::{channel_type_name, kind_of};
 use anyhow::{bail, Context, Result};
 use std::collections::BTreeMap;
 use std::io::Write;
@@ -71,12 +72,7 @@ fn export(a: ExportArgs) -> Result<ExitCode> {
     let mut topics: BTreeMap<String, String> = BTreeMap::new();
     for m in mcap::MessageStream::new(&bytes).context("not an MCAP file")? {
         let m = m.context("reading the MCAP file")?;
-        let ty = m
-            .channel
-            .metadata
-            .get(DDS_TYPE_KEY)
-            .cloned()
-            .or_else(|| m.channel.schema.as_ref().map(|s| s.name.clone()));
+        let ty = channel_type_name(&m.channel);
         topics
             .entry(m.channel.topic.clone())
             .or_insert_with(|| ty.unwrap_or_default());
@@ -154,7 +150,7 @@ fn export(a: ExportArgs) -> Result<ExitCode> {
                 }
                 Err(e) => {
                     row.push(String::new());
-                    row.push(e);
+                    row.push(e.to_string());
                     row.resize(t.columns.len(), String::new());
                 }
             },
@@ -187,7 +183,7 @@ fn info(file: &Path) -> Result<ExitCode> {
     let mut stats: BTreeMap<String, (String, String, u64, u64, u64)> = BTreeMap::new();
     for m in mcap::MessageStream::new(&bytes).context("not an MCAP file")? {
         let m = m.context("reading the MCAP file")?;
-        let ty = m.channel.metadata.get(DDS_TYPE_KEY).cloned().unwrap_or_default();
+        let ty = channel_type_name(&m.channel).unwrap_or_default();
         let e = stats
             .entry(m.channel.topic.clone())
             .or_insert_with(|| (ty, m.channel.message_encoding.clone(), 0, u64::MAX, 0));

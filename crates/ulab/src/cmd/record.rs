@@ -1,12 +1,13 @@
 //! `ulab record`: subscribes Unitree topics over DDS and writes them to an MCAP file.
 //!
-//! Each message is stored as received (CDR with its encapsulation header; message encoding
-//! `cdr`), its channel's schema is the OMG IDL of its type (`omgidl`), log time is the reception
-//! time and publish time the writer's source timestamp. Ctrl-C (or --duration) ends the
+//! The file follows the `recording` crate's format (each message as received, CDR with its
+//! encapsulation header; OMG IDL schemas; log time is the reception time), publish time is the
+//! writer's source timestamp. Ctrl-C (or --duration) ends the
 //! recording and the file is finished properly. At the end, gaps that can be detected are
 //! reported: LowState tick jumps, arrival gaps and one-second windows with a low rate.
 
-use super::recording::{idl_text, lowstate_tick, parse_topic, NetArgs, TopicChoice, DDS_TYPE_KEY};
+use super::recording::{parse_topic, NetArgs, TopicChoice};
+use recording::lowstate_tick;
 use anyhow::{bail, Context, Result};
 use dds_transport::{Participant, ReaderOptions, Sample};
 use std::collections::BTreeMap;
@@ -96,13 +97,8 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let mut writer = opts.create(BufWriter::new(file)).context("starting the MCAP file")?;
     let mut channels = Vec::new();
     for c in choices {
-        let schema_id = match c.kind {
-            Some(kind) => writer.add_schema(&c.spec.type_name, "omgidl", idl_text(kind).as_bytes())?,
-            None => 0,
-        };
-        let mut meta = BTreeMap::new();
-        meta.insert(DDS_TYPE_KEY.to_owned(), c.spec.type_name.clone());
-        let id = writer.add_channel(schema_id, &c.spec.name, "cdr", &meta)?;
+        let id = recording::add_topic(&mut writer, &c.spec.name, &c.spec.type_name)
+            .with_context(|| format!("adding the channel of {}", c.spec.name))?;
         channels.push(Channel {
             choice: c,
             id,

@@ -1,7 +1,7 @@
 //! `ulab replay`: republishes the messages of an MCAP recording over DDS with their original
 //! timing (log time, i.e. reception time at recording), optionally sped up or slowed down.
 
-use super::recording::{NetArgs, DDS_TYPE_KEY};
+use super::recording::NetArgs;
 use anyhow::{bail, Context, Result};
 use dds_transport::{Participant, RawWriter, TopicSpec};
 use std::collections::BTreeMap;
@@ -56,18 +56,14 @@ pub fn run(args: Args) -> Result<ExitCode> {
         if !args.topics.is_empty() && !args.topics.iter().any(|t| t == &ch.topic) {
             continue;
         }
-        if ch.message_encoding != "cdr" {
+        if ch.message_encoding != recording::MESSAGE_ENCODING {
             skipped += 1;
             continue;
         }
         let w = match by_channel.get(&ch.id) {
             Some(w) => *w,
             None => {
-                let type_name = ch
-                    .metadata
-                    .get(DDS_TYPE_KEY)
-                    .cloned()
-                    .or_else(|| ch.schema.as_ref().map(|s| s.name.clone()))
+                let type_name = recording::channel_type_name(ch)
                     .filter(|n| !n.is_empty())
                     .with_context(|| format!("channel {} has no DDS type name", ch.topic))?;
                 let spec = TopicSpec::new(ch.topic.clone(), type_name);

@@ -4,7 +4,7 @@
 
 use std::io::Read;
 use std::path::PathBuf;
-use std::process::{Child, ExitStatus};
+use std::process::{Child, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
 /// The repository root.
@@ -50,6 +50,19 @@ pub fn wait_with_timeout(mut child: Child, timeout: Duration) -> (Option<ExitSta
         }
     };
     (status, out.join().unwrap_or_default(), err.join().unwrap_or_default())
+}
+
+/// Runs the `ulab` binary with `args`, output piped, killed after `timeout`: (exit code if it exited in time,
+/// stdout, stderr).
+pub fn run_ulab(args: &[&str], timeout: Duration) -> (Option<i32>, String, String) {
+    let child = Command::new(env!("CARGO_BIN_EXE_ulab"))
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start ulab");
+    let (status, out, err) = wait_with_timeout(child, timeout);
+    (status.and_then(|s| s.code()), out, err)
 }
 
 /// The last 2000 characters of a long text, for failure messages.
