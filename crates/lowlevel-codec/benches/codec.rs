@@ -5,10 +5,12 @@
 //! * CRC: fast (carry-less multiply) vs the bit-serial reference and vs `crc32fast` (hardware CRC-32 with
 //!   carry-less multiply: the speed yardstick; a different polynomial, same bytes);
 //! * decode/encode of hg LowState and LowCmd vs a memcpy of the same bytes, and vs Cyclone DDS's
-//!   Python serializer on Unitree's Python classes (run as a subprocess when the venv exists).
+//!   Python serializer on Unitree's Python classes (run as a subprocess when the venv exists);
+//! * the zero-copy view of hg LowState vs the same memcpy: construction alone (full validation),
+//!   construction plus what a controller reads each tick, and construction plus `to_owned`.
 
 use criterion::{black_box, Criterion};
-use lowlevel_codec::{cdr, crc, Encoding};
+use lowlevel_codec::{cdr, crc, view, Encoding};
 use std::time::Instant;
 use unitree_idl::hg;
 
@@ -37,6 +39,59 @@ fn sample_cmd() -> hg::LowCmd_ {
     }
     crc::seal(&mut c);
     c
+}
+
+/// What a whole-body controller reads from each LowState: tick, IMU, and q/dq/tau_est of every motor.
+// Only handed to black_box: the point is the reads that fill it.
+#[allow(dead_code)]
+struct ControllerInputs {
+    tick: u32,
+    quaternion: [f32; 4],
+    gyroscope: [f32; 3],
+    accelerometer: [f32; 3],
+    q: [f32; hg::MOTOR_SLOTS],
+    dq: [f32; hg::MOTOR_SLOTS],
+    tau_est: [f32; hg::MOTOR_SLOTS],
+}
+
+/// Validates a LowState sample and reads [`ControllerInputs`] through the view.
+fn controller_read(bytes: &[u8]) -> Option<ControllerInputs> {
+    let v = view::<hg::LowState_>(bytes).ok()?;
+    let imu = v.imu_state();
+    let mut out = ControllerInputs {
+        tick: v.tick(),
+        quaternion: imu.quaternion(),
+        gyroscope: imu.gyroscope(),
+        accelerometer: imu.accelerometer(),
+        q: [0.0; hg::MOTOR_SLOTS],
+        dq: [0.0; hg::MOTOR_SLOTS],
+        tau_est: [0.0; hg::MOTOR_SLOTS],
+    };
+    for (i, m) in v.motor_state().iter().enumerate() {
+        out.q[i] = m.q();
+        out.dq[i] = m.dq();
+        out.tau_est[i] = m.tau_est();
+    }
+    Some(out)
+}
+
+/// The same reads from an owned struct (no decoding): what the reads alone cost.
+fn controller_read_owned(s: &hg::LowState_) -> ControllerInputs {
+    let mut out = ControllerInputs {
+        tick: s.tick,
+        quaternion: s.imu_state.quaternion,
+        gyroscope: s.imu_state.gyroscope,
+        accelerometer: s.imu_state.accelerometer,
+        q: [0.0; hg::MOTOR_SLOTS],
+        dq: [0.0; hg::MOTOR_SLOTS],
+        tau_est: [0.0; hg::MOTOR_SLOTS],
+    };
+    for (i, m) in s.motor_state.iter().enumerate() {
+        out.q[i] = m.q;
+        out.dq[i] = m.dq;
+        out.tau_est[i] = m.tau_est;
+    }
+    out
 }
 
 /// Median nanoseconds per call over 31 batches sized to ~2 ms each.
@@ -124,6 +179,9 @@ fn main() {
         let mut dst = vec![0u8; state_bytes.len()];
         g.bench_function("memcpy_lowstate", |b| b.iter(|| dst.copy_from_slice(black_box(&state_bytes))));
         g.bench_function("decode_lowstate", |b| b.iter(|| cdr::decode::<hg::LowState_>(black_box(&state_bytes))));
+        g.bench_function("view_lowstate", |b| b.iter(|| view::<hg::LowState_>(black_box(&state_bytes)).is_ok()));
+        g.bench_function("view_lowstate_controller_read", |b| b.iter(|| controller_read(black_box(&state_bytes))));
+        g.bench_function("view_lowstate_to_owned", |b| b.iter(|| view::<hg::LowState_>(black_box(&state_bytes)).map(|v| v.to_owned())));
         g.bench_function("encode_lowstate", |b| b.iter(|| cdr::encode(black_box(&state), Encoding::UNITREE)));
         g.bench_function("decode_lowcmd", |b| b.iter(|| cdr::decode::<hg::LowCmd_>(black_box(&cmd_bytes))));
         g.bench_function("encode_lowcmd", |b| b.iter(|| cdr::encode(black_box(&cmd), Encoding::UNITREE)));
@@ -154,6 +212,18 @@ fn main() {
     let dec_state = median_ns(|| {
         let _ = black_box(cdr::decode::<hg::LowState_>(black_box(&state_bytes)));
     });
+    let view_state = median_ns(|| {
+        black_box(view::<hg::LowState_>(black_box(&state_bytes)).is_ok());
+    });
+    let view_read_state = median_ns(|| {
+        black_box(controller_read(black_box(&state_bytes)));
+    });
+    let owned_read_state = median_ns(|| {
+        black_box(controller_read_owned(black_box(&state)));
+    });
+    let view_owned_state = median_ns(|| {
+        let _ = black_box(view::<hg::LowState_>(black_box(&state_bytes)).map(|v| v.to_owned()));
+    });
     let enc_state = median_ns(|| {
         black_box(cdr::encode(black_box(&state), Encoding::UNITREE));
     });
@@ -173,6 +243,10 @@ fn main() {
     println!("| crc32fast (hardware yardstick), {:.2} GB/s | {crc_hw:.0} | ours = {:.2}x its speed | >= 0.5x |", gbps(crc_hw), crc_hw / crc_fast);
     println!("| memcpy hg LowState | {memcpy_state:.0} | 1 | |");
     println!("| decode hg LowState | {dec_state:.0} | {:.1}x memcpy | <= 4x |", dec_state / memcpy_state);
+    println!("| view hg LowState (construct = full validation) | {view_state:.1} | {:.2}x memcpy | <= 4x |", view_state / memcpy_state);
+    println!("| view hg LowState + controller read (tick, IMU quat/gyro/accel, q/dq/tau_est x 35) | {view_read_state:.0} | {:.1}x memcpy | |", view_read_state / memcpy_state);
+    println!("| (reference: the same reads from an owned hg::LowState_, no decoding) | {owned_read_state:.0} | {:.1}x memcpy | |", owned_read_state / memcpy_state);
+    println!("| view hg LowState + to_owned | {view_owned_state:.0} | {:.1}x memcpy | |", view_owned_state / memcpy_state);
     println!("| encode hg LowState | {enc_state:.0} | {:.1}x memcpy | |", enc_state / memcpy_state);
     println!("| memcpy hg LowCmd | {memcpy_cmd:.0} | 1 | |");
     println!("| decode hg LowCmd | {dec_cmd:.0} | {:.1}x memcpy | |", dec_cmd / memcpy_cmd);

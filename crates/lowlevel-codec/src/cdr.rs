@@ -44,6 +44,34 @@ impl Representation {
         }
     }
 
+    /// Largest alignment a primitive gets: 8 in XCDR1, 4 in XCDR2.
+    pub const fn max_align(self) -> usize {
+        match self {
+            Representation::Xcdr1 => 8,
+            Representation::Xcdr2 => 4,
+        }
+    }
+
+    /// Payload offset where a primitive of `size` bytes goes when the cursor is at `pos`: the
+    /// one statement of CDR's alignment rule, used by the writer, the reader and [`view`](mod@crate::view).
+    #[inline(always)]
+    pub const fn align(self, pos: usize, size: usize) -> usize {
+        let max = self.max_align();
+        align_up(pos, if size < max { size } else { max })
+    }
+
+    /// Whether arrays and sequences of structs are framed by a DHEADER (XCDR2 only).
+    pub const fn has_dheader(self) -> bool {
+        matches!(self, Representation::Xcdr2)
+    }
+
+    /// Index of this representation in per-representation tables.
+    pub(crate) const fn index(self) -> usize {
+        match self {
+            Representation::Xcdr1 => 0,
+            Representation::Xcdr2 => 1,
+        }
+    }
 }
 
 /// Byte order of the payload.
@@ -167,8 +195,9 @@ pub fn encode_into<T: IdlStruct>(value: &T, encoding: Encoding, out: &mut Vec<u8
     }
 }
 
-/// Decodes a complete sample (header and payload). Every byte must be accounted for.
-pub fn decode<T: IdlStruct>(bytes: &[u8]) -> Result<Decoded<T>, DecodeError> {
+/// Reads the encapsulation header: the encoding, the option bytes and the payload without the
+/// padding the options declare. Shared by [`decode`] and [`crate::view::view`].
+pub(crate) fn split_sample(bytes: &[u8]) -> Result<(Encoding, u16, &[u8]), DecodeError> {
     let Some((header, payload)) = bytes.split_first_chunk::<HEADER_LEN>() else {
         return Err(DecodeError::MissingHeader { len: bytes.len() });
     };
@@ -178,7 +207,17 @@ pub fn decode<T: IdlStruct>(bytes: &[u8]) -> Result<Decoded<T>, DecodeError> {
     let Some(body_len) = payload.len().checked_sub(padding) else {
         return Err(DecodeError::BadPadding { padding, payload: payload.len() });
     };
-    let body = &payload[..body_len];
+    Ok((encoding, options, &payload[..body_len]))
+}
+
+/// The error for bytes left over once the message is read.
+pub(crate) fn trailing(consumed: usize, body_len: usize) -> DecodeError {
+    DecodeError::TrailingBytes { offset: consumed, count: body_len - consumed }
+}
+
+/// Decodes a complete sample (header and payload). Every byte must be accounted for.
+pub fn decode<T: IdlStruct>(bytes: &[u8]) -> Result<Decoded<T>, DecodeError> {
+    let (encoding, options, body) = split_sample(bytes)?;
     let mut value = T::zeroed();
     let consumed = match (encoding.endianness, encoding.representation) {
         (Endianness::Little, Representation::Xcdr1) => read_into::<T, false, false>(body, &mut value)?,
@@ -187,7 +226,7 @@ pub fn decode<T: IdlStruct>(bytes: &[u8]) -> Result<Decoded<T>, DecodeError> {
         (Endianness::Big, Representation::Xcdr2) => read_into::<T, true, true>(body, &mut value)?,
     };
     if consumed != body.len() {
-        return Err(DecodeError::TrailingBytes { offset: consumed, count: body.len() - consumed });
+        return Err(trailing(consumed, body.len()));
     }
     Ok(Decoded { value, encoding, options })
 }
@@ -203,14 +242,22 @@ struct Writer<'o, const BIG: bool, const V2: bool> {
     origin: usize,
 }
 
+/// The representation a `V2` type parameter stands for.
+const fn representation(v2: bool) -> Representation {
+    if v2 {
+        Representation::Xcdr2
+    } else {
+        Representation::Xcdr1
+    }
+}
+
 impl<const BIG: bool, const V2: bool> Writer<'_, BIG, V2> {
-    const MAX_ALIGN: usize = if V2 { 4 } else { 8 };
+    const REPRESENTATION: Representation = representation(V2);
 
     #[inline(always)]
     fn align(&mut self, size: usize) {
-        let align = if size < Self::MAX_ALIGN { size } else { Self::MAX_ALIGN };
         let pos = self.out.len() - self.origin;
-        let pad = align_up(pos, align) - pos;
+        let pad = Self::REPRESENTATION.align(pos, size) - pos;
         if pad != 0 {
             self.out.extend_from_slice(&[0u8; 8][..pad]);
         }
@@ -267,7 +314,7 @@ impl<const BIG: bool, const V2: bool> Visitor for Writer<'_, BIG, V2> {
     }
 
     fn struct_array<S: IdlStruct>(&mut self, _name: &'static str, items: &[S]) {
-        if V2 {
+        if Self::REPRESENTATION.has_dheader() {
             let start = self.begin_dheader();
             items.iter().for_each(|item| item.walk(self));
             self.end_dheader(start);
@@ -279,7 +326,7 @@ impl<const BIG: bool, const V2: bool> Visitor for Writer<'_, BIG, V2> {
     fn struct_sequence<S: IdlStruct>(&mut self, _name: &'static str, items: &[S]) {
         // Lengths beyond u32 cannot be expressed in CDR; nothing in the SDK comes close.
         let count = u32::try_from(items.len()).unwrap_or(u32::MAX);
-        if V2 {
+        if Self::REPRESENTATION.has_dheader() {
             let start = self.begin_dheader();
             self.put_u32(count);
             items.iter().for_each(|item| item.walk(self));
@@ -305,20 +352,43 @@ struct Reader<'b, const BIG: bool, const V2: bool> {
     pos: usize,
 }
 
+/// The error for a member of `len` bytes at payload offset `start` that does not fit in
+/// `buf_len` bytes. Shared with [`crate::view`], which must report exactly what the reader does.
 #[cold]
 #[inline(never)]
-fn truncated(member: &'static str, start: usize, len: usize, buf_len: usize) -> DecodeError {
+pub(crate) fn truncated(member: &'static str, start: usize, len: usize, buf_len: usize) -> DecodeError {
     DecodeError::Truncated { member, offset: start.min(buf_len), needed: len, available: buf_len.saturating_sub(start) }
 }
 
+/// A primitive from its `P::SIZE` bytes in the given byte order (the one place bytes become
+/// values; [`crate::view`] reads through it too).
+#[inline(always)]
+pub(crate) fn get<P: Primitive, const BIG: bool>(bytes: &[u8]) -> P {
+    let bits = match P::SIZE {
+        1 => u32::from(bytes[0]),
+        2 => {
+            let b = [bytes[0], bytes[1]];
+            u32::from(if BIG { u16::from_be_bytes(b) } else { u16::from_le_bytes(b) })
+        }
+        _ => {
+            let b = [bytes[0], bytes[1], bytes[2], bytes[3]];
+            if BIG {
+                u32::from_be_bytes(b)
+            } else {
+                u32::from_le_bytes(b)
+            }
+        }
+    };
+    P::from_bits(bits)
+}
+
 impl<const BIG: bool, const V2: bool> Reader<'_, BIG, V2> {
-    const MAX_ALIGN: usize = if V2 { 4 } else { 8 };
+    const REPRESENTATION: Representation = representation(V2);
 
     /// Aligns and returns the next `len` bytes.
     #[inline(always)]
     fn take(&mut self, member: &'static str, align: usize, len: usize) -> Result<&[u8], DecodeError> {
-        let align = if align < Self::MAX_ALIGN { align } else { Self::MAX_ALIGN };
-        let start = align_up(self.pos, align);
+        let start = Self::REPRESENTATION.align(self.pos, align);
         // `pos` never exceeds `buf.len()`, so `start + len` cannot overflow for in-memory lengths.
         let end = start + len;
         if end <= self.buf.len() {
@@ -329,29 +399,9 @@ impl<const BIG: bool, const V2: bool> Reader<'_, BIG, V2> {
         }
     }
 
-    #[inline(always)]
-    fn get<P: Primitive>(bytes: &[u8]) -> P {
-        let bits = match P::SIZE {
-            1 => u32::from(bytes[0]),
-            2 => {
-                let b = [bytes[0], bytes[1]];
-                u32::from(if BIG { u16::from_be_bytes(b) } else { u16::from_le_bytes(b) })
-            }
-            _ => {
-                let b = [bytes[0], bytes[1], bytes[2], bytes[3]];
-                if BIG {
-                    u32::from_be_bytes(b)
-                } else {
-                    u32::from_le_bytes(b)
-                }
-            }
-        };
-        P::from_bits(bits)
-    }
-
     fn u32(&mut self, member: &'static str) -> Result<u32, DecodeError> {
         let bytes = self.take(member, 4, 4)?;
-        Ok(Self::get::<u32>(bytes))
+        Ok(get::<u32, BIG>(bytes))
     }
 
     fn check_dheader(&self, member: &'static str, offset: usize, declared: u32, start: usize) -> Result<(), DecodeError> {
@@ -370,7 +420,7 @@ impl<const BIG: bool, const V2: bool> VisitorMut for Reader<'_, BIG, V2> {
     #[inline(always)]
     fn primitive<P: Primitive>(&mut self, name: &'static str, value: &mut P) -> Result<(), DecodeError> {
         let bytes = self.take(name, P::SIZE, P::SIZE)?;
-        *value = Self::get::<P>(bytes);
+        *value = get::<P, BIG>(bytes);
         Ok(())
     }
 
@@ -378,7 +428,7 @@ impl<const BIG: bool, const V2: bool> VisitorMut for Reader<'_, BIG, V2> {
     fn primitive_array<P: Primitive>(&mut self, name: &'static str, items: &mut [P]) -> Result<(), DecodeError> {
         let bytes = self.take(name, P::SIZE, items.len() * P::SIZE)?;
         for (item, chunk) in items.iter_mut().zip(bytes.chunks_exact(P::SIZE)) {
-            *item = Self::get::<P>(chunk);
+            *item = get::<P, BIG>(chunk);
         }
         Ok(())
     }
@@ -389,8 +439,8 @@ impl<const BIG: bool, const V2: bool> VisitorMut for Reader<'_, BIG, V2> {
     }
 
     fn struct_array<S: IdlStruct>(&mut self, name: &'static str, items: &mut [S]) -> Result<(), DecodeError> {
-        if V2 {
-            let offset = align_up(self.pos, 4);
+        if Self::REPRESENTATION.has_dheader() {
+            let offset = Self::REPRESENTATION.align(self.pos, 4);
             let declared = self.u32(name)?;
             let start = self.pos;
             for item in items.iter_mut() {
@@ -403,9 +453,10 @@ impl<const BIG: bool, const V2: bool> VisitorMut for Reader<'_, BIG, V2> {
     }
 
     fn struct_sequence<S: IdlStruct>(&mut self, name: &'static str, items: &mut Vec<S>) -> Result<(), DecodeError> {
-        let dheader = if V2 { Some((align_up(self.pos, 4), self.u32(name)?, 0)) } else { None };
+        let repr = Self::REPRESENTATION;
+        let dheader = if repr.has_dheader() { Some((repr.align(self.pos, 4), self.u32(name)?, 0)) } else { None };
         let dheader = dheader.map(|(offset, declared, _)| (offset, declared, self.pos));
-        let offset = align_up(self.pos, 4);
+        let offset = repr.align(self.pos, 4);
         let count = self.u32(name)?;
         let available = self.buf.len() - self.pos;
         // Bound the count by the bytes left before allocating anything: each element takes at

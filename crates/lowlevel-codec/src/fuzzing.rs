@@ -1,6 +1,7 @@
 //! The checks behind the fuzz targets, kept here so that `cargo test` replays the saved
 //! regressions through exactly the same code as the fuzzers.
 
+use crate::view::{self, Viewable};
 use crate::{cdr, crc, Encoding, Endianness, Representation};
 use unitree_idl::{with_message_type, IdlStruct, MessageType};
 
@@ -14,10 +15,27 @@ pub const ENCODINGS: [Encoding; 4] = [
 
 /// `decode_any`: feeds `bytes` to the decoder of every type. Decoding must return a value or an
 /// error (never panic); whatever decodes must re-encode, in every encoding, to a canonical form
-/// that decodes to the same value, and re-encoding in its own encoding must be stable.
+/// that decodes to the same value, and re-encoding in its own encoding must be stable. Every
+/// type with a view is also viewed: see [`view_agrees_with_decode`].
 pub fn decode_any(bytes: &[u8]) {
     for &ty in MessageType::ALL {
         with_message_type!(ty, T => decode_one::<T>(bytes));
+        crate::with_viewable_type!(ty, T => view_agrees_with_decode::<T>(bytes));
+    }
+}
+
+/// [`view::view`] accepts exactly what [`cdr::decode`] accepts, fails with the same error
+/// otherwise, and its `to_owned` is the decoded value bit for bit, with the same header.
+pub fn view_agrees_with_decode<T: Viewable>(bytes: &[u8]) {
+    match (cdr::decode::<T>(bytes), view::view::<T>(bytes)) {
+        (Ok(decoded), Ok(v)) => {
+            assert_eq!((v.encoding(), v.options()), (decoded.encoding, decoded.options), "{}: header", T::DDS_TYPE_NAME);
+            let owned = v.to_owned();
+            assert_eq!(cdr::encode(&owned, Encoding::UNITREE), cdr::encode(&decoded.value, Encoding::UNITREE), "{}: view value", T::DDS_TYPE_NAME);
+        }
+        (Err(a), Err(b)) => assert_eq!(a, b, "{}: view error differs from decode", T::DDS_TYPE_NAME),
+        (Ok(_), Err(e)) => panic!("{}: decode accepts, view rejects: {e}", T::DDS_TYPE_NAME),
+        (Err(e), Ok(_)) => panic!("{}: view accepts, decode rejects: {e}", T::DDS_TYPE_NAME),
     }
 }
 

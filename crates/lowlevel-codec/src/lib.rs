@@ -7,6 +7,9 @@
 //! * [`crc`]: Unitree's CRC over the C struct image (padding zeroed), a fast table-driven
 //!   implementation and the bit-serial reference; [`crc::seal`] and [`crc::verify`].
 //! * [`json`]: the JSON document form used by `ulab codec` (exact float round trip).
+//! * [`view`](mod@view): zero-copy views of fixed-layout samples (hg/go `LowCmd`, `LowState`, ...):
+//!   the same validation as [`decode`] at the cost of a length check, then typed accessors
+//!   named after the IDL members that read on demand.
 //! * [`validate`]: semantic checks kept apart from decoding (non-finite values, limits, unused
 //!   slots), each finding typed and named.
 #![forbid(unsafe_code)]
@@ -16,6 +19,8 @@ pub mod crc;
 pub mod fuzzing;
 pub mod json;
 pub mod validate;
+pub mod view;
 
 pub use cdr::{decode, encode, DecodeError, Decoded, Encoding, Endianness, Representation};
 pub use crc::{seal, verify, Sealed};
+pub use view::{view, MessageView, Viewable};
