@@ -4,13 +4,14 @@
 use crate::diagnose::{diagnose, DiagnoseOptions, Report};
 use crate::effects::{EffectKind, Scope};
 use crate::excite;
-use crate::log::{Command, Measurement, RobotLog};
+use crate::log::{Measurement, RobotLog};
 use crate::plant::{imu_reading, joint_groups, EngineChoice, Effects, Rig, DT, GROUPS};
 use crate::GapError;
 use rand::{Rng, SeedableRng};
 use rand_distr_free::normal;
 use robot_model::RobotModel;
 use serde::{Deserialize, Serialize};
+use policy_runtime::{Controller, PolicyController, PolicySpec, RobotObservation};
 use sha2::{Digest, Sha256};
 
 /// Standard deviations of the sensor noise of the reference plant.
@@ -21,11 +22,14 @@ pub struct SensorNoise {
     pub tau: f64,
     pub gyro: f64,
     pub quat: f64,
+    /// Accelerometer (m/s²).
+    #[serde(default)]
+    pub acc: f64,
 }
 
 impl Default for SensorNoise {
     fn default() -> Self {
-        SensorNoise { q: 2e-4, dq: 0.01, tau: 0.1, gyro: 0.003, quat: 5e-4 }
+        SensorNoise { q: 2e-4, dq: 0.01, tau: 0.1, gyro: 0.003, quat: 5e-4, acc: 0.05 }
     }
 }
 
@@ -67,8 +71,33 @@ mod rand_distr_free {
     }
 }
 
+/// What drives the reference plant in a trial.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum InputKind {
+    /// The excitation plan ([`crate::excite`]) on every joint.
+    Excitation,
+    /// A policy rollout on the policy's joints (the legs) with a velocity command drawn per trial; the other
+    /// joints (torso, arms, which the policies only hold) follow the excitation plan's targets for them.
+    Policy,
+}
+
+/// A policy driving the reference plant: its spec and the velocity command `(vx, vy, wz)` it is given.
+#[derive(Debug, Clone)]
+pub struct PolicyInput {
+    pub spec: PolicySpec,
+    pub command: [f64; 3],
+}
+
 /// Runs the excitation plan through the reference plant and returns the log the robot would have produced.
 pub fn generate_log(model: &RobotModel, cfg: &RealConfig) -> Result<RobotLog, GapError> {
+    generate_log_with(model, cfg, None)
+}
+
+/// Runs the reference plant driven by the excitation plan (`policy` None) or by a policy closed around the
+/// plant's measurements (noisy joints, torso IMU converted to the pelvis frame as the deploy scripts do), at the
+/// config's command rate with its timing jitter.
+pub fn generate_log_with(model: &RobotModel, cfg: &RealConfig, policy: Option<&PolicyInput>) -> Result<RobotLog, GapError> {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(cfg.seed);
     let fx = &cfg.effects;
     let real_model = fx.apply_to_model(model);
@@ -78,23 +107,60 @@ pub fn generate_log(model: &RobotModel, cfg: &RealConfig) -> Result<RobotLog, Ga
     rig.reset(&q0, &vec![0.0; nj])?;
     let amp = excite::amplitudes(model);
     let groups = joint_groups(model);
-    // Command times: nominal rate with jitter.
+    let mut controller = match policy {
+        Some(p) => {
+            p.spec.check_robot(model).map_err(|e| GapError::Input(format!("policy {}: {e}", p.spec.name)))?;
+            let mut c = PolicyController::from_spec(p.spec.clone()).map_err(|e| GapError::Input(format!("policy {}: {e}", p.spec.name)))?;
+            c.reset();
+            Some((c, p.command))
+        }
+        None => None,
+    };
+    // Command times: nominal rate with jitter (sorted; a command is computed when its time comes).
     let n_cmd = (cfg.duration * cfg.cmd_rate_hz).floor() as usize;
-    let mut cmds: Vec<Command> = (0..n_cmd)
+    let mut times: Vec<f64> = (0..n_cmd)
         .map(|i| {
             let nominal = i as f64 / cfg.cmd_rate_hz;
-            let t = if i == 0 { 0.0 } else { (nominal + rng.gen_range(-cfg.jitter_s..=cfg.jitter_s)).max(0.0) };
-            excite::command_at(model, &amp, &groups, cfg.duration, t)
+            if i == 0 {
+                0.0
+            } else {
+                (nominal + rng.gen_range(-cfg.jitter_s..=cfg.jitter_s)).max(0.0)
+            }
         })
         .collect();
-    cmds.sort_by(|a, b| a.t.total_cmp(&b.t));
-    let mut log = RobotLog { commands: cmds, states: Vec::new() };
+    times.sort_by(f64::total_cmp);
+    let mut log = RobotLog { commands: Vec::with_capacity(n_cmd), states: Vec::new() };
     let steps = (cfg.duration / DT).round() as usize;
     let lat = fx.latency_steps as f64 * DT;
     let mut tau = vec![0.0; nj];
     let n = &cfg.noise;
+    let mut next_cmd = 0;
+    // True IMU orientation (with misalignment), IMU point velocity and accelerometer noise of every logged state.
+    let mut truth: Vec<([f64; 4], nalgebra::Vector3<f64>, [f64; 3])> = Vec::with_capacity(steps);
     for i in 0..steps {
         let t = i as f64 * DT;
+        // Commands whose time has come, computed from the latest measurement (what the controller sees).
+        while next_cmd < times.len() && times[next_cmd] <= t + 1e-12 {
+            let tc = times[next_cmd];
+            let mut cmd = excite::command_at(model, &amp, &groups, cfg.duration, tc);
+            if let Some((c, vel)) = controller.as_mut() {
+                let (q, dq, quat, gyro) = match log.states.last() {
+                    Some(m) => (m.q.clone(), m.dq.clone(), m.quat, m.gyro),
+                    None => (q0.clone(), vec![0.0; nj], [1.0, 0.0, 0.0, 0.0], [0.0; 3]),
+                };
+                let obs = RobotObservation::from_torso_imu(tc, quat, gyro, q, dq, *vel).map_err(|e| GapError::Input(format!("policy observation: {e}")))?;
+                let target = c.act(&obs).map_err(|e| GapError::Input(format!("policy step: {e}")))?;
+                for &j in &c.spec().policy_joints {
+                    cmd.q[j] = target.q_des[j].clamp(model.joints[j].lower, model.joints[j].upper);
+                    cmd.dq[j] = target.dq_des[j];
+                    cmd.kp[j] = target.kp[j];
+                    cmd.kd[j] = target.kd[j];
+                    cmd.tau[j] = target.tau_ff[j];
+                }
+            }
+            log.commands.push(cmd);
+            next_cmd += 1;
+        }
         let Some(ci) = log.command_at(t - lat + 1e-9) else {
             // Before the first command reaches the motors: hold with the first command's gains at the start pose.
             let mut c = log.commands[0].clone();
@@ -115,8 +181,22 @@ pub fn generate_log(model: &RobotModel, cfg: &RealConfig) -> Result<RobotLog, Ga
             tau: (0..nj).map(|j| tau[j] + n.tau * normal(&mut rng)).collect(),
             quat: [nq.w, nq.i, nq.j, nq.k],
             gyro: [0, 1, 2].map(|k| gyro[k] + n.gyro * normal(&mut rng)),
-            acc: [0.0, 0.0, robot_model::GRAVITY_EARTH],
+            acc: [0.0; 3], // filled below
         });
+        let acc_noise = [0, 1, 2].map(|_| n.acc * normal(&mut rng));
+        truth.push((quat, crate::rig_check::imu_point_velocity(model, &q, &dq)?, acc_noise));
+    }
+    // Accelerometer: specific force R⁻¹ (a − g) in the (misaligned) IMU frame, `a` the IMU point's acceleration
+    // (central difference of its velocity; the torso swings about the waist, the pelvis is still).
+    for i in 0..log.states.len() {
+        let a = match (i.checked_sub(1), truth.get(i + 1)) {
+            (Some(p), Some(nx)) => (nx.1 - truth[p].1) / (2.0 * DT),
+            _ => nalgebra::Vector3::zeros(),
+        };
+        let quat = truth[i].0;
+        let r = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(quat[0], quat[1], quat[2], quat[3]));
+        let f = r.inverse() * (a + nalgebra::Vector3::new(0.0, 0.0, robot_model::GRAVITY_EARTH));
+        log.states[i].acc = [0, 1, 2].map(|k| f[k] + truth[i].2[k]);
     }
     Ok(log)
 }
@@ -234,6 +314,12 @@ pub fn open(seal: &Seal, text: &str) -> Result<Labels, GapError> {
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct TrialScore {
     pub trial: usize,
+    /// What drove the reference plant.
+    #[serde(default = "default_input")]
+    pub input: InputKind,
+    /// The policy and velocity command of a policy-driven trial.
+    #[serde(default)]
+    pub policy: Option<String>,
     pub injected: Vec<Injected>,
     pub ranked: Vec<EffectKind>,
     /// Top-ranked unit of each injected kind, when that kind was named.
@@ -253,7 +339,11 @@ pub struct TrialScore {
     pub diagnose_s: f64,
 }
 
-/// Scores a report against opened labels.
+fn default_input() -> InputKind {
+    InputKind::Excitation
+}
+
+/// Scores a report against opened labels (the trial's input is filled in by [`run_trial`]).
 pub fn score(labels: &Labels, report: &Report) -> TrialScore {
     let inj = &labels.injected;
     let ranked = report.ranked.clone();
@@ -283,6 +373,8 @@ pub fn score(labels: &Labels, report: &Report) -> TrialScore {
     let kinds: Vec<EffectKind> = inj.iter().map(|i| i.kind).collect();
     TrialScore {
         trial: labels.trial,
+        input: InputKind::Excitation,
+        policy: None,
         injected: inj.clone(),
         attributed_units,
         top1: !kinds.is_empty() && ranked.first().is_some_and(|k| kinds.contains(k)),
@@ -307,6 +399,30 @@ pub struct BenchOptions {
     /// Length of each generated log (s).
     pub duration: f64,
     pub diagnose: DiagnoseOptions,
+    /// Policies for the policy-driven trials (empty: every trial runs the excitation plan).
+    pub policies: Vec<PolicySpec>,
+}
+
+/// The input of trial `i`: with policies, half the trials, balanced over the single/single/pair/control
+/// pattern (blocks of four alternate E P E P and P E P E).
+pub fn trial_input(i: usize, have_policies: bool) -> InputKind {
+    if have_policies && (i + i / 4) % 2 == 1 {
+        InputKind::Policy
+    } else {
+        InputKind::Excitation
+    }
+}
+
+/// The policy input of trial `i` (None for excitation trials): policies alternate, the velocity command is drawn
+/// per trial (vx in [-0.4, 0.8] m/s, vy in [-0.3, 0.3] m/s, wz in [-0.5, 0.5] rad/s).
+pub fn trial_policy(i: usize, opts: &BenchOptions) -> Option<PolicyInput> {
+    if trial_input(i, !opts.policies.is_empty()) != InputKind::Policy {
+        return None;
+    }
+    let spec = opts.policies[(i / 2) % opts.policies.len()].clone();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed ^ 0x005e_ed0f_7011_c1e5 ^ (i as u64).wrapping_mul(0x2545_f491_4f6c_dd1d));
+    let command = [rng.gen_range(-0.4..0.8), rng.gen_range(-0.3..0.3), rng.gen_range(-0.5..0.5)];
+    Some(PolicyInput { spec, command })
 }
 
 /// Number of hidden effects of trial `i`: the pattern single, single, pair, no-effect control repeats.
@@ -353,11 +469,16 @@ pub fn run_trial(
     let (sealed, text) = seal(&labels, &salt)?;
     drop(labels);
     let cfg = RealConfig { effects: fx, seed: opts.seed.wrapping_mul(31).wrapping_add(i as u64), ..RealConfig::new(model, opts.duration, 0) };
-    let log = generate_log(model, &cfg)?;
+    let input = trial_policy(i, opts);
+    let log = generate_log_with(model, &cfg, input.as_ref())?;
     let log = on_log(i, &log)?;
     let report = diagnose(model, &log, &opts.diagnose)?;
     let labels = open(&sealed, &text)?;
-    let s = score(&labels, &report);
+    let mut s = score(&labels, &report);
+    if let Some(p) = &input {
+        s.input = InputKind::Policy;
+        s.policy = Some(format!("{} (vx {:.2}, vy {:.2}, wz {:.2})", p.spec.name, p.command[0], p.command[1], p.command[2]));
+    }
     Ok((sealed, s, report))
 }
 
@@ -409,20 +530,48 @@ pub fn summarize(scores: &[TrialScore]) -> BenchSummary {
     }
 }
 
+/// The results table split by input kind (all / excitation / policy), when both kinds ran.
+pub fn table_by_input(scores: &[TrialScore]) -> String {
+    let all = summarize(scores);
+    let of = |k: InputKind| -> Vec<TrialScore> { scores.iter().filter(|s| s.input == k).cloned().collect() };
+    let (e, p) = (of(InputKind::Excitation), of(InputKind::Policy));
+    if p.is_empty() || e.is_empty() {
+        return table(&all);
+    }
+    let rows = table_rows(&all);
+    let re = table_rows(&summarize(&e));
+    let rp = table_rows(&summarize(&p));
+    let mut t = String::from("| metric | all | excitation plan | policy rollout | target |\n|---|---|---|---|---|\n");
+    for ((a, b), c) in rows.iter().zip(&re).zip(&rp) {
+        t += &format!("| {} | {} | {} | {} | {} |\n", a.0, a.1, b.1, c.1, a.2);
+    }
+    t
+}
+
 /// The results table (Markdown).
 pub fn table(s: &BenchSummary) -> String {
-    let pct = |x: f64| if x.is_nan() { "n/a".to_string() } else { format!("{:.0} %", 100.0 * x) };
     let mut t = String::from("| metric | value | target |\n|---|---|---|\n");
-    t += &format!("| trials (single / pair / control) | {} ({} / {} / {}) | |\n", s.trials, s.singles, s.pairs, s.controls);
-    t += &format!("| top-1 effect, single effects | {} | ≥ 90 % |\n", pct(s.top1_single));
-    t += &format!("| top-3 effect, single effects | {} | |\n", pct(s.top3_single));
-    t += &format!("| both effects in the top 2, pairs | {} | ≥ 70 % |\n", pct(s.both_pairs));
-    t += &format!("| both effects in the top 3, pairs | {} | |\n", pct(s.top3_pairs));
-    t += &format!("| joint/group attribution | {} | |\n", pct(s.joint_accuracy));
-    t += &format!("| median relative parameter error | {:.2} | |\n", s.median_param_error);
-    t += &format!("| confident attributions on no-effect controls | {} | 0 |\n", s.false_confident_controls);
-    t += &format!("| abstention rate, effect trials / controls | {} / {} | |\n", pct(s.abstention_effects), pct(s.abstention_controls));
-    t += &format!("| mean held-out gap reduction (best combination) | {} | |\n", pct(s.mean_held_out_reduction));
-    t += &format!("| mean diagnosis time per log | {:.1} s | |\n", s.mean_diagnose_s);
+    for (m, v, target) in table_rows(s) {
+        t += &format!("| {m} | {v} | {target} |\n");
+    }
     t
+}
+
+/// (metric, value, target) rows of the table.
+fn table_rows(s: &BenchSummary) -> Vec<(String, String, String)> {
+    let pct = |x: f64| if x.is_nan() { "n/a".to_string() } else { format!("{:.0} %", 100.0 * x) };
+    let row = |m: &str, v: String, t: &str| (m.to_string(), v, t.to_string());
+    vec![
+        row("trials (single / pair / control)", format!("{} ({} / {} / {})", s.trials, s.singles, s.pairs, s.controls), ""),
+        row("top-1 effect, single effects", pct(s.top1_single), "≥ 90 %"),
+        row("top-3 effect, single effects", pct(s.top3_single), ""),
+        row("both effects in the top 2, pairs", pct(s.both_pairs), "≥ 70 %"),
+        row("both effects in the top 3, pairs", pct(s.top3_pairs), ""),
+        row("joint/group attribution", pct(s.joint_accuracy), ""),
+        row("median relative parameter error", format!("{:.2}", s.median_param_error), ""),
+        row("confident attributions on no-effect controls", s.false_confident_controls.to_string(), "0"),
+        row("abstention rate, effect trials / controls", format!("{} / {}", pct(s.abstention_effects), pct(s.abstention_controls)), ""),
+        row("mean held-out gap reduction (best combination)", pct(s.mean_held_out_reduction), ""),
+        row("mean diagnosis time per log", format!("{:.1} s", s.mean_diagnose_s), ""),
+    ]
 }

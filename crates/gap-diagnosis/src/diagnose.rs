@@ -2,8 +2,10 @@
 //! (joint, phase, frequency band), fit every effect on training windows, rank by held-out reduction against a
 //! data-derived noise floor, fit the best combination, and attach bootstrap confidence intervals.
 use crate::effects::{EffectKind, Scope};
-use crate::log::RobotLog;
+use crate::floating::{self, Feet, FloatingPlant};
+use crate::log::{Measurement, RobotLog};
 use crate::plant::{imu_reading, joint_groups, predict_window, EngineChoice, Effects, Rig, DT, GROUPS};
+use crate::rig_check::{self, RigCheck};
 use crate::GapError;
 use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
@@ -11,7 +13,9 @@ use robot_model::RobotModel;
 use serde::{Deserialize, Serialize};
 
 /// Schema version of `report.json`.
-pub const SCHEMA_VERSION: &str = "ulab-gap-report/1";
+/// `/2`: adds `outcome` and `rig_check` (the rig-assumption check, see [`crate::rig_check`]).
+/// `/3`: adds `plant` (rig or floating base) and `windows_unsettled`.
+pub const SCHEMA_VERSION: &str = "ulab-gap-report/3";
 
 /// Residual scales (what counts as "one unit" of gap per channel).
 pub const SIGMA_Q: f64 = 2e-3;
@@ -36,6 +40,53 @@ pub struct DiagnoseOptions {
     pub seed: u64,
     /// Restrict the effect library (None: all).
     pub kinds: Option<Vec<EffectKind>>,
+    /// Which plant replays the windows.
+    pub plant: PlantChoice,
+}
+
+/// The plant requested for a diagnosis.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PlantChoice {
+    /// The rig when the log passes the rig-assumption check, the floating base otherwise.
+    #[default]
+    Auto,
+    /// The suspension rig only: a log that fails the rig check is not diagnosed (every effect abstains).
+    Rig,
+    /// The floating base on flat ground ([`crate::floating`]), whatever the rig check says.
+    Floating,
+}
+
+impl PlantChoice {
+    /// Parses `auto`, `rig` or `floating`.
+    pub fn parse(s: &str) -> Result<Self, GapError> {
+        match s {
+            "auto" => Ok(PlantChoice::Auto),
+            "rig" => Ok(PlantChoice::Rig),
+            "floating" => Ok(PlantChoice::Floating),
+            other => Err(GapError::Input(format!("unknown plant {other:?} (auto, rig, floating)"))),
+        }
+    }
+}
+
+/// The plant a diagnosis used.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PlantKind {
+    /// The robot on the suspension rig ([`crate::plant::Rig`]).
+    #[default]
+    Rig,
+    /// The robot on flat ground, base state estimated from the log ([`crate::floating::FloatingPlant`]).
+    Floating,
+}
+
+impl PlantKind {
+    pub fn name(self) -> &'static str {
+        match self {
+            PlantKind::Rig => "rig",
+            PlantKind::Floating => "floating",
+        }
+    }
 }
 
 impl Default for DiagnoseOptions {
@@ -48,6 +99,7 @@ impl Default for DiagnoseOptions {
             bootstrap: 200,
             seed: 1,
             kinds: None,
+            plant: PlantChoice::Auto,
         }
     }
 }
@@ -114,16 +166,41 @@ pub struct Combination {
     pub reduction: Estimate,
 }
 
+/// What the diagnosis concluded about the log as a whole.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum Outcome {
+    /// Effects were fitted and ranked (on the plant in [`Report::plant`]).
+    Diagnosed,
+    /// The rig was requested ([`PlantChoice::Rig`]) but the log is not from a suspended robot (the pelvis moves):
+    /// nothing was fitted, every effect abstained.
+    RigAssumptionViolated,
+}
+
 /// The whole diagnosis.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Report {
     pub schema_version: String,
+    pub outcome: Outcome,
+    /// The rig-assumption check that decided whether the diagnosis could run.
+    pub rig_check: RigCheck,
+    /// The plant that replayed the windows (`/2` reports: always the rig).
+    #[serde(default)]
+    pub plant: PlantKind,
+    /// Floating base only: nominal window starts dropped because no sample within one window length after them
+    /// was settled (every foot in contact had been in contact for [`crate::floating::SETTLE_S`]).
+    #[serde(default)]
+    pub windows_unsettled: usize,
     pub robot: String,
     pub engine: String,
     pub log_duration_s: f64,
     pub windows_train: usize,
     pub windows_held_out: usize,
     pub window_s: f64,
+    /// Fraction of possible window starts not used: no fresh command (older than [`COMMAND_STALE_S`]) or irregular
+    /// state timing (log times straying more than [`TIMING_TOL_S`] from a regular grid) within the window.
+    #[serde(default)]
+    pub windows_skipped_fraction: f64,
     /// Held-out gap metric of the baseline simulator.
     pub baseline_metric: Estimate,
     pub by_joint: Vec<Share>,
@@ -146,10 +223,40 @@ pub struct Report {
 /// Per-window scores: `[window][column]`, columns = joints then the IMU.
 type Scores = Vec<Vec<f64>>;
 
+/// The engine that replays a window: on the rig, or on the ground.
+enum Plant {
+    Rig(Rig),
+    Floating(FloatingPlant),
+}
+
+impl Plant {
+    /// A plant of `kind` for `model` (already carrying the model-level effects of `fx`; `fx` supplies the contact
+    /// time constant of the floating plant).
+    fn new(kind: PlantKind, model: &RobotModel, engine: &EngineChoice, fx: &Effects) -> Result<Self, GapError> {
+        Ok(match kind {
+            PlantKind::Rig => Plant::Rig(Rig::new(model, engine)?),
+            PlantKind::Floating => Plant::Floating(FloatingPlant::new(model, engine, fx)?),
+        })
+    }
+
+    /// The window's predicted measurements ([`crate::plant::predict_window`] or [`floating::predict_window`]).
+    #[allow(clippy::too_many_arguments)]
+    fn predict(&mut self, model: &RobotModel, feet: Option<&Feet>, log: &RobotLog, fx: &Effects, start: usize, len: usize, with_imu: bool) -> Result<Vec<Measurement>, GapError> {
+        match (self, feet) {
+            (Plant::Rig(rig), _) => predict_window(rig, model, log, fx, start, len, with_imu),
+            (Plant::Floating(p), Some(feet)) => floating::predict_window(p, model, feet, log, fx, start, len, with_imu),
+            (Plant::Floating(_), None) => Err(GapError::Input("floating plant without feet".into())),
+        }
+    }
+}
+
 struct Ctx<'a> {
     model: &'a RobotModel,
     log: &'a RobotLog,
     opts: &'a DiagnoseOptions,
+    plant: PlantKind,
+    /// The feet (floating plant only).
+    feet: Option<Feet>,
     starts: Vec<usize>,
     len: usize,
     train: Vec<usize>,
@@ -158,7 +265,7 @@ struct Ctx<'a> {
     sigma_tau: Vec<f64>,
     null: Effects,
     /// Idle engines of the unmodified model.
-    pool: std::sync::Mutex<Vec<Rig>>,
+    pool: std::sync::Mutex<Vec<Plant>>,
 }
 
 impl Ctx<'_> {
@@ -181,7 +288,7 @@ impl Ctx<'_> {
                 let pooled = if baseline_model { self.pool.lock().ok().and_then(|mut p| p.pop()) } else { None };
                 let mut rig = match pooled {
                     Some(r) => r,
-                    None => Rig::new(&model, &self.opts.engine)?,
+                    None => Plant::new(self.plant, &model, &self.opts.engine, fx)?,
                 };
                 let mut out = Vec::with_capacity(ws.len());
                 for &w in ws.iter() {
@@ -204,10 +311,11 @@ impl Ctx<'_> {
     }
 
     /// Normalised squared residual of one window per column; `series` receives the q residual time series.
-    fn window_scores(&self, rig: &mut Rig, model: &RobotModel, fx: &Effects, w: usize, series: Option<&mut Vec<Vec<f64>>>) -> Result<Vec<f64>, GapError> {
+    fn window_scores(&self, rig: &mut Plant, model: &RobotModel, fx: &Effects, w: usize, series: Option<&mut Vec<Vec<f64>>>) -> Result<Vec<f64>, GapError> {
         let nj = self.nj();
         let start = self.starts[w];
-        let pred = predict_window(rig, model, self.log, fx, start, self.len, false)?;
+        let floating = self.plant == PlantKind::Floating;
+        let pred = rig.predict(model, self.feet.as_ref(), self.log, fx, start, self.len, floating)?;
         let mut s = vec![0.0; nj + 1];
         let mut ser = vec![Vec::with_capacity(pred.len()); nj];
         for (k, p) in pred.iter().enumerate() {
@@ -222,7 +330,7 @@ impl Ctx<'_> {
         }
         let n = pred.len().max(1) as f64;
         s.iter_mut().take(nj).for_each(|x| *x /= n);
-        s[nj] = self.imu_score(fx, w)?;
+        s[nj] = if floating { floating_imu_score(self.log, start, &pred) } else { self.imu_score(fx, w)? };
         if let Some(out) = series {
             *out = ser;
         }
@@ -247,6 +355,24 @@ impl Ctx<'_> {
         }
         Ok(s / (6.0 * n.max(1.0)))
     }
+}
+
+/// IMU sample stride of the IMU score (the IMU changes slowly within a window).
+const IMU_STRIDE: usize = 5;
+
+/// Floating base: the IMU residual of a window is the logged reading against the window's predicted one (the
+/// simulated pelvis carries the IMU), at the same samples and in the same units as the rig's [`Ctx::imu_score`].
+fn floating_imu_score(log: &RobotLog, start: usize, pred: &[Measurement]) -> f64 {
+    let (mut s, mut n) = (0.0, 0.0_f64);
+    for k in (1..=pred.len()).step_by(IMU_STRIDE) {
+        let (Some(m), Some(p)) = (log.states.get(start + k), pred.get(k - 1)) else { break };
+        let r = rot_residual(&m.quat, &p.quat);
+        for ((r, gm), gp) in r.iter().zip(&m.gyro).zip(&p.gyro) {
+            s += (r / SIGMA_QUAT).powi(2) + ((gm - gp) / SIGMA_GYRO).powi(2);
+        }
+        n += 1.0;
+    }
+    s / (6.0 * n.max(1.0))
 }
 
 /// Rotation vector taking `pred` to `meas` in the IMU frame.
@@ -329,6 +455,24 @@ fn contacts(model: &RobotModel, log: &RobotLog) -> Vec<(bool, bool)> {
         .collect()
 }
 
+/// Floating base: the phase of the window starting at `start` from the kinematic contact estimate
+/// ([`floating::contact_state`]): "impact" when a touchdown starts within the window (a sample after the start is
+/// not settled), else "stance" (both feet), "swing" (one) or "flight".
+fn floating_phase(model: &RobotModel, feet: &Feet, log: &RobotLog, start: usize, len: usize) -> Result<&'static str, GapError> {
+    let null = Effects::none(model.nj());
+    let (stance, _) = floating::contact_state(model, feet, log, start, &null)?;
+    for k in (IMU_STRIDE..=len).step_by(IMU_STRIDE) {
+        if start + k < log.states.len() && !floating::contact_state(model, feet, log, start + k, &null)?.1 {
+            return Ok("impact");
+        }
+    }
+    Ok(match stance {
+        [true, true] => "stance",
+        [true, false] | [false, true] => "swing",
+        [false, false] => "flight",
+    })
+}
+
 fn phase_of(c: &[(bool, bool)], i: usize) -> &'static str {
     let (l, r) = c[i];
     let before = c[i.saturating_sub(25)];
@@ -383,6 +527,13 @@ fn shares(names: Vec<String>, values: Vec<f64>, counts: Vec<usize>) -> Vec<Share
 pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> Result<Report, GapError> {
     let t_start = std::time::Instant::now();
     log.validate(model.nj())?;
+    let rig = rig_check::check(model, log)?;
+    let plant = match opts.plant {
+        PlantChoice::Rig if !rig.suspended => return Ok(rig_violated(model, log, opts, rig, t_start)),
+        PlantChoice::Rig => PlantKind::Rig,
+        PlantChoice::Auto if rig.suspended => PlantKind::Rig,
+        PlantChoice::Auto | PlantChoice::Floating => PlantKind::Floating,
+    };
     let nj = model.nj();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed);
     // State sample period from the log (median).
@@ -391,12 +542,58 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
     let dt_state = dts.get(dts.len() / 2).copied().unwrap_or(DT).max(DT);
     let len = ((opts.window_s / dt_state).round() as usize).max(2);
     let t0 = log.commands.first().map_or(0.0, |c| c.t);
-    let eligible: Vec<usize> = (0..log.states.len().saturating_sub(len + 1)).filter(|&i| log.states[i].t >= t0 + 0.05).collect();
+    // Windows only where the robot was under command: every state of the window (and its start) has a command at
+    // most COMMAND_STALE_S old (a robot whose commands stopped falls back to damping, which the plant does not model).
+    let age: Vec<f64> = log.states.iter().map(|s| log.command_at(s.t).map_or(f64::INFINITY, |c| s.t - log.commands[c].t)).collect();
+    // ... and where the states kept their rate: the robot publishes at a fixed rate, so a window whose state log
+    // times stray from a regular grid by more than TIMING_TOL_S (range of `t_k - k * dt` over the window) saw the
+    // robot's (or simulator's) loop or the transport stall; the log times there are not the measurement times (a
+    // simulator that falls behind real time publishes a burst of states to catch up).
+    let lag: Vec<f64> = log.states.iter().enumerate().map(|(k, s)| s.t - k as f64 * dt_state).collect();
+    let mut fresh_run = vec![0usize; log.states.len() + 1]; // fresh_run[i]: states from i on with a fresh command
+    for i in (0..log.states.len()).rev() {
+        fresh_run[i] = if age[i] <= COMMAND_STALE_S { fresh_run[i + 1] + 1 } else { 0 };
+    }
+    let regular = |i: usize| {
+        let w = &lag[i..=(i + len).min(lag.len() - 1)];
+        let (lo, hi) = w.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)));
+        hi - lo <= TIMING_TOL_S
+    };
+    let candidates: Vec<usize> = (0..log.states.len().saturating_sub(len + 1)).filter(|&i| log.states[i].t >= t0 + 0.05).collect();
+    let eligible: Vec<usize> = candidates.iter().copied().filter(|&i| fresh_run[i] > len && regular(i)).collect();
+    let skipped_fraction = 1.0 - eligible.len() as f64 / candidates.len().max(1) as f64;
     if eligible.len() < 4 {
         return Err(GapError::Log(format!("the log is too short for {} s windows after the first command", opts.window_s)));
     }
     let count = opts.max_windows.min(eligible.len() / len.max(1)).max(4);
     let starts: Vec<usize> = (0..count).map(|k| eligible[k * eligible.len() / count]).collect();
+    // Floating base: each start moves to the first settled sample within one window length (no foot in a
+    // touchdown transient, where the kinematic base estimate is 10-15 times worse); starts with none are dropped.
+    // This happens before the train/held-out split, so both sides see only settled windows.
+    let feet = if plant == PlantKind::Floating { Some(Feet::of(model)?) } else { None };
+    let mut windows_unsettled = 0;
+    let starts = match &feet {
+        None => starts,
+        Some(feet) => {
+            let null = Effects::none(nj);
+            let usable = |i: usize| i + len + 1 < log.states.len() && fresh_run[i] > len;
+            let mut settled: Vec<usize> = Vec::with_capacity(starts.len());
+            for s in starts {
+                match floating::settled_start(model, feet, log, &null, s, s + len)? {
+                    Some(i) if usable(i) && settled.last().is_none_or(|&p| i > p) => settled.push(i),
+                    _ => windows_unsettled += 1,
+                }
+            }
+            if settled.len() < 4 {
+                return Err(GapError::Log(format!(
+                    "only {} of {} windows start at a settled sample (no foot in a touchdown transient): the log is too short or the feet never settle",
+                    settled.len(),
+                    settled.len() + windows_unsettled
+                )));
+            }
+            settled
+        }
+    };
     let tlog0 = log.states[0].t;
     let (mut train, mut test) = (Vec::new(), Vec::new());
     for (w, &s) in starts.iter().enumerate() {
@@ -414,6 +611,8 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
         model,
         log,
         opts,
+        plant,
+        feet,
         starts,
         len,
         train,
@@ -427,7 +626,7 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
 
     // ---- Where: baseline residual breakdown over every window.
     let all: Vec<usize> = (0..ctx.starts.len()).collect();
-    let mut base_rig = Rig::new(model, &opts.engine)?;
+    let mut base_rig = Plant::new(plant, model, &opts.engine, &null)?;
     let mut base_all: Scores = Vec::with_capacity(all.len());
     let mut band_tot = [0.0; 3];
     let cont = contacts(model, log);
@@ -442,7 +641,11 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
             }
             let _ = j;
         }
-        let e = phase_sum.entry(phase_of(&cont, ctx.starts[w])).or_insert((0.0, 0));
+        let phase = match &ctx.feet {
+            Some(feet) => floating_phase(model, feet, log, ctx.starts[w], len)?,
+            None => phase_of(&cont, ctx.starts[w]),
+        };
+        let e = phase_sum.entry(phase).or_insert((0.0, 0));
         e.0 += total(&s);
         e.1 += 1;
         base_all.push(s);
@@ -481,7 +684,7 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
     let mut fitted: Vec<(EffectKind, Effects)> = Vec::new();
     let mut test_scores: Vec<(EffectKind, Vec<f64>)> = Vec::new();
     for kind in kinds {
-        if !kind.identifiable_suspended() {
+        if plant == PlantKind::Rig && !kind.identifiable_suspended() {
             let any_contact = cont.iter().any(|(l, r)| *l || *r);
             let note = if any_contact {
                 "foot contact is estimated in this log, but the suspended-rig plant has no ground model to fit it on".to_string()
@@ -598,7 +801,7 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
         let mut members = vec![first];
         let mut cur: Vec<f64> = test_scores.iter().find(|(k, _)| *k == first).map(|(_, s)| s.clone()).unwrap_or_default();
         // Conditional results of the effects added after the first: (kind, gain, floor, metric after, refit params).
-        let mut added: Vec<(EffectKind, Estimate, f64, Estimate, Option<Vec<FittedParam>>)> = Vec::new();
+        let mut added: Vec<Conditional> = Vec::new();
         while members.len() < MAX_COMBINATION {
             let cands: Vec<EffectKind> = fitted.iter().map(|(k, _)| *k).filter(|k| !members.contains(k)).collect();
             if cands.is_empty() {
@@ -631,11 +834,11 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
                     let mut t = combo.clone();
                     let mut params = Vec::new();
                     let (lo, hi, v0) = kind.range();
-                    for u in 0..units_of(&ctx, kind).len() {
+                    for (u, &sd) in sds.iter().enumerate().take(units_of(&ctx, kind).len()) {
                         let v = unit_value(kind, &fx, &ctx, u);
                         if (v - v0).abs() >= RESOLUTION_FRAC * (hi - lo) {
                             set_unit(kind, &mut t, &ctx, u, v);
-                            params.push(FittedParam { unit: unit_name(&ctx, kind, u), value: report_value(kind, v), sd: report_value(kind, sds[u]), held_out_reduction: 0.0 });
+                            params.push(FittedParam { unit: unit_name(&ctx, kind, u), value: report_value(kind, v), sd: report_value(kind, sd), held_out_reduction: 0.0 });
                         }
                     }
                     if !params.is_empty() {
@@ -697,12 +900,17 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
     let abstentions: Vec<(EffectKind, String)> = results.iter().filter(|r| !r.named).map(|r| (r.kind, r.note.clone().unwrap_or_default())).collect();
     Ok(Report {
         schema_version: SCHEMA_VERSION.into(),
+        outcome: Outcome::Diagnosed,
+        rig_check: rig,
+        plant,
+        windows_unsettled,
         robot: model.name.clone(),
         engine: opts.engine.name(),
         log_duration_s: log.duration(),
         windows_train: ctx.train.len(),
         windows_held_out: ctx.test.len(),
         window_s: len as f64 * dt_state,
+        windows_skipped_fraction: skipped_fraction,
         baseline_metric,
         by_joint,
         by_group,
@@ -716,6 +924,68 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
         elapsed_s: t_start.elapsed().as_secs_f64(),
     })
 }
+
+/// The report of a log that fails the rig-assumption check: no window replayed, no effect fitted, every effect
+/// abstained with the check's message.
+fn rig_violated(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions, rig: RigCheck, t_start: std::time::Instant) -> Report {
+    let zero = Estimate { value: 0.0, lo: 0.0, hi: 0.0 };
+    let why = format!("not diagnosed: {}", rig.message);
+    let kinds: Vec<EffectKind> = opts.kinds.clone().unwrap_or_else(|| EffectKind::ALL.to_vec());
+    let effects: Vec<EffectResult> = kinds
+        .iter()
+        .map(|&kind| EffectResult {
+            kind,
+            parameter: kind.parameter().into(),
+            scope: kind.scope(),
+            named: false,
+            reduction: zero,
+            metric_after: zero,
+            noise_floor: 0.0,
+            params: vec![],
+            note: Some(why.clone()),
+        })
+        .collect();
+    Report {
+        schema_version: SCHEMA_VERSION.into(),
+        outcome: Outcome::RigAssumptionViolated,
+        rig_check: rig,
+        plant: PlantKind::Rig,
+        windows_unsettled: 0,
+        robot: model.name.clone(),
+        engine: opts.engine.name(),
+        log_duration_s: log.duration(),
+        windows_train: 0,
+        windows_held_out: 0,
+        window_s: opts.window_s,
+        windows_skipped_fraction: 0.0,
+        baseline_metric: zero,
+        by_joint: vec![],
+        by_group: vec![],
+        by_phase: vec![],
+        by_band: vec![],
+        abstentions: kinds.iter().map(|&k| (k, why.clone())).collect(),
+        effects,
+        ranked: vec![],
+        best_combination: None,
+        unexplained: true,
+        elapsed_s: t_start.elapsed().as_secs_f64(),
+    }
+}
+
+/// An effect added to the best combination after the first: kind, conditional reduction, its noise floor, metric
+/// after, refitted parameters.
+type Conditional = (EffectKind, Estimate, f64, Estimate, Option<Vec<FittedParam>>);
+
+/// A window is used only while the latest command is at most this old (s): the robot's command timeout (Unitree's
+/// motors and `ulab sim` fall back to damping after about 0.1 s without a command).
+pub const COMMAND_STALE_S: f64 = 0.1;
+
+/// Largest spread (s) of a window's state log times around a regular grid at the median rate (see `diagnose`).
+pub const TIMING_TOL_S: f64 = 0.005;
+/// State intervals outside `[TIMING_LO, TIMING_HI]` x the median interval are irregular (the rig check's
+/// differentiated accelerometer prediction skips them).
+pub const TIMING_LO: f64 = 0.5;
+pub const TIMING_HI: f64 = 2.0;
 
 /// A unit must cut its own held-out residual by at least this fraction (lower bound of the interval).
 pub const UNIT_FLOOR_FRAC: f64 = 0.10;
@@ -937,15 +1207,29 @@ fn fit_units(ctx: &Ctx<'_>, kind: EffectKind, base: &Effects, base_train: &Score
     Ok((vals, sds))
 }
 
-/// IMU bias or misalignment in closed form: the mean residual on the training windows.
+/// IMU bias or misalignment in closed form: the mean residual on the training windows (rig: the reading predicted
+/// from the logged joints; floating base: the no-effect window prediction, whose base state is estimated from the
+/// IMU itself, so the residual grows from zero at the window start and the fit is conservative).
 fn fit_imu(ctx: &Ctx<'_>, kind: EffectKind) -> Result<(Effects, Vec<f64>), GapError> {
     let null = Effects::none(ctx.nj());
     let mut acc = Vec::new();
+    let mut floating_plant = match ctx.plant {
+        PlantKind::Floating => Some(Plant::new(PlantKind::Floating, ctx.model, &ctx.opts.engine, &null)?),
+        PlantKind::Rig => None,
+    };
     for &w in &ctx.train {
         let start = ctx.starts[w];
-        for k in (1..=ctx.len).step_by(5) {
+        let pred = match floating_plant.as_mut() {
+            Some(p) => Some(p.predict(ctx.model, ctx.feet.as_ref(), ctx.log, &null, start, ctx.len, true)?),
+            None => None,
+        };
+        for k in (1..=ctx.len).step_by(IMU_STRIDE) {
             let Some(m) = ctx.log.states.get(start + k) else { break };
-            let (quat, gyro) = imu_reading(ctx.model, &m.q, &m.dq, &null)?;
+            let (quat, gyro) = match pred.as_ref().and_then(|p| p.get(k - 1)) {
+                Some(p) => (p.quat, p.gyro),
+                None if pred.is_some() => break,
+                None => imu_reading(ctx.model, &m.q, &m.dq, &null)?,
+            };
             acc.push(match kind {
                 EffectKind::ImuBias => [m.gyro[0] - gyro[0], m.gyro[1] - gyro[1], m.gyro[2] - gyro[2]],
                 _ => rot_residual(&m.quat, &quat),

@@ -80,7 +80,7 @@ impl EffectKind {
 
     pub fn scope(self) -> Scope {
         match self {
-            EffectKind::Latency => Scope::Global,
+            EffectKind::Latency | EffectKind::ContactFriction | EffectKind::ContactStiffness => Scope::Global,
             EffectKind::EncoderOffset => Scope::Joint,
             EffectKind::ImuBias | EffectKind::ImuMisalignment => Scope::Imu,
             _ => Scope::Group,
@@ -107,9 +107,9 @@ impl EffectKind {
         }
     }
 
-    /// Needs a new engine (model-level effect).
+    /// Needs a new engine (model-level effect; the contact parameters are built into the engine's ground).
     pub fn model_level(self) -> bool {
-        matches!(self, EffectKind::Armature | EffectKind::LinkMass | EffectKind::LinkCom)
+        matches!(self, EffectKind::Armature | EffectKind::LinkMass | EffectKind::LinkCom | EffectKind::ContactFriction | EffectKind::ContactStiffness)
     }
 
     /// Fitting range `(lo, hi)` and the no-effect value.
@@ -152,7 +152,10 @@ impl EffectKind {
             EffectKind::ImuMisalignment => fx.imu_misalignment[j.min(2)] = v,
             EffectKind::LinkMass => fx.mass_scale[j] = v,
             EffectKind::LinkCom => fx.com_shift[j] = v,
-            EffectKind::ContactFriction | EffectKind::ContactStiffness => {}
+            // Kept physical when a fit steps past the range's end (a coefficient > 0; MuJoCo needs a time constant of
+            // at least two timesteps).
+            EffectKind::ContactFriction => fx.contact_friction = Some(v.max(0.05)),
+            EffectKind::ContactStiffness => fx.contact_timeconst = Some(v.max(2.0 * crate::plant::DT)),
         }
     }
 
@@ -171,7 +174,9 @@ impl EffectKind {
             EffectKind::ImuMisalignment => fx.imu_misalignment[j.min(2)],
             EffectKind::LinkMass => fx.mass_scale[j],
             EffectKind::LinkCom => fx.com_shift[j],
-            EffectKind::ContactFriction | EffectKind::ContactStiffness => self.range().2,
+            // `None`: the model's / engine's value, which is the range's no-effect value.
+            EffectKind::ContactFriction => fx.contact_friction.unwrap_or(self.range().2),
+            EffectKind::ContactStiffness => fx.contact_timeconst.unwrap_or(self.range().2),
         }
     }
 

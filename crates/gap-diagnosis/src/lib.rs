@@ -2,8 +2,10 @@
 //!
 //! * [`log`]: the robot log (MCAP as `ulab record` writes it, or CSV);
 //! * [`plant`]: engine on a suspension rig + actuator/sensor effect layer + model-level effects;
+//! * [`floating`]: the robot on the ground (floating base): base-state estimate from a log sample, plant, windows;
 //! * [`effects`]: the effect library (parameters, ranges, scopes);
 //! * [`diagnose`]: where the gap lies, which effect explains it, how much it shrinks (held-out, with intervals);
+//! * [`rig_check`]: does the log fit the rig assumption (pelvis held still)? Otherwise the diagnosis abstains;
 //! * [`excite`]: safe excitation plans; [`bench`]: the blind benchmark; [`report`]: Markdown, JSON and SVG plots.
 #![forbid(unsafe_code)]
 
@@ -11,11 +13,13 @@ pub mod bench;
 pub mod diagnose;
 pub mod effects;
 pub mod excite;
+pub mod floating;
 pub mod log;
 pub mod plant;
 pub mod report;
+pub mod rig_check;
 
-pub use diagnose::{diagnose, DiagnoseOptions, Report};
+pub use diagnose::{diagnose, DiagnoseOptions, Outcome, Report};
 pub use effects::EffectKind;
 pub use log::RobotLog;
 

@@ -10,16 +10,16 @@
 use crate::log::{Command, Measurement, RobotLog};
 use crate::GapError;
 use diff_physics::mujoco::{MujocoEngine, MujocoSettings};
-use diff_physics::{CommonSettings, Engine, State};
+use diff_physics::{Engine, State};
 use nalgebra::{UnitQuaternion, Vector3};
 use robot_model::{GenCoords, RobotModel};
 
 /// Physics timestep (s).
 pub const DT: f64 = 0.002;
-/// Pelvis position on the stand (m).
-pub const RIG_BASE_POS: [f64; 3] = [0.0, 0.0, 2.0];
+/// Pelvis position on the stand (m); the stand is defined once, in [`sim_bridge::suspension`] (also `ulab sim --hang`).
+pub const RIG_BASE_POS: [f64; 3] = sim_bridge::suspension::BASE_POS;
 /// Mass and inertia multiplier of the pelvis on the stand.
-pub const RIG_PELVIS_SCALE: f64 = 1000.0;
+pub const RIG_PELVIS_SCALE: f64 = sim_bridge::suspension::PELVIS_SCALE;
 /// Velocity scale of the smooth Coulomb law (rad/s): `tanh(dq / COULOMB_EPS)`.
 pub const COULOMB_EPS: f64 = 0.05;
 
@@ -105,6 +105,14 @@ pub struct Effects {
     pub mass_scale: Vec<f64>,
     /// COM shift along the link's z axis (m), per joint's child link (model-level).
     pub com_shift: Vec<f64>,
+    /// Foot-ground Coulomb friction coefficient (model-level; `None`: the model's value). Acts only in a plant with
+    /// ground contact ([`crate::floating::FloatingPlant`]).
+    #[serde(default)]
+    pub contact_friction: Option<f64>,
+    /// Foot-ground contact time constant (s), MuJoCo's `solref[0]`: larger is softer (engine-level; `None`: the
+    /// engine's default). Acts only in a plant with ground contact.
+    #[serde(default)]
+    pub contact_timeconst: Option<f64>,
 }
 
 impl Effects {
@@ -122,12 +130,18 @@ impl Effects {
             armature_scale: vec![1.0; nj],
             mass_scale: vec![1.0; nj],
             com_shift: vec![0.0; nj],
+            contact_friction: None,
+            contact_timeconst: None,
         }
     }
 
     /// Whether the model-level parts differ from `other` (then a new engine is needed).
     pub fn same_model(&self, other: &Effects) -> bool {
-        self.armature_scale == other.armature_scale && self.mass_scale == other.mass_scale && self.com_shift == other.com_shift
+        self.armature_scale == other.armature_scale
+            && self.mass_scale == other.mass_scale
+            && self.com_shift == other.com_shift
+            && self.contact_friction == other.contact_friction
+            && self.contact_timeconst == other.contact_timeconst
     }
 
     /// The robot model with the model-level effects applied.
@@ -142,6 +156,9 @@ impl Effects {
             l.inertial.mass *= self.mass_scale[j];
             l.inertial.inertia *= self.mass_scale[j];
             l.inertial.com.z += self.com_shift[j];
+        }
+        if let Some(mu) = self.contact_friction {
+            m.contact.friction = mu;
         }
         m
     }
@@ -160,15 +177,10 @@ pub struct Rig {
 impl Rig {
     /// Builds the rig for `model` (already carrying the model-level effects).
     pub fn new(model: &RobotModel, choice: &EngineChoice) -> Result<Self, GapError> {
-        let common = CommonSettings { ground: false, collisions: false, ..CommonSettings::default() };
+        let common = sim_bridge::suspension::settings(DT);
         let settings = MujocoSettings { integrator: choice.integrator.clone(), ..MujocoSettings::default() };
-        // The stand: the pelvis is made RIG_PELVIS_SCALE times heavier (a rigid mount), so the spring that holds it
-        // can be stiff and still be integrated stably, and the limbs' reactions barely move it.
-        let mut rigged = model.clone();
-        if let Some(root) = rigged.links.iter_mut().find(|l| l.parent_joint.is_none()) {
-            root.inertial.mass *= RIG_PELVIS_SCALE;
-            root.inertial.inertia *= RIG_PELVIS_SCALE;
-        }
+        // The stand (sim_bridge::suspension): a RIG_PELVIS_SCALE times heavier pelvis held by a stiff spring.
+        let rigged = sim_bridge::suspension::suspended_model(model);
         let engine = MujocoEngine::new(&rigged, &common, &settings).map_err(|e| GapError::Engine(e.to_string()))?;
         Ok(Rig {
             engine,
@@ -181,14 +193,7 @@ impl Rig {
 
     /// Puts the robot on the stand with these joint angles and speeds (true, not measured, values).
     pub fn reset(&mut self, q: &[f64], dq: &[f64]) -> Result<(), GapError> {
-        let s = State {
-            base_pos: RIG_BASE_POS,
-            base_quat: [1.0, 0.0, 0.0, 0.0],
-            q: q.to_vec(),
-            base_lin_vel: [0.0; 3],
-            base_ang_vel: [0.0; 3],
-            dq: dq.to_vec(),
-        };
+        let s = sim_bridge::suspension::state_on_stand(q, dq);
         self.engine.reset(&s).map_err(|e| GapError::Engine(e.to_string()))
     }
 
@@ -202,52 +207,53 @@ impl Rig {
     /// `tau_est` reports).
     pub fn step(&mut self, cmd: &Command, fx: &Effects) -> Result<&[f64], GapError> {
         let s = self.engine.state();
-        for j in 0..self.tau.len() {
-            let qm = s.q[j] + fx.encoder_offset[j];
-            let g = fx.gain_scale[j];
-            let mut e = cmd.q[j] - qm;
-            let half = 0.5 * fx.backlash[j];
-            e = if e > half { e - half } else if e < -half { e + half } else { 0.0 };
-            let raw = cmd.tau[j] + g * cmd.kp[j] * e + g * cmd.kd[j] * (cmd.dq[j] - s.dq[j]);
-            let mut lim = self.torque_limit[j];
-            if fx.torque_scale[j] != 1.0 {
-                let speed = (2.0 * (1.0 - s.dq[j].abs() / self.speed_limit[j])).clamp(0.0, 1.0);
-                lim *= fx.torque_scale[j] * speed;
-            }
-            self.tau[j] = raw.clamp(-lim, lim);
-        }
-        let mut joint_tau = self.tau.clone();
-        for (j, t) in joint_tau.iter_mut().enumerate() {
-            let v = s.dq[j];
-            let stiction = 1.0 + 0.5 * (-(v / (2.0 * COULOMB_EPS)).powi(2)).exp();
-            *t -= fx.damping[j] * v + fx.coulomb[j] * stiction * (v / COULOMB_EPS).tanh();
-        }
+        let joint_tau = actuator_torques(cmd, fx, &s.q, &s.dq, &self.torque_limit, &self.speed_limit, &mut self.tau);
         self.hold_base(&s);
         self.engine.step(&joint_tau).map_err(|e| GapError::Engine(e.to_string()))?;
         Ok(&self.tau)
     }
 
     fn hold_base(&mut self, s: &State) {
-        const K: f64 = 1e7;
-        const D: f64 = 1e5;
-        const KR: f64 = 1e6;
-        const DR: f64 = 3e3;
-        let q = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(s.base_quat[0], s.base_quat[1], s.base_quat[2], s.base_quat[3]));
-        let rotvec = q.scaled_axis(); // target orientation is identity
-        let d = self.engine.raw_data();
-        let f = d.qfrc_applied_mut();
-        for k in 0..3 {
-            f[k] = -K * (s.base_pos[k] - RIG_BASE_POS[k]) - D * s.base_lin_vel[k];
-            // Rotational dofs are in the pelvis frame; rotvec is in the world frame (= pelvis frame to first order).
-            f[3 + k] = -KR * rotvec[k] - DR * s.base_ang_vel[k];
-        }
-        f[2] += self.weight;
+        let w = sim_bridge::suspension::base_wrench(s, self.weight);
+        self.engine.raw_data().qfrc_applied_mut()[..6].copy_from_slice(&w);
     }
 }
 
-/// IMU reading on the torso for joint state `(q, dq)` with the pelvis on the stand: quaternion (IMU-to-world) and
-/// gyroscope (IMU frame). Effects: misalignment then bias.
-pub fn imu_reading(model: &RobotModel, q: &[f64], dq: &[f64], fx: &Effects) -> Result<([f64; 4], [f64; 3]), GapError> {
+/// The actuator effect layer, one definition for every plant (the suspension [`Rig`] and
+/// [`crate::floating::FloatingPlant`]): the PD law on the encoder reading (encoder offset) with scaled gains and a
+/// backlash dead band on the position error, clamped to the torque limit (scaled, with the torque-speed line, when
+/// `torque_scale` is not 1). The result is the motor torque, written to `motor` (what `tau_est` reports); the
+/// returned joint torque is that minus the extra viscous damping and Coulomb friction with stiction. `q`, `dq` are
+/// the true joint state; command latency is applied by the caller when it picks the command.
+pub fn actuator_torques(cmd: &Command, fx: &Effects, q: &[f64], dq: &[f64], torque_limit: &[f64], speed_limit: &[f64], motor: &mut [f64]) -> Vec<f64> {
+    for j in 0..motor.len() {
+        let qm = q[j] + fx.encoder_offset[j];
+        let g = fx.gain_scale[j];
+        let mut e = cmd.q[j] - qm;
+        let half = 0.5 * fx.backlash[j];
+        e = if e > half { e - half } else if e < -half { e + half } else { 0.0 };
+        let raw = cmd.tau[j] + g * cmd.kp[j] * e + g * cmd.kd[j] * (cmd.dq[j] - dq[j]);
+        let mut lim = torque_limit[j];
+        if fx.torque_scale[j] != 1.0 {
+            let speed = (2.0 * (1.0 - dq[j].abs() / speed_limit[j])).clamp(0.0, 1.0);
+            lim *= fx.torque_scale[j] * speed;
+        }
+        motor[j] = raw.clamp(-lim, lim);
+    }
+    let mut joint_tau = motor.to_vec();
+    for (j, t) in joint_tau.iter_mut().enumerate() {
+        let v = dq[j];
+        let stiction = 1.0 + 0.5 * (-(v / (2.0 * COULOMB_EPS)).powi(2)).exp();
+        *t -= fx.damping[j] * v + fx.coulomb[j] * stiction * (v / COULOMB_EPS).tanh();
+    }
+    joint_tau
+}
+
+/// Pose of the IMU site relative to the pelvis for joint angles `q`, and the site's angular velocity relative to the
+/// pelvis for joint speeds `dq`, in the pelvis frame (finite difference of the kinematics). The one place of the
+/// torso-IMU-to-pelvis kinematics: the IMU model below and the floating-base estimate
+/// ([`crate::floating::estimate_base`]) both use it.
+pub fn imu_site_relative(model: &RobotModel, q: &[f64], dq: &[f64]) -> Result<(UnitQuaternion<f64>, Vector3<f64>), GapError> {
     const EPS: f64 = 1e-6;
     let [w, x, y, z] = model.imu.quat;
     let site = nalgebra::Isometry3::from_parts(
@@ -261,11 +267,32 @@ pub fn imu_reading(model: &RobotModel, q: &[f64], dq: &[f64], fx: &Effects) -> R
     };
     let p0 = pose(q.to_vec())?;
     let p1 = pose(q.iter().zip(dq).map(|(a, b)| a + b * EPS).collect())?;
-    let w_world = (p1.rotation * p0.rotation.inverse()).scaled_axis() / EPS;
+    let w_rel = (p1.rotation * p0.rotation.inverse()).scaled_axis() / EPS;
+    Ok((p0.rotation, w_rel))
+}
+
+/// IMU reading on the torso for joint state `(q, dq)` with the pelvis on the stand: quaternion (IMU-to-world) and
+/// gyroscope (IMU frame). Effects: misalignment then bias.
+pub fn imu_reading(model: &RobotModel, q: &[f64], dq: &[f64], fx: &Effects) -> Result<([f64; 4], [f64; 3]), GapError> {
+    let (rel, w_world) = imu_site_relative(model, q, dq)?;
+    Ok(imu_from_site(rel, w_world, fx))
+}
+
+/// IMU reading for a free pelvis: orientation `base_quat` (`[w, x, y, z]`, pelvis-to-world) and angular velocity
+/// `base_ang_vel` (pelvis frame), as [`imu_reading`] otherwise.
+pub fn imu_reading_floating(model: &RobotModel, base_quat: [f64; 4], base_ang_vel: [f64; 3], q: &[f64], dq: &[f64], fx: &Effects) -> Result<([f64; 4], [f64; 3]), GapError> {
+    let (rel, w_rel) = imu_site_relative(model, q, dq)?;
+    let [w, x, y, z] = base_quat;
+    let rb = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(w, x, y, z));
+    Ok(imu_from_site(rb * rel, rb * (Vector3::from(base_ang_vel) + w_rel), fx))
+}
+
+/// The IMU's sensor effects on the site's world orientation and world angular velocity: misalignment then bias.
+fn imu_from_site(site_rot: UnitQuaternion<f64>, w_world: Vector3<f64>, fx: &Effects) -> ([f64; 4], [f64; 3]) {
     let mis = UnitQuaternion::from_scaled_axis(Vector3::from(fx.imu_misalignment));
-    let r = p0.rotation * mis;
+    let r = site_rot * mis;
     let gyro = r.inverse() * w_world + Vector3::from(fx.imu_gyro_bias);
-    Ok(([r.w, r.i, r.j, r.k], gyro.into()))
+    ([r.w, r.i, r.j, r.k], gyro.into())
 }
 
 /// Replays `log`'s commands from the measured state at state index `start` for `len` state samples; returns the
@@ -282,39 +309,50 @@ pub fn predict_window(
     let s0 = &log.states[start];
     let q0: Vec<f64> = s0.q.iter().zip(&fx.encoder_offset).map(|(q, o)| q - o).collect();
     rig.reset(&q0, &s0.dq)?;
+    replay_window(rig, log, fx, start, len, &idle_command(model, &q0), |rig, cmd| rig.step(cmd, fx).map(<[f64]>::to_vec), |rig, t, tau| {
+        let (q, dq) = rig.joints();
+        let (quat, gyro) = if with_imu { imu_reading(model, &q, &dq, fx)? } else { ([1.0, 0.0, 0.0, 0.0], [0.0; 3]) };
+        Ok(Measurement { t, q: q.iter().zip(&fx.encoder_offset).map(|(q, o)| q + o).collect(), dq, tau: tau.to_vec(), quat, gyro, acc: [0.0; 3] })
+    })
+}
+
+/// The replay loop every plant shares: from state sample `start`, steps `plant` (`step` returns the motor torque)
+/// with the command in force `latency` earlier (or `idle` before the first command) up to each of the next `len`
+/// state samples, and records `measure(plant, t, last motor torque)` there.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn replay_window<P>(
+    plant: &mut P,
+    log: &RobotLog,
+    fx: &Effects,
+    start: usize,
+    len: usize,
+    idle: &Command,
+    mut step: impl FnMut(&mut P, &Command) -> Result<Vec<f64>, GapError>,
+    mut measure: impl FnMut(&mut P, f64, &[f64]) -> Result<Measurement, GapError>,
+) -> Result<Vec<Measurement>, GapError> {
+    let s0 = log.states.get(start).ok_or_else(|| GapError::Input(format!("window start {start} beyond the log's {} states", log.states.len())))?;
     let mut out = Vec::with_capacity(len);
     let mut t = s0.t;
     let mut last_tau = s0.tau.clone();
     let lat = fx.latency_steps as f64 * DT;
-    let idle = idle_command(model, &q0);
     for k in 1..=len {
         let Some(target) = log.states.get(start + k) else { break };
         let steps = ((target.t - t) / DT).round().max(0.0) as usize;
         for _ in 0..steps {
             let cmd = match log.command_at(t - lat + 1e-9) {
                 Some(i) => &log.commands[i],
-                None => &idle,
+                None => idle,
             };
-            last_tau.copy_from_slice(rig.step(cmd, fx)?);
+            last_tau = step(plant, cmd)?;
             t += DT;
         }
-        let (q, dq) = rig.joints();
-        let (quat, gyro) = if with_imu { imu_reading(model, &q, &dq, fx)? } else { ([1.0, 0.0, 0.0, 0.0], [0.0; 3]) };
-        out.push(Measurement {
-            t: target.t,
-            q: q.iter().zip(&fx.encoder_offset).map(|(q, o)| q + o).collect(),
-            dq,
-            tau: last_tau.clone(),
-            quat,
-            gyro,
-            acc: [0.0; 3],
-        });
+        out.push(measure(plant, target.t, &last_tau)?);
     }
     Ok(out)
 }
 
 /// Zero-gain command (before the first logged command).
-fn idle_command(model: &RobotModel, q: &[f64]) -> Command {
+pub(crate) fn idle_command(model: &RobotModel, q: &[f64]) -> Command {
     let n = model.nj();
     Command { t: 0.0, q: q.to_vec(), dq: vec![0.0; n], kp: vec![0.0; n], kd: vec![0.0; n], tau: vec![0.0; n] }
 }

@@ -19,14 +19,66 @@ fn share_table(title: &str, v: &[Share], top: usize) -> String {
 /// The human-readable report.
 pub fn markdown(r: &Report) -> String {
     let mut s = format!("# Sim-to-real gap diagnosis ({})\n\n", r.robot);
+    let floating = r.plant == crate::diagnose::PlantKind::Floating;
+    let plant = if floating { "on flat ground (floating base, plant `floating`)" } else { "on the suspension rig (plant `rig`)" };
     s += &format!(
-        "Simulator: `{}` on the suspension rig. Log: {:.1} s; {} training and {} held-out windows of {:.3} s. \
+        "Simulator: `{}` {plant}. Log: {:.1} s; {} training and {} held-out windows of {:.3} s. \
          Gap metric = mean normalised squared residual per window (q / 2 mrad, dq / 0.1 rad/s, tau / 1 % of the limit, IMU), \
          summed over joints and the IMU.\n\n",
         r.engine, r.log_duration_s, r.windows_train, r.windows_held_out, r.window_s
     );
+    if floating {
+        s += &format!(
+            "Windows: settled starts only. Each window starts from a pelvis state estimated from the log (torso IMU through \
+             the joint kinematics; height and velocity from the feet in contact, assumed on flat ground at rest), moved \
+             to the first sample where every foot in contact has been so for {:.2} s: inside a touchdown transient the \
+             estimate is 10-15 times worse. {} nominal window starts had no settled sample within one window and were dropped.\n\n",
+            crate::floating::SETTLE_S,
+            r.windows_unsettled
+        );
+    }
+    if r.windows_skipped_fraction > 0.0 {
+        s += &format!(
+            "{:.1} % of the possible windows were not used (no command in the last 0.1 s, or irregular state timing: log times straying more than 5 ms from a regular grid).\n\n",
+            100.0 * r.windows_skipped_fraction
+        );
+    }
     s += &format!("**Baseline held-out gap metric:** {}\n\n", est(&r.baseline_metric));
     s += "## Verdict\n\n";
+    if r.outcome == crate::diagnose::Outcome::RigAssumptionViolated {
+        let c = &r.rig_check;
+        s += &format!(
+            "**Rig assumption violated — {}.** Every effect abstained: the diagnosis replays the log on a robot whose \
+             pelvis is held still, and this log's torso IMU does not follow its joints as it would on such a rig. \
+             A standing or walking robot's log is diagnosed on the floating base with `--plant auto` (the default) or `--plant floating`.\n\n",
+            c.message
+        );
+        s += &format!(
+            "| check | deviation beyond the rig's prediction (95th percentile / max) | threshold | noise sd (estimated) |\n|---|---|---|---|\n\
+             | orientation | {:.2} / {:.2} deg | {:.2} deg | {:.4} deg |\n\
+             | gyroscope | {:.3} / {:.3} rad/s | {:.3} rad/s | {:.4} rad/s |\n\
+             | accelerometer | {} | {:.2} m/s² | {:.3} m/s² |\n\n\
+             Samples beyond a threshold: {:.1} % (allowed {:.0} %). Constants removed first (what the library fits): rotation {:.2} deg, \
+             gyroscope offset {:.3} rad/s.\n",
+            c.p95_orientation_deg,
+            c.max_orientation_deg,
+            c.threshold_orientation_rad.to_degrees(),
+            c.noise_orientation_rad.to_degrees(),
+            c.p95_gyro_rad_s,
+            c.max_gyro_rad_s,
+            c.threshold_gyro_rad_s,
+            c.noise_gyro_rad_s,
+            if c.acc_checked { format!("{:.2} m/s² (95th percentile)", c.p95_acc_m_s2) } else { "not checked (all-zero in the log)".into() },
+            c.threshold_acc_m_s2,
+            c.noise_acc_m_s2,
+            100.0 * c.violating_fraction,
+            100.0 * crate::rig_check::MAX_VIOLATING_FRACTION,
+            nalgebra::Vector3::from(c.constant_rotation_rad).norm().to_degrees(),
+            nalgebra::Vector3::from(c.constant_gyro_rad_s).norm(),
+        );
+        return s;
+    }
+    s += &format!("Rig-assumption check: {}.\n\n", r.rig_check.message);
     if r.unexplained {
         s += "No effect clears the noise floor on held-out windows: **the gap is unexplained** by the effect library (abstention).\n\n";
     } else {
@@ -45,7 +97,12 @@ pub fn markdown(r: &Report) -> String {
     s += "## Where the gap lies (baseline)\n\n";
     s += &share_table("By joint group", &r.by_group, 10);
     s += &share_table("By joint (top 10)", &r.by_joint, 10);
-    s += &share_table("By phase (foot contact estimated from knee torque)", &r.by_phase, 10);
+    let phase_title = if floating {
+        "By phase (foot contact from the kinematic stance estimate; impact: a touchdown within the window)"
+    } else {
+        "By phase (foot contact estimated from knee torque)"
+    };
+    s += &share_table(phase_title, &r.by_phase, 10);
     s += &share_table("By frequency band (joint position residual)", &r.by_band, 10);
     s += "## Which effect (held-out windows)\n\n| rank | effect | named | relative reduction [95 % CI] | noise floor | metric after | parameters (unit: value ± sd) |\n|---|---|---|---|---|---|---|\n";
     for (i, e) in r.effects.iter().enumerate() {

@@ -13,10 +13,14 @@
 //!   the torso (quaternion w,x,y,z; gyroscope in the IMU frame; accelerometer = specific force
 //!   `R^T (a - g)`, so +9.81 m/s² on z at rest), `tick` in ms and a correct CRC.
 //!
+//! [`suspension`] holds the robot on a stiff stand (pelvis still, feet in the air) for `ulab sim --hang`; the gap
+//! diagnosis's rig uses the same stand.
+//!
 //! DDS, timing and status lines live in the `ulab sim` command; tests drive this directly.
 #![forbid(unsafe_code)]
 
 mod imu;
+pub mod suspension;
 
 use diff_physics::{pd, Engine, EngineError, PdTarget, State};
 use lowlevel_codec::{cdr, crc, validate, DecodeError};

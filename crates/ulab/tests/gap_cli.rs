@@ -59,7 +59,7 @@ fn simulated_log_is_a_recording_and_diagnose_finds_the_effect() {
     let (code, out, err) = ulab(&["gap", "diagnose", "--log", log.to_str().unwrap_or(""), "--robot", "h1_2", "--out", out_dir.to_str().unwrap_or(""), "--format", "json", "--block", "0.5"]);
     assert_eq!(code, Some(0), "diagnose failed:\n{}\n{err}", tail(&out));
     let r: serde_json::Value = serde_json::from_str(&out).expect("JSON report on stdout");
-    assert_eq!(r["schema_version"], "ulab-gap-report/1");
+    assert_eq!(r["schema_version"], gap_diagnosis::diagnose::SCHEMA_VERSION);
     assert_eq!(r["ranked"][0], "damping", "ranked {}", r["ranked"]);
     for f in ["report.md", "report.json", "by_joint.svg", "effects.svg"] {
         assert!(out_dir.join(f).is_file(), "{f} missing");

@@ -1,14 +1,21 @@
 //! `ulab gap`: sim-to-real gap diagnosis (the work is in the `gap-diagnosis` crate).
 //!
-//! - `ulab gap diagnose --log real.mcap --robot h1_2 [--engine E] --out DIR [--format json]`
+//! - `ulab gap diagnose --log real.mcap --robot h1_2 [--engine E] [--plant auto|rig|floating] --out DIR [--format json]`;
+//!   exit 0 diagnosed, 3 with `--plant rig` the log is not from a suspended robot (rig-assumption check; report
+//!   written, every effect abstained), 2 error. `--plant auto` (default) diagnoses such a log on the floating base.
 //! - `ulab gap excite --robot h1_2 --out plan.mcap [--duration S] [--rate HZ]`
 //! - `ulab gap simulate --robot h1_2 --out real.mcap [--effect KIND:UNIT:VALUE]...`: a log of the benchmark's
 //!   reference plant (demo and test logs)
-//! - `ulab gap bench [--trials N] [--seed S] [--duration S] [--out DIR]`
+//! - `ulab gap bench [--trials N] [--seed S] [--duration S] [--out DIR] [--policy SPEC.toml]...`
 use anyhow::{bail, Context, Result};
 use gap_diagnosis::bench::{self, BenchOptions, RealConfig};
 use gap_diagnosis::plant::{joint_groups, EngineChoice, GROUPS};
-use gap_diagnosis::{effects::Scope, DiagnoseOptions, EffectKind, RobotLog};
+use gap_diagnosis::diagnose::PlantChoice;
+use gap_diagnosis::{effects::Scope, DiagnoseOptions, EffectKind, Outcome, RobotLog};
+
+/// Exit code of `ulab gap diagnose` when the log fails the rig-assumption check (not from a suspended robot):
+/// the report is written, every effect abstained. 2 stays "error", 0 "diagnosed" (named effects or not).
+pub const EXIT_RIG_VIOLATED: u8 = 3;
 use robot_model::RobotModel;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -43,6 +50,10 @@ struct DiagnoseArgs {
     /// Diagnosing simulator: mujoco (implicitfast), mujoco-rk4, mujoco-euler, mujoco-implicit.
     #[arg(long, default_value = "mujoco")]
     engine: String,
+    /// Plant: rig (suspended robot), floating (standing/walking on flat ground, base state estimated from the log),
+    /// or auto: the rig when the log passes the rig-assumption check, floating otherwise.
+    #[arg(long, default_value = "auto", value_parser = ["auto", "rig", "floating"])]
+    plant: String,
     /// Output directory (report.md, report.json, SVG plots).
     #[arg(long)]
     out: PathBuf,
@@ -114,6 +125,11 @@ struct BenchArgs {
     out: Option<PathBuf>,
     #[arg(long, default_value = "text", value_parser = ["text", "json"])]
     format: String,
+    /// Policy spec TOML (e.g. robots/h1_2/policies/gepetto_demo_rsl.toml); repeatable. With policies, half the
+    /// trials are driven by a policy rollout (legs; torso and arms follow the excitation plan), the others by the
+    /// excitation plan.
+    #[arg(long)]
+    policy: Vec<PathBuf>,
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
@@ -160,12 +176,27 @@ fn diagnose(a: DiagnoseArgs) -> Result<ExitCode> {
         bail!("--window and --block must be positive numbers of seconds");
     }
     let log = read_log(&a.log, &model)?;
-    let opts = DiagnoseOptions { engine, window_s: a.window, max_windows: a.max_windows.max(4), block_s: a.block, seed: a.seed, ..Default::default() };
+    let plant = PlantChoice::parse(&a.plant).context("--plant")?;
+    let opts = DiagnoseOptions { engine, window_s: a.window, max_windows: a.max_windows.max(4), block_s: a.block, seed: a.seed, plant, ..Default::default() };
     let report = gap_diagnosis::diagnose(&model, &log, &opts).context("diagnosing")?;
     gap_diagnosis::report::write_all(&report, &a.out).context("writing the report")?;
+    let violated = report.outcome == Outcome::RigAssumptionViolated;
+    if violated {
+        eprintln!("gap diagnose: ABSTAINED (exit {EXIT_RIG_VIOLATED}): {}", report.rig_check.message);
+    }
     if a.format == "json" {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
+        if !violated {
+            let why = if report.rig_check.suspended { "the log passes the rig-assumption check" } else { "the log is not from a suspended robot" };
+            println!(
+                "plant {} ({why}); {} training + {} held-out windows{}",
+                report.plant.name(),
+                report.windows_train,
+                report.windows_held_out,
+                if report.windows_unsettled > 0 { format!(" ({} starts in touchdown transients dropped)", report.windows_unsettled) } else { String::new() }
+            );
+        }
         println!("baseline held-out gap metric {:.3} [{:.3}, {:.3}]", report.baseline_metric.value, report.baseline_metric.lo, report.baseline_metric.hi);
         if report.unexplained {
             println!("no effect clears the noise floor: the gap is unexplained (abstention)");
@@ -183,7 +214,7 @@ fn diagnose(a: DiagnoseArgs) -> Result<ExitCode> {
         }
         println!("report: {}", a.out.join("report.md").display());
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(if violated { ExitCode::from(EXIT_RIG_VIOLATED) } else { ExitCode::SUCCESS })
 }
 
 fn excite(a: ExciteArgs) -> Result<ExitCode> {
@@ -271,7 +302,18 @@ fn bench_cmd(a: BenchArgs) -> Result<ExitCode> {
         None => std::env::temp_dir().join(format!("ulab-gap-bench-{}", std::process::id())),
     };
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
-    let opts = BenchOptions { trials: a.trials, seed: a.seed, duration: a.duration, diagnose: DiagnoseOptions { seed: a.seed, ..Default::default() } };
+    let policies = a
+        .policy
+        .iter()
+        .map(|p| {
+            let spec = policy_runtime::PolicySpec::load(p).with_context(|| format!("loading policy spec {}", p.display()))?;
+            spec.check_robot(&model).with_context(|| format!("policy spec {} does not fit {}", p.display(), a.robot))?;
+            // Fail now rather than mid-benchmark when the model file is missing or unsupported.
+            policy_runtime::PolicyController::from_spec(spec.clone()).with_context(|| format!("loading the policy of {}", p.display()))?;
+            Ok(spec)
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let opts = BenchOptions { trials: a.trials, seed: a.seed, duration: a.duration, diagnose: DiagnoseOptions { seed: a.seed, ..Default::default() }, policies };
     let mut scores = Vec::new();
     let mut seals = Vec::new();
     let started = std::time::Instant::now();
@@ -287,7 +329,8 @@ fn bench_cmd(a: BenchArgs) -> Result<ExitCode> {
         let (seal, score, report) = bench::run_trial(&model, i, &opts, &mut via_mcap).with_context(|| format!("trial {i}"))?;
         gap_diagnosis::report::write_all(&report, &dir.join(format!("trial_{i:03}"))).context("writing a trial report")?;
         eprintln!(
-            "trial {i}: injected [{}] -> ranked [{}] ({:.1} s)",
+            "trial {i} ({}): injected [{}] -> ranked [{}] ({:.1} s)",
+            score.policy.as_deref().unwrap_or("excitation plan"),
             score.injected.iter().map(|x| format!("{}@{}={:.3}", x.kind.name(), x.unit, x.value)).collect::<Vec<_>>().join(", "),
             score.ranked.iter().map(|k| k.name()).collect::<Vec<_>>().join(", "),
             score.diagnose_s
@@ -296,7 +339,7 @@ fn bench_cmd(a: BenchArgs) -> Result<ExitCode> {
         scores.push(score);
     }
     let summary = bench::summarize(&scores);
-    let table = bench::table(&summary);
+    let table = bench::table_by_input(&scores);
     std::fs::write(dir.join("seals.json"), serde_json::to_string_pretty(&seals)?)?;
     std::fs::write(dir.join("scores.json"), serde_json::to_string_pretty(&scores)?)?;
     std::fs::write(dir.join("table.md"), &table)?;
@@ -304,10 +347,11 @@ fn bench_cmd(a: BenchArgs) -> Result<ExitCode> {
         println!("{}", serde_json::to_string_pretty(&serde_json::json!({"summary": summary, "trials": scores}))?);
     } else {
         println!(
-            "ulab gap bench --trials {} --seed {} --duration {} ({} s logs, reference plant MuJoCo RK4 + noise + 50 Hz jitter; diagnosing engine MuJoCo implicitfast; {:.0} s total)\n",
+            "ulab gap bench --trials {} --seed {} --duration {}{} ({} s logs, reference plant MuJoCo RK4 + noise + 50 Hz jitter; diagnosing engine MuJoCo implicitfast; {:.0} s total)\n",
             a.trials,
             a.seed,
             a.duration,
+            a.policy.iter().map(|p| format!(" --policy {}", p.display())).collect::<String>(),
             a.duration,
             started.elapsed().as_secs_f64()
         );

@@ -7,6 +7,8 @@ use super::recording::NetArgs;
 use anyhow::{Context, Result};
 use dds_transport::{Participant, TopicSpec};
 use diff_physics::{make_engine, CommonSettings, EngineKind, State};
+use diff_physics::mujoco::MujocoSettings;
+use sim_bridge::suspension::{self, SuspendedMujoco};
 use sim_bridge::{BridgeConfig, Protections, SimRobot};
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -47,6 +49,11 @@ pub struct Args {
     /// Stop after this many seconds of wall time (default: until Ctrl-C).
     #[arg(long)]
     pub duration: Option<f64>,
+    /// Hang the robot on a stiff stand (pelvis held still 2 m up, feet in the air), as on a gantry: the
+    /// suspension rig of `ulab gap` (sim_bridge::suspension, the same stand its diagnosing plant uses). MuJoCo
+    /// only; starts holding the standing pose until the first command.
+    #[arg(long)]
+    pub hang: bool,
     /// No status line.
     #[arg(long)]
     pub quiet: bool,
@@ -70,8 +77,17 @@ pub fn run(args: Args) -> Result<ExitCode> {
     anyhow::ensure!(args.dt > 0.0 && args.dt <= 0.05, "--dt must be in (0, 0.05] s");
     let cfg = args.net.domain_config()?;
     let model = robot_model::builtin(&args.robot).with_context(|| format!("loading robot `{}`", args.robot))?;
-    let common = CommonSettings { timestep: args.dt, ..CommonSettings::default() };
-    let engine = make_engine(args.engine, &model, &common).with_context(|| format!("building the {} engine", args.engine.name()))?;
+    let (engine, initial): (Box<dyn diff_physics::Engine>, State) = if args.hang {
+        anyhow::ensure!(args.engine == EngineKind::Mujoco, "--hang needs the MuJoCo engine (the stand is an applied base wrench)");
+        let engine = SuspendedMujoco::new(&model, args.dt, &MujocoSettings::default()).context("building MuJoCo on the suspension stand")?;
+        let q0 = model.default_q();
+        let initial = suspension::state_on_stand(&q0, &vec![0.0; q0.len()]);
+        (Box::new(engine), initial)
+    } else {
+        let common = CommonSettings { timestep: args.dt, ..CommonSettings::default() };
+        let engine = make_engine(args.engine, &model, &common).with_context(|| format!("building the {} engine", args.engine.name()))?;
+        (engine, State::standing(&model))
+    };
     let config = BridgeConfig {
         command_timeout: args.command_timeout,
         hold_until_first_command: !args.no_hold,
@@ -85,7 +101,6 @@ pub fn run(args: Args) -> Result<ExitCode> {
     if config.protections != Protections::default() {
         eprintln!("sim: WARNING test-only switches active: {:?}", config.protections);
     }
-    let initial = State::standing(&model);
     let mut robot = SimRobot::new(engine, model, config, &initial).context("starting the simulated robot")?;
 
     let participant = Participant::new(cfg.clone()).context("opening the DDS domain")?;
@@ -102,8 +117,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
     }
     if !args.quiet {
         eprintln!(
-            "sim: {} on {} (domain {}, {}), LowState at {} Hz, dt {} s, {}",
+            "sim: {}{} on {} (domain {}, {}), LowState at {} Hz, dt {} s, {}",
             args.robot,
+            if args.hang { " hung on the suspension stand" } else { "" },
             robot.engine().version(),
             cfg.domain,
             cfg.interface,
@@ -129,9 +145,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
             drain(&commands, &mut robot, start);
             continue;
         }
-        drain(&commands, &mut robot, start);
-        robot.step(start.elapsed().as_secs_f64()).context("physics step")?;
-        sim_time += args.dt;
+        // The state at `sim_time` goes out when the wall clock reaches `sim_time`, before the step that leaves it
+        // (published right after that step, it would reach recorders one step before the time it describes); then
+        // the commands received by now drive the step from `sim_time`, as on the robot.
         if sim_time + 1e-9 >= next_publish {
             let bytes = robot.lowstate_bytes().context("building LowState")?;
             if let Err(e) = states.write(&bytes) {
@@ -139,6 +155,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
             }
             next_publish += publish_period;
         }
+        drain(&commands, &mut robot, start);
+        robot.step(start.elapsed().as_secs_f64()).context("physics step")?;
+        sim_time += args.dt;
         let since = window.0.elapsed().as_secs_f64();
         if since >= 1.0 {
             let c = robot.counters();

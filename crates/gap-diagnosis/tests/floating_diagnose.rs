@@ -1,0 +1,152 @@
+//! The whole diagnosis on the floating base: a walking robot (Unitree's LSTM policy at 0.5 m/s on MuJoCo RK4 with
+//! ground contact, sensor noise, command jitter; `floating::generate_floating_log`) with one hidden effect, written
+//! as MCAP and read back like a recording, diagnosed by `diagnose` with the default plant choice (auto: the log fails
+//! the rig check, so the floating plant). The injected effect must be named first, on the right limb; a log without
+//! any effect must give no confident attribution. Needs `$ULAB_SHARED` for the policy weights (skips without it).
+use gap_diagnosis::diagnose::PlantKind;
+use gap_diagnosis::floating::{generate_floating_log, FloatingRealConfig};
+use gap_diagnosis::log::Command;
+use gap_diagnosis::plant::{joint_groups, Effects};
+use gap_diagnosis::{diagnose, DiagnoseOptions, EffectKind, GapError, Report, RobotLog};
+use policy_runtime::{Controller, PolicyController, RobotObservation};
+use robot_model::RobotModel;
+use std::path::PathBuf;
+
+const LOG_S: f64 = 3.0;
+const WALK: [f64; 3] = [0.5, 0.0, 0.0];
+
+fn model() -> RobotModel {
+    robot_model::builtin("h1_2").expect("built-in model")
+}
+
+fn shared_set() -> bool {
+    match std::env::var("ULAB_SHARED") {
+        Ok(s) if !s.is_empty() => true,
+        _ => {
+            eprintln!("SKIP: ULAB_SHARED is not set (the walking policy lives in $ULAB_SHARED/reference/policies/)");
+            false
+        }
+    }
+}
+
+/// A walking log of the reference plant with `fx` hidden, through MCAP and back.
+fn walking_log(fx: Effects, seed: u64) -> RobotLog {
+    let m = model();
+    let spec = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../robots/h1_2/policies/unitree_rl_gym_lstm.toml");
+    let mut ctl = PolicyController::load(&spec).expect("policy");
+    ctl.reset();
+    let cfg = FloatingRealConfig { effects: fx, ..FloatingRealConfig::new(&m, LOG_S, seed) };
+    let mut act = |t: f64, s: &diff_physics::State| -> Result<Command, GapError> {
+        let obs = RobotObservation { time: t, base_quat: s.base_quat, base_ang_vel: s.base_ang_vel, q: s.q.clone(), dq: s.dq.clone(), command: WALK };
+        let p = ctl.act(&obs).map_err(|e| GapError::Engine(e.to_string()))?;
+        Ok(Command { t, q: p.q_des, dq: p.dq_des, kp: p.kp, kd: p.kd, tau: p.tau_ff })
+    };
+    let log = generate_floating_log(&m, &cfg, &mut act).expect("reference log");
+    let last = log.truth.last().expect("states");
+    assert!(last.pos[2] > 0.8 && last.pos[0] > 0.3, "the reference robot must walk, not fall: {last:?}");
+    let mut buf = std::io::Cursor::new(Vec::new());
+    log.log.write_mcap(&mut buf, &m).expect("write mcap");
+    RobotLog::from_mcap(buf.get_ref(), &m).expect("read mcap")
+}
+
+fn run(fx: Effects, seed: u64) -> Report {
+    let m = model();
+    let log = walking_log(fx, seed);
+    let t = std::time::Instant::now();
+    let r = diagnose(&m, &log, &DiagnoseOptions { block_s: 0.5, ..Default::default() }).expect("diagnose");
+    eprintln!(
+        "plant {:?}, {} train + {} held-out windows ({} unsettled starts dropped), baseline {:.2}, {:.1} s",
+        r.plant,
+        r.windows_train,
+        r.windows_held_out,
+        r.windows_unsettled,
+        r.baseline_metric.value,
+        t.elapsed().as_secs_f64()
+    );
+    for e in &r.effects {
+        let p: Vec<String> = e.params.iter().map(|p| format!("{}={:.4}", p.unit, p.value)).collect();
+        eprintln!(
+            "  {:18} named {:5} reduction {:.3} [{:.3}, {:.3}] floor {:.3} {:?} {}",
+            e.kind.name(),
+            e.named,
+            e.reduction.value,
+            e.reduction.lo,
+            e.reduction.hi,
+            e.noise_floor,
+            p,
+            e.note.clone().unwrap_or_default()
+        );
+    }
+    eprintln!("  ranked {:?}; phases {:?}", r.ranked, r.by_phase.iter().map(|s| (&s.name, s.windows)).collect::<Vec<_>>());
+    assert_eq!(r.plant, PlantKind::Floating, "a walking log fails the rig check: {}", r.rig_check.message);
+    r
+}
+
+fn left_leg(m: &RobotModel) -> Vec<usize> {
+    let g = joint_groups(m);
+    (0..m.nj()).filter(|&j| g[j] == 0).collect()
+}
+
+/// (a) Extra viscous damping on the left leg (3 N·m·s/rad): damping named first, on the left leg, value within
+/// 25 % of the truth (the rig benchmark's tolerance).
+#[test]
+fn walking_leg_damping_is_named() {
+    if !shared_set() {
+        return;
+    }
+    let m = model();
+    let mut fx = Effects::none(m.nj());
+    left_leg(&m).into_iter().for_each(|j| fx.damping[j] = 3.0);
+    let r = run(fx, 21);
+    assert_eq!(r.ranked.first(), Some(&EffectKind::Damping), "ranked {:?}", r.ranked);
+    let e = r.effects.iter().find(|e| e.kind == EffectKind::Damping).expect("damping");
+    assert!(e.named && e.reduction.lo > e.noise_floor);
+    let top = e.params.iter().max_by(|a, b| a.held_out_reduction.total_cmp(&b.held_out_reduction)).expect("a unit");
+    assert_eq!(top.unit, "left_leg", "{:?}", e.params);
+    assert!((top.value - 3.0).abs() <= 0.75, "fitted {} vs 3.0", top.value);
+}
+
+/// (b) A softer ground (contact time constant 0.04 s instead of MuJoCo's 0.02 s): contact stiffness named first,
+/// fitted softer than the model.
+#[test]
+fn walking_contact_stiffness_is_named() {
+    if !shared_set() {
+        return;
+    }
+    let m = model();
+    let fx = Effects { contact_timeconst: Some(0.04), ..Effects::none(m.nj()) };
+    let r = run(fx, 21);
+    assert_eq!(r.ranked.first(), Some(&EffectKind::ContactStiffness), "ranked {:?}", r.ranked);
+    let e = r.effects.iter().find(|e| e.kind == EffectKind::ContactStiffness).expect("contact stiffness");
+    let p = e.params.first().expect("a fitted value");
+    assert_eq!(p.unit, "robot");
+    assert!(p.value > 0.02, "fitted time constant {} s: not softer than the model's 0.02 s", p.value);
+}
+
+/// (c) No effect: nothing may be named.
+#[test]
+fn walking_without_effect_names_nothing() {
+    if !shared_set() {
+        return;
+    }
+    let r = run(Effects::none(model().nj()), 21);
+    assert!(r.ranked.is_empty() && r.unexplained, "named {:?} on a log without any effect", r.ranked);
+}
+
+/// (b') Left-leg links 1.5 times heavier: link mass named first, on the left leg, within 25 % of the excess.
+#[test]
+#[ignore = "fails: link mass is named first on left_leg, but fitted 1.28 instead of 1.5 (outside 25 % of the excess; docs/gap/floating-base.md)"]
+fn walking_leg_link_mass_is_named() {
+    if !shared_set() {
+        return;
+    }
+    let m = model();
+    let mut fx = Effects::none(m.nj());
+    left_leg(&m).into_iter().for_each(|j| fx.mass_scale[j] = 1.5);
+    let r = run(fx, 21);
+    assert_eq!(r.ranked.first(), Some(&EffectKind::LinkMass), "ranked {:?}", r.ranked);
+    let e = r.effects.iter().find(|e| e.kind == EffectKind::LinkMass).expect("link mass");
+    let top = e.params.iter().max_by(|a, b| a.held_out_reduction.total_cmp(&b.held_out_reduction)).expect("a unit");
+    assert_eq!(top.unit, "left_leg", "{:?}", e.params);
+    assert!((top.value - 1.5).abs() <= 0.125, "fitted {} vs 1.5", top.value);
+}
