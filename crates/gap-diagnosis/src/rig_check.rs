@@ -198,7 +198,7 @@ pub fn check(model: &RobotModel, log: &RobotLog) -> Result<RigCheck, GapError> {
         )
     } else if beyond_const && frac <= MAX_VIOLATING_FRACTION {
         format!(
-            "log not from a suspended robot: the pelvis is tilted {:.1} deg / the gyroscope offset is {:.2} rad/s, beyond the largest IMU misalignment ({:.1} deg) / bias ({:.2} rad/s) the library fits; floating-base diagnosis not supported",
+            "log not from a suspended robot: the pelvis is tilted {:.1} deg / the gyroscope offset is {:.2} rad/s, beyond the largest IMU misalignment ({:.1} deg) / bias ({:.2} rad/s) the library fits",
             deg(const_rot.norm()),
             bias.norm(),
             deg(mis_max),
@@ -206,7 +206,7 @@ pub fn check(model: &RobotModel, log: &RobotLog) -> Result<RigCheck, GapError> {
         )
     } else {
         format!(
-            "log not from a suspended robot: pelvis rotated {:.1} deg (95th percentile; max {:.1}) / {:.2} rad/s beyond the rig's prediction over {:.1} % of samples (thresholds {:.1} deg, {:.2} rad/s{}); floating-base diagnosis not supported",
+            "log not from a suspended robot: pelvis rotated {:.1} deg (95th percentile; max {:.1}) / {:.2} rad/s beyond the rig's prediction over {:.1} % of samples (thresholds {:.1} deg, {:.2} rad/s{})",
             deg(p95r),
             deg(maxr),
             p95g,
