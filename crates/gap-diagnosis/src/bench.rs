@@ -1,7 +1,8 @@
 //! The blind benchmark: "real" logs from a reference plant that differs from the diagnosing simulator (another
 //! MuJoCo integrator, sensor noise, 50 Hz command timing jitter) with a hidden random subset of effects at random
-//! magnitudes, labels sealed (salted SHA-256) before diagnosis, then scored.
-use crate::diagnose::{diagnose, DiagnoseOptions, Report};
+//! magnitudes, labels sealed (salted SHA-256) before diagnosis, then scored. The reference robot hangs on the rig
+//! ([`run_trial`]) or walks on the ground under a policy ([`run_floating_trial`], `ulab gap bench --floating`).
+use crate::diagnose::{diagnose, DiagnoseOptions, PlantKind, Report};
 use crate::effects::{EffectKind, Scope};
 use crate::excite;
 use crate::log::{Measurement, RobotLog};
@@ -337,6 +338,12 @@ pub struct TrialScore {
     pub abstained: bool,
     pub held_out_reduction: f64,
     pub diagnose_s: f64,
+    /// The plant the diagnosis used (floating-base benchmark only; the rig benchmark's scores omit it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plant: Option<PlantKind>,
+    /// How often the effect magnitudes were redrawn because the robot fell (floating-base benchmark only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub redraws: Option<usize>,
 }
 
 fn default_input() -> InputKind {
@@ -388,6 +395,8 @@ pub fn score(labels: &Labels, report: &Report) -> TrialScore {
         held_out_reduction: report.best_combination.as_ref().map_or(0.0, |c| c.reduction.value),
         diagnose_s: report.elapsed_s,
         ranked,
+        plant: None,
+        redraws: None,
     }
 }
 
@@ -455,6 +464,13 @@ pub fn draw_trial(model: &RobotModel, i: usize, seed: u64) -> (Effects, Labels) 
     (fx, Labels { trial: i, injected })
 }
 
+/// The salt that seals the labels of trial `i`.
+pub fn trial_salt(seed: u64, i: usize) -> [u8; 16] {
+    let mut salt = [0u8; 16];
+    rand_chacha::ChaCha8Rng::seed_from_u64(seed.wrapping_add(7919 * i as u64)).fill(&mut salt);
+    salt
+}
+
 /// Runs one trial end to end (generate, seal, diagnose, open, score). The caller may write the log with
 /// `on_log` (e.g. as MCAP, so the diagnosis reads it through the same path as a recorded log).
 pub fn run_trial(
@@ -464,9 +480,7 @@ pub fn run_trial(
     on_log: &mut dyn FnMut(usize, &RobotLog) -> Result<RobotLog, GapError>,
 ) -> Result<(Seal, TrialScore, Report), GapError> {
     let (fx, labels) = draw_trial(model, i, opts.seed);
-    let mut salt = [0u8; 16];
-    rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed.wrapping_add(7919 * i as u64)).fill(&mut salt);
-    let (sealed, text) = seal(&labels, &salt)?;
+    let (sealed, text) = seal(&labels, &trial_salt(opts.seed, i))?;
     drop(labels);
     let cfg = RealConfig { effects: fx, seed: opts.seed.wrapping_mul(31).wrapping_add(i as u64), ..RealConfig::new(model, opts.duration, 0) };
     let input = trial_policy(i, opts);
@@ -574,4 +588,190 @@ fn table_rows(s: &BenchSummary) -> Vec<(String, String, String)> {
         row("mean held-out gap reduction (best combination)", pct(s.mean_held_out_reduction), ""),
         row("mean diagnosis time per log", format!("{:.1} s", s.mean_diagnose_s), ""),
     ]
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// Floating-base benchmark (`ulab gap bench --floating`): the robot walks on the ground under a policy, the
+// diagnosis must pick the floating plant by itself (plant auto). Same sealing, scoring and table as the rig's.
+
+/// Effect kinds the floating-base benchmark injects, in the order the single-effect trials cycle through them:
+/// the actuator and inertia kinds a walking leg excites, and the two ground-contact kinds (docs/gap/floating-base.md).
+/// Not injected: the IMU kinds and encoder offset (the base is estimated from the IMU and the joints, so they are
+/// partly absorbed by the estimate), torque saturation (the legs would give way), backlash and link COM (not
+/// measured on the ground).
+pub fn injectable_floating() -> Vec<EffectKind> {
+    vec![
+        EffectKind::Damping,
+        EffectKind::ContactStiffness,
+        EffectKind::LinkMass,
+        EffectKind::ContactFriction,
+        EffectKind::Armature,
+        EffectKind::GainScale,
+        EffectKind::Friction,
+        EffectKind::Latency,
+    ]
+}
+
+/// Draws one effect of `kind` for the floating-base benchmark and applies it to `fx`. Group effects go on one leg
+/// (the walking policy moves the legs; the arms only hold their pose); the magnitudes are the rig benchmark's,
+/// except the contact kinds: a foot-ground friction coefficient of 0.25–0.45 (model 1.0) and a softer ground,
+/// contact time constant 0.035–0.05 s (MuJoCo's 0.02 s).
+pub fn inject_floating(model: &RobotModel, kind: EffectKind, fx: &mut Effects, rng: &mut impl Rng) -> Injected {
+    let groups = joint_groups(model);
+    let value = match kind {
+        EffectKind::Armature => rng.gen_range(2.0..3.5),
+        EffectKind::Damping => rng.gen_range(1.5..4.0),
+        EffectKind::Friction => rng.gen_range(1.0..3.0),
+        EffectKind::Latency => rng.gen_range(6..=14) as f64,
+        EffectKind::GainScale => {
+            if rng.gen_bool(0.5) {
+                rng.gen_range(0.6..0.75)
+            } else {
+                rng.gen_range(1.3..1.5)
+            }
+        }
+        EffectKind::LinkMass => rng.gen_range(1.3..1.7),
+        EffectKind::ContactFriction => rng.gen_range(0.25..0.45),
+        EffectKind::ContactStiffness => rng.gen_range(0.035..0.05),
+        // Not in `injectable_floating`; drawn as on the rig should a caller ask for them.
+        other => return inject(model, other, fx, rng),
+    };
+    let unit = match kind.scope() {
+        Scope::Group => {
+            let g = rng.gen_range(0..2usize);
+            (0..model.nj()).filter(|&j| groups[j] == g).for_each(|j| kind.set(fx, j, value));
+            GROUPS[g].to_string()
+        }
+        _ => {
+            kind.set(fx, 0, value);
+            "robot".to_string()
+        }
+    };
+    Injected { kind, unit, value: if kind == EffectKind::Latency { value * DT * 1e3 } else { value } }
+}
+
+/// Draws the hidden effects of floating trial `i`; `attempt` > 0 redraws the magnitudes (and units) of the same
+/// kinds after the robot fell. The kinds follow the rig's pattern (single, single, pair, control; singles cycle
+/// through [`injectable_floating`]) and do not depend on `attempt`.
+pub fn draw_floating_trial(model: &RobotModel, i: usize, seed: u64, attempt: usize) -> (Effects, Labels) {
+    let base = seed ^ 0xf1_0a71_0000_0000 ^ 0x9e37_79b9_7f4a_7c15u64.wrapping_mul(i as u64 + 1);
+    let mut kind_rng = rand_chacha::ChaCha8Rng::seed_from_u64(base);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(base.wrapping_add(0x2545_f491_4f6c_dd1d_u64.wrapping_mul(attempt as u64 + 1)));
+    let kinds = injectable_floating();
+    let n = trial_plan(i);
+    let mut chosen: Vec<EffectKind> = Vec::new();
+    if n >= 1 {
+        chosen.push(kinds[(i / 4 * 2 + i % 4) % kinds.len()]);
+    }
+    while chosen.len() < n {
+        let k = kinds[kind_rng.gen_range(0..kinds.len())];
+        if !chosen.contains(&k) {
+            chosen.push(k);
+        }
+    }
+    let mut fx = Effects::none(model.nj());
+    let injected = chosen.into_iter().map(|k| inject_floating(model, k, &mut fx, &mut rng)).collect();
+    (fx, Labels { trial: i, injected })
+}
+
+/// The walking policy of floating trial `i`: policies alternate trial by trial; the velocity command is drawn per
+/// trial within what the base estimate was built for (walking at ≤ 0.6 m/s: vx in [0, 0.6] m/s, vy in
+/// [-0.2, 0.2] m/s, wz in [-0.3, 0.3] rad/s). None without policies.
+pub fn floating_trial_policy(i: usize, opts: &BenchOptions) -> Option<PolicyInput> {
+    if opts.policies.is_empty() {
+        return None;
+    }
+    let spec = opts.policies[i % opts.policies.len()].clone();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed ^ 0x0f10_a7ed_c0de_0001 ^ (i as u64).wrapping_mul(0x2545_f491_4f6c_dd1d));
+    let command = [rng.gen_range(0.0..0.6), rng.gen_range(-0.2..0.2), rng.gen_range(-0.3..0.3)];
+    Some(PolicyInput { spec, command })
+}
+
+/// Pelvis lower than this (m) means the robot fell.
+pub const FALLEN_HEIGHT: f64 = 0.6;
+/// Pelvis tilted more than this from upright (rad) means the robot fell.
+pub const FALLEN_TILT: f64 = std::f64::consts::FRAC_PI_4;
+/// Magnitude draws per trial before the benchmark gives up on it.
+pub const MAX_DRAWS: usize = 8;
+
+/// The first logged sample at which the reference robot is down (pelvis below [`FALLEN_HEIGHT`] or tilted more
+/// than [`FALLEN_TILT`]), if any.
+pub fn fell_at(log: &crate::floating::FloatingLog) -> Option<usize> {
+    log.truth.iter().position(|b| {
+        let [_, x, y, _] = b.quat;
+        // z component of the pelvis z axis in the world: cos(tilt).
+        let cos_tilt = 1.0 - 2.0 * (x * x + y * y);
+        b.pos[2] < FALLEN_HEIGHT || cos_tilt < FALLEN_TILT.cos()
+    })
+}
+
+/// Generates the reference log of a floating trial: `policy` closed around the reference plant's true state every
+/// 20 ms (as `tests/floating_diagnose.rs` does), MuJoCo RK4 with ground, sensor noise, 0–2 ms command jitter.
+pub fn generate_walking_log(model: &RobotModel, fx: Effects, duration: f64, seed: u64, policy: &PolicyInput) -> Result<crate::floating::FloatingLog, GapError> {
+    policy.spec.check_robot(model).map_err(|e| GapError::Input(format!("policy {}: {e}", policy.spec.name)))?;
+    let mut ctl = PolicyController::from_spec(policy.spec.clone()).map_err(|e| GapError::Input(format!("policy {}: {e}", policy.spec.name)))?;
+    ctl.reset();
+    let cfg = crate::floating::FloatingRealConfig { effects: fx, ..crate::floating::FloatingRealConfig::new(model, duration, seed) };
+    let vel = policy.command;
+    let mut act = |t: f64, s: &diff_physics::State| -> Result<crate::log::Command, GapError> {
+        let obs = RobotObservation { time: t, base_quat: s.base_quat, base_ang_vel: s.base_ang_vel, q: s.q.clone(), dq: s.dq.clone(), command: vel };
+        let p = ctl.act(&obs).map_err(|e| GapError::Input(format!("policy step: {e}")))?;
+        Ok(crate::log::Command { t, q: p.q_des, dq: p.dq_des, kp: p.kp, kd: p.kd, tau: p.tau_ff })
+    };
+    crate::floating::generate_floating_log(model, &cfg, &mut act)
+}
+
+/// Runs floating trial `i` end to end with the benchmark's own draw ([`draw_floating_trial`]).
+pub fn run_floating_trial(
+    model: &RobotModel,
+    i: usize,
+    opts: &BenchOptions,
+    on_log: &mut dyn FnMut(usize, &RobotLog, &Seal) -> Result<RobotLog, GapError>,
+) -> Result<(Seal, TrialScore, Report), GapError> {
+    run_floating_trial_drawn(model, i, opts, &mut |attempt| draw_floating_trial(model, i, opts.seed, attempt), on_log)
+}
+
+/// Runs floating trial `i` with hidden effects from `draw(attempt)`: generate the walking log, redraw (attempt + 1)
+/// while the robot falls (at most [`MAX_DRAWS`] draws), seal the labels, hand the log and the seal to `on_log`
+/// (which may write both, e.g. the log as MCAP), diagnose with `opts.diagnose`, open the seal, score.
+pub fn run_floating_trial_drawn(
+    model: &RobotModel,
+    i: usize,
+    opts: &BenchOptions,
+    draw: &mut dyn FnMut(usize) -> (Effects, Labels),
+    on_log: &mut dyn FnMut(usize, &RobotLog, &Seal) -> Result<RobotLog, GapError>,
+) -> Result<(Seal, TrialScore, Report), GapError> {
+    let input = floating_trial_policy(i, opts).ok_or_else(|| GapError::Input("the floating-base benchmark needs at least one walking policy".into()))?;
+    let seed = opts.seed.wrapping_mul(31).wrapping_add(i as u64);
+    let mut attempt = 0;
+    let (labels, log) = loop {
+        let (fx, labels) = draw(attempt);
+        let log = generate_walking_log(model, fx, opts.duration, seed, &input)?;
+        match fell_at(&log) {
+            None => break (labels, log.log),
+            Some(k) if attempt + 1 >= MAX_DRAWS || labels.injected.is_empty() => {
+                return Err(GapError::Input(format!(
+                    "trial {i}: the robot falls at t = {:.2} s under {} (vx {:.2}, vy {:.2}, wz {:.2}) {}",
+                    log.log.states.get(k).map_or(0.0, |m| m.t),
+                    input.spec.name,
+                    input.command[0],
+                    input.command[1],
+                    input.command[2],
+                    if labels.injected.is_empty() { "without any effect".to_string() } else { format!("in each of {MAX_DRAWS} effect draws") }
+                )))
+            }
+            Some(_) => attempt += 1,
+        }
+    };
+    let (sealed, text) = seal(&labels, &trial_salt(opts.seed, i))?;
+    drop(labels);
+    let log = on_log(i, &log, &sealed)?;
+    let report = diagnose(model, &log, &opts.diagnose)?;
+    let labels = open(&sealed, &text)?;
+    let mut s = score(&labels, &report);
+    s.input = InputKind::Policy;
+    s.policy = Some(format!("{} (vx {:.2}, vy {:.2}, wz {:.2})", input.spec.name, input.command[0], input.command[1], input.command[2]));
+    s.plant = Some(report.plant);
+    s.redraws = Some(attempt);
+    Ok((sealed, s, report))
 }

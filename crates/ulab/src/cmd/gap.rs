@@ -6,7 +6,7 @@
 //! - `ulab gap excite --robot h1_2 --out plan.mcap [--duration S] [--rate HZ]`
 //! - `ulab gap simulate --robot h1_2 --out real.mcap [--effect KIND:UNIT:VALUE]...`: a log of the benchmark's
 //!   reference plant (demo and test logs)
-//! - `ulab gap bench [--trials N] [--seed S] [--duration S] [--out DIR] [--policy SPEC.toml]...`
+//! - `ulab gap bench [--trials N] [--seed S] [--duration S] [--out DIR] [--policy SPEC.toml]... [--floating]`
 use anyhow::{bail, Context, Result};
 use gap_diagnosis::bench::{self, BenchOptions, RealConfig};
 use gap_diagnosis::plant::{joint_groups, EngineChoice, GROUPS};
@@ -130,6 +130,10 @@ struct BenchArgs {
     /// excitation plan.
     #[arg(long)]
     policy: Vec<PathBuf>,
+    /// Floating-base benchmark: every trial is a walking log on the ground (MuJoCo RK4 with contact), driven by the
+    /// policies in turn (at least one --policy); the diagnosis must choose the floating plant by itself.
+    #[arg(long)]
+    floating: bool,
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
@@ -313,6 +317,9 @@ fn bench_cmd(a: BenchArgs) -> Result<ExitCode> {
             Ok(spec)
         })
         .collect::<Result<Vec<_>>>()?;
+    if a.floating && policies.is_empty() {
+        bail!("--floating needs at least one --policy (the walking controller)");
+    }
     let opts = BenchOptions { trials: a.trials, seed: a.seed, duration: a.duration, diagnose: DiagnoseOptions { seed: a.seed, ..Default::default() }, policies };
     let mut scores = Vec::new();
     let mut seals = Vec::new();
@@ -326,35 +333,71 @@ fn bench_cmd(a: BenchArgs) -> Result<ExitCode> {
             let bytes = std::fs::read(&p).map_err(|e| gap_diagnosis::GapError::Io(format!("{}: {e}", p.display())))?;
             RobotLog::from_mcap(&bytes, &model)
         };
-        let (seal, score, report) = bench::run_trial(&model, i, &opts, &mut via_mcap).with_context(|| format!("trial {i}"))?;
+        let (seal, score, report) = if a.floating {
+            // The seal is written before the diagnosis runs.
+            let mut via_mcap_sealed = |i: usize, log: &RobotLog, seal: &bench::Seal| -> Result<RobotLog, gap_diagnosis::GapError> {
+                let p = dir.join(format!("trial_{i:03}.seal.json"));
+                let json = serde_json::to_string_pretty(seal).map_err(|e| gap_diagnosis::GapError::Io(e.to_string()))?;
+                std::fs::write(&p, json).map_err(|e| gap_diagnosis::GapError::Io(format!("{}: {e}", p.display())))?;
+                via_mcap(i, log)
+            };
+            bench::run_floating_trial(&model, i, &opts, &mut via_mcap_sealed).with_context(|| format!("trial {i}"))?
+        } else {
+            bench::run_trial(&model, i, &opts, &mut via_mcap).with_context(|| format!("trial {i}"))?
+        };
         gap_diagnosis::report::write_all(&report, &dir.join(format!("trial_{i:03}"))).context("writing a trial report")?;
         eprintln!(
-            "trial {i} ({}): injected [{}] -> ranked [{}] ({:.1} s)",
+            "trial {i} ({}): injected [{}] -> ranked [{}] ({:.1} s{})",
             score.policy.as_deref().unwrap_or("excitation plan"),
             score.injected.iter().map(|x| format!("{}@{}={:.3}", x.kind.name(), x.unit, x.value)).collect::<Vec<_>>().join(", "),
             score.ranked.iter().map(|k| k.name()).collect::<Vec<_>>().join(", "),
-            score.diagnose_s
+            score.diagnose_s,
+            match (score.plant, score.redraws) {
+                (Some(p), Some(r)) => format!("; plant {p:?}, {r} redraws").to_lowercase(),
+                _ => String::new(),
+            }
         );
         seals.push(seal);
         scores.push(score);
     }
     let summary = bench::summarize(&scores);
-    let table = bench::table_by_input(&scores);
+    let mut table = bench::table_by_input(&scores);
+    if a.floating {
+        let floating = scores.iter().filter(|s| s.plant == Some(gap_diagnosis::diagnose::PlantKind::Floating)).count();
+        let redraws: usize = scores.iter().filter_map(|s| s.redraws).sum();
+        let redrawn = scores.iter().filter(|s| s.redraws.unwrap_or(0) > 0).count();
+        table += &format!(
+            "\nplant chosen by the diagnosis (auto): floating in {floating} of {} trials; effect magnitudes redrawn after a fall: {redraws} times in {redrawn} trials\n",
+            scores.len()
+        );
+    }
     std::fs::write(dir.join("seals.json"), serde_json::to_string_pretty(&seals)?)?;
     std::fs::write(dir.join("scores.json"), serde_json::to_string_pretty(&scores)?)?;
     std::fs::write(dir.join("table.md"), &table)?;
     if a.format == "json" {
         println!("{}", serde_json::to_string_pretty(&serde_json::json!({"summary": summary, "trials": scores}))?);
     } else {
-        println!(
-            "ulab gap bench --trials {} --seed {} --duration {}{} ({} s logs, reference plant MuJoCo RK4 + noise + 50 Hz jitter; diagnosing engine MuJoCo implicitfast; {:.0} s total)\n",
-            a.trials,
-            a.seed,
-            a.duration,
-            a.policy.iter().map(|p| format!(" --policy {}", p.display())).collect::<String>(),
-            a.duration,
-            started.elapsed().as_secs_f64()
-        );
+        if a.floating {
+            println!(
+                "ulab gap bench --floating --trials {} --seed {} --duration {}{} ({} s walking logs, reference plant MuJoCo RK4 with ground contact + noise + 50 Hz commands with 0-2 ms jitter; diagnosing engine MuJoCo implicitfast, plant auto; {:.0} s total)\n",
+                a.trials,
+                a.seed,
+                a.duration,
+                a.policy.iter().map(|p| format!(" --policy {}", p.display())).collect::<String>(),
+                a.duration,
+                started.elapsed().as_secs_f64()
+            );
+        } else {
+            println!(
+                "ulab gap bench --trials {} --seed {} --duration {}{} ({} s logs, reference plant MuJoCo RK4 + noise + 50 Hz jitter; diagnosing engine MuJoCo implicitfast; {:.0} s total)\n",
+                a.trials,
+                a.seed,
+                a.duration,
+                a.policy.iter().map(|p| format!(" --policy {}", p.display())).collect::<String>(),
+                a.duration,
+                started.elapsed().as_secs_f64()
+            );
+        }
         print!("{table}");
         println!("\nfiles: {}", dir.display());
     }
