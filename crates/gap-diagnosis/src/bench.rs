@@ -221,11 +221,11 @@ fn gravity_loaded(model: &RobotModel) -> Vec<usize> {
         .collect()
 }
 
-/// Draws one effect of `kind` at a random clearly-present magnitude and applies it to `fx`.
-pub fn inject(model: &RobotModel, kind: EffectKind, fx: &mut Effects, rng: &mut impl Rng) -> Injected {
-    let groups = joint_groups(model);
+/// A magnitude of `kind` as the rig benchmark injects it: clearly away from the no-effect value, inside the range the
+/// library fits.
+fn rig_magnitude(kind: EffectKind, rng: &mut impl Rng) -> f64 {
     let sign = |rng: &mut dyn rand::RngCore| if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
-    let value = match kind {
+    match kind {
         EffectKind::Armature => rng.gen_range(2.0..3.5),
         EffectKind::Damping => rng.gen_range(1.5..4.0),
         EffectKind::Friction => rng.gen_range(1.0..3.0),
@@ -245,7 +245,13 @@ pub fn inject(model: &RobotModel, kind: EffectKind, fx: &mut Effects, rng: &mut 
         EffectKind::LinkMass => rng.gen_range(1.3..1.7),
         EffectKind::LinkCom => sign(rng) * rng.gen_range(0.03..0.07),
         EffectKind::ContactFriction | EffectKind::ContactStiffness => kind.range().2,
-    };
+    }
+}
+
+/// Draws one effect of `kind` at a random clearly-present magnitude and applies it to `fx`.
+pub fn inject(model: &RobotModel, kind: EffectKind, fx: &mut Effects, rng: &mut impl Rng) -> Injected {
+    let groups = joint_groups(model);
+    let value = rig_magnitude(kind, rng);
     let unit = match kind.scope() {
         Scope::Global => {
             kind.set(fx, 0, value);
@@ -619,20 +625,11 @@ pub fn injectable_floating() -> Vec<EffectKind> {
 pub fn inject_floating(model: &RobotModel, kind: EffectKind, fx: &mut Effects, rng: &mut impl Rng) -> Injected {
     let groups = joint_groups(model);
     let value = match kind {
-        EffectKind::Armature => rng.gen_range(2.0..3.5),
-        EffectKind::Damping => rng.gen_range(1.5..4.0),
-        EffectKind::Friction => rng.gen_range(1.0..3.0),
-        EffectKind::Latency => rng.gen_range(6..=14) as f64,
-        EffectKind::GainScale => {
-            if rng.gen_bool(0.5) {
-                rng.gen_range(0.6..0.75)
-            } else {
-                rng.gen_range(1.3..1.5)
-            }
-        }
-        EffectKind::LinkMass => rng.gen_range(1.3..1.7),
         EffectKind::ContactFriction => rng.gen_range(0.25..0.45),
         EffectKind::ContactStiffness => rng.gen_range(0.035..0.05),
+        EffectKind::Armature | EffectKind::Damping | EffectKind::Friction | EffectKind::Latency | EffectKind::GainScale | EffectKind::LinkMass => {
+            rig_magnitude(kind, rng)
+        }
         // Not in `injectable_floating`; drawn as on the rig should a caller ask for them.
         other => return inject(model, other, fx, rng),
     };

@@ -4,17 +4,18 @@
 //! base state estimated from the log. Then single effects are fitted on training windows and judged on held-out
 //! ones. Bounds are physical scales, not measured values (docs/gap/floating-base.md has the numbers; run with
 //! `--nocapture` to print them).
+mod common;
+
+use common::{lstm_policy, model, shared_set};
+use gap_diagnosis::bench::generate_walking_log;
 use gap_diagnosis::diagnose::{EFFECT_FLOOR_FRAC, SIGMA_DQ, SIGMA_Q};
 use gap_diagnosis::floating::{
-    estimate_base, estimate_base_at, generate_floating_log, predict_window, predict_window_from, settled_start, window_residual, BaseState, Feet, FloatingLog,
-    FloatingPlant, FloatingRealConfig, WindowResidual,
+    estimate_base, estimate_base_at, predict_window, predict_window_from, settled_start, window_residual, BaseState, Feet, FloatingLog,
+    FloatingPlant, WindowResidual,
 };
-use gap_diagnosis::log::{Command, Measurement};
+use gap_diagnosis::log::Measurement;
 use gap_diagnosis::plant::{joint_groups, EngineChoice, Effects, DT};
-use gap_diagnosis::GapError;
-use policy_runtime::{Controller, PolicyController, RobotObservation};
 use robot_model::RobotModel;
-use std::path::PathBuf;
 use std::sync::OnceLock;
 
 const LOG_S: f64 = 3.0;
@@ -22,39 +23,15 @@ const LOG_S: f64 = 3.0;
 const FIRST_WINDOW_S: f64 = 1.0;
 const WINDOW_STATES: usize = 50; // 0.1 s at 500 Hz
 
-fn model() -> RobotModel {
-    robot_model::builtin("h1_2").expect("built-in model")
-}
-
 fn diagnosing() -> EngineChoice {
     EngineChoice::parse("mujoco").expect("implicitfast")
-}
-
-fn shared_set() -> bool {
-    match std::env::var("ULAB_SHARED") {
-        Ok(s) if !s.is_empty() => true,
-        _ => {
-            eprintln!("SKIP: ULAB_SHARED is not set (the walking policy lives in $ULAB_SHARED/reference/policies/)");
-            false
-        }
-    }
 }
 
 /// Unitree's LSTM walking policy with velocity command `cmd`, fed the reference engine's true pelvis state.
 /// `[0, 0, 0]` is the standing case: the policy keeps the robot upright by stepping in place (a PD hold of the
 /// default pose with the model's gains does not stand in MuJoCo: it tips over within 1.5 s).
 fn policy_log(fx: Effects, seed: u64, cmd: [f64; 3]) -> FloatingLog {
-    let m = model();
-    let spec = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../robots/h1_2/policies/unitree_rl_gym_lstm.toml");
-    let mut ctl = PolicyController::load(&spec).expect("policy");
-    ctl.reset();
-    let cfg = FloatingRealConfig { effects: fx, ..FloatingRealConfig::new(&m, LOG_S, seed) };
-    let mut act = |t: f64, s: &diff_physics::State| -> Result<Command, GapError> {
-        let obs = RobotObservation { time: t, base_quat: s.base_quat, base_ang_vel: s.base_ang_vel, q: s.q.clone(), dq: s.dq.clone(), command: cmd };
-        let p = ctl.act(&obs).map_err(|e| GapError::Engine(e.to_string()))?;
-        Ok(Command { t, q: p.q_des, dq: p.dq_des, kp: p.kp, kd: p.kd, tau: p.tau_ff })
-    };
-    generate_floating_log(&m, &cfg, &mut act).expect("reference log")
+    generate_walking_log(&model(), fx, LOG_S, seed, &lstm_policy(cmd)).expect("reference log")
 }
 
 const WALK: [f64; 3] = [0.5, 0.0, 0.0];

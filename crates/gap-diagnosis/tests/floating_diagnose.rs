@@ -3,45 +3,22 @@
 //! as MCAP and read back like a recording, diagnosed by `diagnose` with the default plant choice (auto: the log fails
 //! the rig check, so the floating plant). The injected effect must be named first, on the right limb; a log without
 //! any effect must give no confident attribution. Needs `$ULAB_SHARED` for the policy weights (skips without it).
+mod common;
+
+use common::{lstm_policy, model, shared_set};
+use gap_diagnosis::bench::generate_walking_log;
 use gap_diagnosis::diagnose::PlantKind;
-use gap_diagnosis::floating::{generate_floating_log, FloatingRealConfig};
-use gap_diagnosis::log::Command;
 use gap_diagnosis::plant::{joint_groups, Effects};
-use gap_diagnosis::{diagnose, DiagnoseOptions, EffectKind, GapError, Report, RobotLog};
-use policy_runtime::{Controller, PolicyController, RobotObservation};
+use gap_diagnosis::{diagnose, DiagnoseOptions, EffectKind, Report, RobotLog};
 use robot_model::RobotModel;
-use std::path::PathBuf;
 
 const LOG_S: f64 = 3.0;
 const WALK: [f64; 3] = [0.5, 0.0, 0.0];
 
-fn model() -> RobotModel {
-    robot_model::builtin("h1_2").expect("built-in model")
-}
-
-fn shared_set() -> bool {
-    match std::env::var("ULAB_SHARED") {
-        Ok(s) if !s.is_empty() => true,
-        _ => {
-            eprintln!("SKIP: ULAB_SHARED is not set (the walking policy lives in $ULAB_SHARED/reference/policies/)");
-            false
-        }
-    }
-}
-
 /// A walking log of the reference plant with `fx` hidden, through MCAP and back.
 fn walking_log(fx: Effects, seed: u64) -> RobotLog {
     let m = model();
-    let spec = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../robots/h1_2/policies/unitree_rl_gym_lstm.toml");
-    let mut ctl = PolicyController::load(&spec).expect("policy");
-    ctl.reset();
-    let cfg = FloatingRealConfig { effects: fx, ..FloatingRealConfig::new(&m, LOG_S, seed) };
-    let mut act = |t: f64, s: &diff_physics::State| -> Result<Command, GapError> {
-        let obs = RobotObservation { time: t, base_quat: s.base_quat, base_ang_vel: s.base_ang_vel, q: s.q.clone(), dq: s.dq.clone(), command: WALK };
-        let p = ctl.act(&obs).map_err(|e| GapError::Engine(e.to_string()))?;
-        Ok(Command { t, q: p.q_des, dq: p.dq_des, kp: p.kp, kd: p.kd, tau: p.tau_ff })
-    };
-    let log = generate_floating_log(&m, &cfg, &mut act).expect("reference log");
+    let log = generate_walking_log(&m, fx, LOG_S, seed, &lstm_policy(WALK)).expect("reference log");
     let last = log.truth.last().expect("states");
     assert!(last.pos[2] > 0.8 && last.pos[0] > 0.3, "the reference robot must walk, not fall: {last:?}");
     let mut buf = std::io::Cursor::new(Vec::new());

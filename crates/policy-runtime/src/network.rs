@@ -454,6 +454,8 @@ impl LstmPolicy {
 }
 
 /// Either network behind one interface.
+// One per controller, so the variants' size difference (an empty ONNX stand-in without the `onnx` feature) is moot.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone)]
 pub enum PolicyNetwork {
     Onnx(OnnxPolicy),

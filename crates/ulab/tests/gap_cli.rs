@@ -3,20 +3,13 @@
 //! `ulab gap diagnose` finds the hidden effect in it, also from the CSV pair `ulab log export` writes; the
 //! excitation plan stays within the joint limits; bad input fails cleanly.
 mod common;
-use common::{python, root, tail, wait_with_timeout};
+use common::{python, root, run_ulab, tail, wait_with_timeout};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
 fn ulab(args: &[&str]) -> (Option<i32>, String, String) {
-    let child = Command::new(env!("CARGO_BIN_EXE_ulab"))
-        .args(args)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("spawn ulab");
-    let (status, out, err) = wait_with_timeout(child, Duration::from_secs(300));
-    (status.and_then(|s| s.code()), out, err)
+    run_ulab(args, Duration::from_secs(300))
 }
 
 fn dir(name: &str) -> PathBuf {

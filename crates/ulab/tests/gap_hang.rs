@@ -4,21 +4,14 @@
 //! and the diagnosing plant are the same model on the same stand, so the log must pass the rig-assumption check
 //! and no effect may be named: the only gap is DDS and scheduling timing.
 mod common;
-use common::{run_ulab, tail, wait_with_timeout, KillOnDrop};
+use common::{run_ulab, spawn_ulab, tail, wait_with_timeout, KillOnDrop};
 use std::path::Path;
-use std::process::{Command, Stdio};
 use std::time::Duration;
 
 const DOMAIN: &str = "184";
 
 fn spawn(args: &[&str]) -> KillOnDrop {
-    let child = Command::new(env!("CARGO_BIN_EXE_ulab"))
-        .args(args)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("start ulab");
-    KillOnDrop(Some(child))
+    KillOnDrop(Some(spawn_ulab(args)))
 }
 
 fn finish(mut p: KillOnDrop, timeout: Duration) -> (Option<i32>, String, String) {

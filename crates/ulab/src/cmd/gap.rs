@@ -377,27 +377,23 @@ fn bench_cmd(a: BenchArgs) -> Result<ExitCode> {
     if a.format == "json" {
         println!("{}", serde_json::to_string_pretty(&serde_json::json!({"summary": summary, "trials": scores}))?);
     } else {
-        if a.floating {
-            println!(
-                "ulab gap bench --floating --trials {} --seed {} --duration {}{} ({} s walking logs, reference plant MuJoCo RK4 with ground contact + noise + 50 Hz commands with 0-2 ms jitter; diagnosing engine MuJoCo implicitfast, plant auto; {:.0} s total)\n",
-                a.trials,
-                a.seed,
-                a.duration,
-                a.policy.iter().map(|p| format!(" --policy {}", p.display())).collect::<String>(),
-                a.duration,
-                started.elapsed().as_secs_f64()
-            );
+        let (flag, what) = if a.floating {
+            (
+                " --floating",
+                "walking logs, reference plant MuJoCo RK4 with ground contact + noise + 50 Hz commands with 0-2 ms jitter; diagnosing engine MuJoCo implicitfast, plant auto",
+            )
         } else {
-            println!(
-                "ulab gap bench --trials {} --seed {} --duration {}{} ({} s logs, reference plant MuJoCo RK4 + noise + 50 Hz jitter; diagnosing engine MuJoCo implicitfast; {:.0} s total)\n",
-                a.trials,
-                a.seed,
-                a.duration,
-                a.policy.iter().map(|p| format!(" --policy {}", p.display())).collect::<String>(),
-                a.duration,
-                started.elapsed().as_secs_f64()
-            );
-        }
+            ("", "logs, reference plant MuJoCo RK4 + noise + 50 Hz jitter; diagnosing engine MuJoCo implicitfast")
+        };
+        println!(
+            "ulab gap bench{flag} --trials {} --seed {} --duration {}{} ({} s {what}; {:.0} s total)\n",
+            a.trials,
+            a.seed,
+            a.duration,
+            a.policy.iter().map(|p| format!(" --policy {}", p.display())).collect::<String>(),
+            a.duration,
+            started.elapsed().as_secs_f64()
+        );
         print!("{table}");
         println!("\nfiles: {}", dir.display());
     }

@@ -55,14 +55,13 @@ pub fn wait_with_timeout(mut child: Child, timeout: Duration) -> (Option<ExitSta
 /// Runs the `ulab` binary with `args`, output piped, killed after `timeout`: (exit code if it exited in time,
 /// stdout, stderr).
 pub fn run_ulab(args: &[&str], timeout: Duration) -> (Option<i32>, String, String) {
-    let child = Command::new(env!("CARGO_BIN_EXE_ulab"))
-        .args(args)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("start ulab");
-    let (status, out, err) = wait_with_timeout(child, timeout);
+    let (status, out, err) = wait_with_timeout(spawn_ulab(args), timeout);
     (status.and_then(|s| s.code()), out, err)
+}
+
+/// Starts the `ulab` binary with `args`, stdout and stderr piped (read them with [`wait_with_timeout`]).
+pub fn spawn_ulab(args: &[&str]) -> Child {
+    Command::new(env!("CARGO_BIN_EXE_ulab")).args(args).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("start ulab")
 }
 
 /// The last 2000 characters of a long text, for failure messages.
