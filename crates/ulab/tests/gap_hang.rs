@@ -31,7 +31,7 @@ fn hung_sim_recording_is_diagnosed_without_a_confident_effect() {
     let (code, o, e) = run_ulab(&["gap", "excite", "--duration", "6", "--rate", "100", "--out", &s(&plan)], Duration::from_secs(30));
     assert_eq!(code, Some(0), "excite failed:\n{o}\n{e}");
 
-    let sim = spawn(&["sim", "--hang", "--domain", DOMAIN, "--duration", "30", "--quiet"]);
+    let sim = spawn(&["sim", "--hang", "--on-time-state", "--domain", DOMAIN, "--duration", "30", "--quiet"]);
     let recorder = spawn(&["record", "--domain", DOMAIN, "--duration", "9", "--quiet", "--out", &s(&rec)]);
     std::thread::sleep(Duration::from_millis(1000));
     let (code, o, e) = run_ulab(&["replay", &s(&plan), "--domain", DOMAIN, "--topics", "rt/lowcmd"], Duration::from_secs(30));

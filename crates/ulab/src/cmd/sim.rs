@@ -54,6 +54,12 @@ pub struct Args {
     /// only; starts holding the standing pose until the first command.
     #[arg(long)]
     pub hang: bool,
+    /// Publish each LowState when the wall clock reaches the time it describes, before the next step (causal and
+    /// on time, as a robot's sensors; what a recorded log for `ulab gap` needs), at the cost of one physics step
+    /// more command-to-state latency. Default: publish right after each step, as unitree_mujoco does (the state
+    /// then describes the end of a step the wall clock has not reached yet).
+    #[arg(long)]
+    pub on_time_state: bool,
     /// No status line.
     #[arg(long)]
     pub quiet: bool,
@@ -145,19 +151,18 @@ pub fn run(args: Args) -> Result<ExitCode> {
             drain(&commands, &mut robot, start);
             continue;
         }
-        // The state at `sim_time` goes out when the wall clock reaches `sim_time`, before the step that leaves it
-        // (published right after that step, it would reach recorders one step before the time it describes); then
-        // the commands received by now drive the step from `sim_time`, as on the robot.
-        if sim_time + 1e-9 >= next_publish {
-            let bytes = robot.lowstate_bytes().context("building LowState")?;
-            if let Err(e) = states.write(&bytes) {
-                eprintln!("sim: publishing rt/lowstate failed: {e}");
-            }
-            next_publish += publish_period;
+        // --on-time-state: the state at `sim_time` goes out when the wall clock reaches `sim_time`, before the step
+        // that leaves it; by default it goes out right after that step (lower latency, but it describes a time one
+        // step ahead of the wall clock). Either way the commands received by now drive the step from `sim_time`.
+        if args.on_time_state {
+            publish_due(&mut robot, &states, sim_time, &mut next_publish, publish_period)?;
         }
         drain(&commands, &mut robot, start);
         robot.step(start.elapsed().as_secs_f64()).context("physics step")?;
         sim_time += args.dt;
+        if !args.on_time_state {
+            publish_due(&mut robot, &states, sim_time, &mut next_publish, publish_period)?;
+        }
         let since = window.0.elapsed().as_secs_f64();
         if since >= 1.0 {
             let c = robot.counters();
@@ -188,6 +193,18 @@ pub fn run(args: Args) -> Result<ExitCode> {
         c.malformed
     );
     Ok(ExitCode::SUCCESS)
+}
+
+/// Publishes the robot's LowState when `sim_time` has reached the next publication time.
+fn publish_due(robot: &mut SimRobot, states: &dds_transport::RawWriter, sim_time: f64, next_publish: &mut f64, period: f64) -> Result<()> {
+    if sim_time + 1e-9 >= *next_publish {
+        let bytes = robot.lowstate_bytes().context("building LowState")?;
+        if let Err(e) = states.write(&bytes) {
+            eprintln!("sim: publishing rt/lowstate failed: {e}");
+        }
+        *next_publish += period;
+    }
+    Ok(())
 }
 
 /// Hands every pending command sample to the robot, stamped with the bridge's clock.
