@@ -15,7 +15,7 @@
 //! * horizontal position and heading are free on flat ground: x = y = 0, heading as the IMU reports it.
 use crate::diagnose::{SIGMA_DQ, SIGMA_GYRO, SIGMA_Q, SIGMA_QUAT, SIGMA_TAU_FRAC};
 use crate::log::{Command, Measurement, RobotLog};
-use crate::plant::{actuator_torques, idle_command, imu_reading_floating, imu_site_relative, joint_groups, replay_window, EngineChoice, Effects, DT};
+use crate::plant::{actuator_torques, idle_command, imu_reading_floating, imu_site_relative, joint_groups, replay_window, sensed, true_joint_angles, EngineChoice, Effects, DT};
 use crate::GapError;
 use diff_physics::mujoco::{MujocoEngine, MujocoSettings};
 use diff_physics::{CommonSettings, Engine, State};
@@ -128,7 +128,7 @@ fn sample_kinematics(model: &RobotModel, feet: &Feet, m: &Measurement, fx: &Effe
     if !(norm.is_finite() && norm > 1e-6) {
         return Err(GapError::Log(format!("state at t = {}: IMU quaternion {:?} is not a rotation", m.t, m.quat)));
     }
-    let q: Vec<f64> = m.q.iter().zip(&fx.encoder_offset).map(|(q, o)| q - o).collect();
+    let q = true_joint_angles(m, fx);
     // Orientation: measured = R_pelvis · R_site · R_mis.
     let (site_rel, w_rel) = imu_site_relative(model, &q, &m.dq)?;
     let mis = UnitQuaternion::from_scaled_axis(Vector3::from(fx.imu_misalignment));
@@ -360,8 +360,8 @@ impl FloatingPlant {
     /// What the sensors report at the current state: joints (with the encoder offset), last motor torque, IMU.
     fn measure(&self, model: &RobotModel, fx: &Effects, t: f64, tau: &[f64], with_imu: bool) -> Result<Measurement, GapError> {
         let s = self.engine.state();
-        let (quat, gyro) = if with_imu { imu_reading_floating(model, s.base_quat, s.base_ang_vel, &s.q, &s.dq, fx)? } else { ([1.0, 0.0, 0.0, 0.0], [0.0; 3]) };
-        Ok(Measurement { t, q: s.q.iter().zip(&fx.encoder_offset).map(|(q, o)| q + o).collect(), dq: s.dq, tau: tau.to_vec(), quat, gyro, acc: [0.0; 3] })
+        let imu = if with_imu { Some(imu_reading_floating(model, s.base_quat, s.base_ang_vel, &s.q, &s.dq, fx)?) } else { None };
+        Ok(sensed(t, &s.q, s.dq, tau, imu, fx))
     }
 }
 
@@ -398,7 +398,7 @@ pub fn predict_window_from(
     with_imu: bool,
 ) -> Result<Vec<Measurement>, GapError> {
     let s0 = log.states.get(start).ok_or_else(|| GapError::Input(format!("window start {start} beyond the log's {} states", log.states.len())))?;
-    let q0: Vec<f64> = s0.q.iter().zip(&fx.encoder_offset).map(|(q, o)| q - o).collect();
+    let q0 = true_joint_angles(s0, fx);
     plant.reset(base, &q0, &s0.dq)?;
     let idle = idle_command(model, &q0);
     replay_window(plant, log, fx, start, len, &idle, |p, cmd| Ok(p.step(cmd, fx)?.to_vec()), |p, t, tau| p.measure(model, fx, t, tau, with_imu))

@@ -295,6 +295,18 @@ fn imu_from_site(site_rot: UnitQuaternion<f64>, w_world: Vector3<f64>, fx: &Effe
     ([r.w, r.i, r.j, r.k], gyro.into())
 }
 
+/// True joint angles behind a logged state: the encoder reading minus the encoder offset being fitted.
+pub(crate) fn true_joint_angles(s: &Measurement, fx: &Effects) -> Vec<f64> {
+    s.q.iter().zip(&fx.encoder_offset).map(|(q, o)| q - o).collect()
+}
+
+/// What the sensors report at time `t` for true joint state `(q, dq)`: encoder angles (offset added), speeds, the
+/// last motor torque and the IMU reading (identity and zero when not simulated).
+pub(crate) fn sensed(t: f64, q: &[f64], dq: Vec<f64>, tau: &[f64], imu: Option<([f64; 4], [f64; 3])>, fx: &Effects) -> Measurement {
+    let (quat, gyro) = imu.unwrap_or(([1.0, 0.0, 0.0, 0.0], [0.0; 3]));
+    Measurement { t, q: q.iter().zip(&fx.encoder_offset).map(|(q, o)| q + o).collect(), dq, tau: tau.to_vec(), quat, gyro, acc: [0.0; 3] }
+}
+
 /// Replays `log`'s commands from the measured state at state index `start` for `len` state samples; returns the
 /// predicted measurements at those samples' times (what the sensors would report).
 pub fn predict_window(
@@ -307,12 +319,12 @@ pub fn predict_window(
     with_imu: bool,
 ) -> Result<Vec<Measurement>, GapError> {
     let s0 = &log.states[start];
-    let q0: Vec<f64> = s0.q.iter().zip(&fx.encoder_offset).map(|(q, o)| q - o).collect();
+    let q0 = true_joint_angles(s0, fx);
     rig.reset(&q0, &s0.dq)?;
     replay_window(rig, log, fx, start, len, &idle_command(model, &q0), |rig, cmd| rig.step(cmd, fx).map(<[f64]>::to_vec), |rig, t, tau| {
         let (q, dq) = rig.joints();
-        let (quat, gyro) = if with_imu { imu_reading(model, &q, &dq, fx)? } else { ([1.0, 0.0, 0.0, 0.0], [0.0; 3]) };
-        Ok(Measurement { t, q: q.iter().zip(&fx.encoder_offset).map(|(q, o)| q + o).collect(), dq, tau: tau.to_vec(), quat, gyro, acc: [0.0; 3] })
+        let imu = if with_imu { Some(imu_reading(model, &q, &dq, fx)?) } else { None };
+        Ok(sensed(t, &q, dq, tau, imu, fx))
     })
 }
 
