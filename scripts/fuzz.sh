@@ -3,7 +3,8 @@
 # instrumentation cargo-fuzz asks rustc for (`-s none`: no address sanitizer, which needs nightly).
 #   scripts/fuzz.sh build               build every target
 #   scripts/fuzz.sh run TARGET SECONDS  fuzz TARGET from its seed corpus for SECONDS
-#   scripts/fuzz.sh smoke SECONDS       run every target for SECONDS each (CI)
+#   scripts/fuzz.sh smoke SECONDS       run every target for SECONDS each (CI), with a fixed libFuzzer seed
+#                                       so that a red smoke run replays the same inputs on the same commit
 # New crashes land in fuzz/artifacts/TARGET/; copy minimized ones to corpus/regressions/TARGET/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -16,7 +17,7 @@ BIN=fuzz/target/x86_64-unknown-linux-gnu/release
 build() { cargo build --quiet --release --manifest-path fuzz/Cargo.toml --target x86_64-unknown-linux-gnu --bins; }
 
 run() {
-  local target=$1 seconds=$2 work
+  local target=$1 seconds=$2 seed=${3:-0} work
   work=$(mktemp -d)
   mkdir -p "fuzz/artifacts/$target"
   # Work corpus in a temp dir: the committed seeds and regressions are only read (if present:
@@ -24,7 +25,8 @@ run() {
   local dirs=("$work")
   for d in "corpus/fuzz/$target" "corpus/regressions/$target"; do [ -d "$d" ] && dirs+=("$d"); done
   local status=0
-  "$BIN/$target" -max_total_time="$seconds" -print_final_stats=1 -artifact_prefix="fuzz/artifacts/$target/" \
+  # -seed=0 asks libFuzzer for a random seed.
+  "$BIN/$target" -seed="$seed" -max_total_time="$seconds" -print_final_stats=1 -artifact_prefix="fuzz/artifacts/$target/" \
     "${dirs[@]}" > "$work.log" 2>&1 || status=$?
   grep -E "^(#[0-9]+.*DONE|stat::number_of_executed_units|==[0-9]+==|SUMMARY|ERROR)" "$work.log" || true
   if [ "$status" != 0 ]; then tail -n 30 "$work.log"; echo "fuzz: $target failed (exit $status)" >&2; fi
@@ -38,6 +40,6 @@ case "${1:-}" in
   run) build; run "$2" "$3" ;;
   smoke)
     build
-    for t in "${TARGETS[@]}"; do echo "fuzz: $t for ${2}s"; run "$t" "$2"; done ;;
+    for t in "${TARGETS[@]}"; do echo "fuzz: $t for ${2}s"; run "$t" "$2" 1; done ;;
   *) echo "usage: $0 build | run TARGET SECONDS | smoke SECONDS" >&2; exit 2 ;;
 esac

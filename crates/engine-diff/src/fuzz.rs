@@ -158,3 +158,66 @@ pub fn oracle_findings(result: &EpisodeResult, allow: &AllowList) -> Vec<harness
         .cloned()
         .collect()
 }
+
+/// The whole check of the `engine_divergence` cargo-fuzz target, kept here so that `cargo test` replays the
+/// saved inputs (`corpus/regressions/engine_divergence/`, `corpus/fuzz/engine_divergence/`) through exactly
+/// what the fuzzer runs. Engines are built once per ground friction and reset per input
+/// (`Engine::reset` is a true reset), because building them dominates a 40 ms rollout.
+pub struct DivergenceOracle {
+    model: RobotModel,
+    allow: AllowList,
+    ctrl: Box<ControllerFactory>,
+    names: Vec<String>,
+    friction_bits: Option<u64>,
+    engines: Vec<Box<dyn diff_physics::Engine>>,
+}
+
+impl std::fmt::Debug for DivergenceOracle {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("DivergenceOracle").field("engines", &self.names).finish_non_exhaustive()
+    }
+}
+
+/// Lead engine first: MuJoCo against Rapier multibody (Rapier's Rust code gives the coverage).
+const ORACLE_ENGINES: [diff_physics::EngineKind; 2] = [diff_physics::EngineKind::Mujoco, diff_physics::EngineKind::RapierMultibody];
+
+/// Rollout length per input: two 50 Hz control ticks.
+pub const ORACLE_SECONDS: f64 = 0.04;
+
+fn oracle_engines(m: &RobotModel) -> Result<Vec<Box<dyn diff_physics::Engine>>, DiffError> {
+    ORACLE_ENGINES
+        .iter()
+        .map(|&k| diff_physics::make_engine(k, m, &diff_physics::CommonSettings::default()).map_err(DiffError::from))
+        .collect()
+}
+
+impl DivergenceOracle {
+    /// The built-in H1-2 under the built-in excitation controller and allow-list.
+    pub fn h1_2() -> Result<Self, DiffError> {
+        let model = RobotModel::h1_2()?;
+        Ok(DivergenceOracle {
+            allow: AllowList::builtin()?,
+            ctrl: harness::excitation_factory(&model),
+            names: ORACLE_ENGINES.iter().map(|k| k.name().to_string()).collect(),
+            friction_bits: None,
+            engines: oracle_engines(&model)?,
+            model,
+        })
+    }
+
+    /// Runs one perturbation (two windows of 10 steps) and returns the findings that are neither
+    /// allow-listed nor within bounds: each one is a candidate engine bug. An engine error on a valid
+    /// input is returned as the error.
+    pub fn check(&mut self, p: &crate::scenario::FuzzPerturbation) -> Result<Vec<harness::Finding>, DiffError> {
+        let s = p.scenario(ORACLE_SECONDS);
+        let m = harness::scenario_model(&self.model, &s);
+        let key = s.ground_friction.map(f64::to_bits);
+        if key != self.friction_bits {
+            self.engines = oracle_engines(&m)?;
+            self.friction_bits = key;
+        }
+        let cfg = HarnessConfig { window_steps: 10, free_runs: false, ..HarnessConfig::default() };
+        let r = harness::run_episode_on(&mut self.engines, &self.names, &m, self.ctrl.as_ref(), &s, &cfg)?;
+        Ok(oracle_findings(&r, &self.allow))
+    }
+}

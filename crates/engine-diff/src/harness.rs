@@ -264,18 +264,23 @@ pub fn scenario_model(model: &RobotModel, s: &Scenario) -> RobotModel {
     m
 }
 
-/// Standing, with the scenario's initial joint offsets and height.
-pub fn initial_state(model: &RobotModel, s: &Scenario) -> State {
+/// Standing, with the scenario's initial joint offsets and height. Offsets that bend a leg would push a foot
+/// into the ground; the base is raised so that the lowest collision point is no lower than in the standing
+/// pose (an initial penetration is a property of the input, not of an engine).
+pub fn initial_state(model: &RobotModel, s: &Scenario) -> Result<State, DiffError> {
     let mut st = State::standing(model);
     let mut rng = ChaCha8Rng::seed_from_u64(s.seed ^ 0x1A1_1A1);
     let a = s.init_q_offset;
-    for (i, j) in model.joints.iter().enumerate() {
-        if a > 0.0 {
+    if a > 0.0 {
+        let standing_low = model.lowest_point_z(&st.coords())?;
+        for (i, j) in model.joints.iter().enumerate() {
             st.q[i] = (st.q[i] + rng.gen_range(-a..=a)).clamp(j.lower, j.upper);
         }
+        let low = model.lowest_point_z(&st.coords())?;
+        st.base_pos[2] += (standing_low - low).max(0.0);
     }
     st.base_pos[2] += s.init_height;
-    st
+    Ok(st)
 }
 
 /// Contact phase name and the robot bodies touching the ground.
@@ -581,7 +586,7 @@ pub fn run_episode_on(
     let total_steps = ((scenario.seconds / dt).round() as usize).max(1);
     let bounds = Bounds::new(dt, k);
     let mut lp = Loop::new(ctrl_factory, &m, scenario, dt)?;
-    let mut state = initial_state(&m, scenario);
+    let mut state = initial_state(&m, scenario)?;
     let mut windows = Vec::new();
     let mut findings = Vec::new();
     let mut patterns = std::collections::BTreeSet::new();
@@ -675,7 +680,7 @@ pub fn free_run(
     let mut engine_s = 0.0;
     let mut steps = 0u64;
     let res: Result<(), DiffError> = (|| {
-        e.reset(&initial_state(model, s))?;
+        e.reset(&initial_state(model, s)?)?;
         for g in 0..total_steps {
             let st = e.state();
             lp.target(g, &st, s)?;

@@ -1,0 +1,27 @@
+//! Replays every saved `engine_divergence` fuzz input (`corpus/regressions/engine_divergence/`: inputs that
+//! once aborted the target, named for what they exercise; `corpus/fuzz/engine_divergence/`: the seeds)
+//! through the oracle the fuzz target runs, decoding the bytes the way libFuzzer's typed entry point does.
+
+use arbitrary::{Arbitrary, Unstructured};
+use engine_diff::fuzz::DivergenceOracle;
+use engine_diff::scenario::FuzzPerturbation;
+use std::path::Path;
+
+#[test]
+fn engine_divergence_inputs_raise_no_candidate_bug() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../corpus");
+    let mut oracle = DivergenceOracle::h1_2().expect("built-in oracle");
+    let (mut regressions, mut seeds) = (0, 0);
+    for (dir, count) in [(root.join("regressions/engine_divergence"), &mut regressions), (root.join("fuzz/engine_divergence"), &mut seeds)] {
+        let mut paths: Vec<_> = std::fs::read_dir(&dir).expect("corpus folder").map(|e| e.expect("entry").path()).collect();
+        paths.sort();
+        for path in paths.iter().filter(|p| p.is_file() && p.extension().is_none_or(|e| e != "md")) {
+            let bytes = std::fs::read(path).expect("read");
+            let p = FuzzPerturbation::arbitrary_take_rest(Unstructured::new(&bytes)).expect("any bytes decode");
+            let bad = oracle.check(&p).unwrap_or_else(|e| panic!("{}: engine failed: {e}", path.display()));
+            assert!(bad.is_empty(), "{}: candidate engine bug {bad:#?}\n{:?}", path.display(), p.scenario(engine_diff::fuzz::ORACLE_SECONDS));
+            *count += 1;
+        }
+    }
+    assert!(regressions > 0 && seeds > 0, "expected saved inputs, found {regressions} regressions and {seeds} seeds");
+}
