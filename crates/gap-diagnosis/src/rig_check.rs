@@ -11,10 +11,14 @@
 //! constant) and an accelerometer offset — and counts the samples whose remaining deviation is beyond a
 //! threshold. Threshold per channel: the larger of a fixed floor and [`NOISE_MULTIPLE`] times that channel's
 //! white-noise level estimated from the log itself (first differences of the residual, robust MAD), so a noisy
-//! IMU does not trip it. Limits: a robot standing perfectly still on the ground is kinematically a rig (its
-//! constant tilt looks like a misalignment); the check can only see a floating base that moves.
+//! IMU does not trip it.
+//!
+//! A robot standing perfectly still on the ground is kinematically a rig (its constant tilt looks like a
+//! misalignment), so the IMU cannot tell; its legs can. The foot-load test ([`foot_load`]) explains the logged leg
+//! torques beyond what hanging legs need by a wrench on each foot and asks how much of the body weight the feet
+//! carry: on the rig nothing, standing nearly all of it.
 use crate::effects::EffectKind;
-use crate::log::RobotLog;
+use crate::log::{Measurement, RobotLog};
 use crate::plant::{imu_reading, Effects, RIG_BASE_POS};
 use crate::GapError;
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
@@ -32,6 +36,13 @@ pub const ACC_FLOOR_M_S2: f64 = 2.0;
 pub const NOISE_MULTIPLE: f64 = 8.0;
 /// The log violates the rig assumption when more than this fraction of samples deviate beyond a threshold.
 pub const MAX_VIOLATING_FRACTION: f64 = 0.05;
+
+/// The log violates the rig assumption when the feet carry more than this fraction of the body weight (median over
+/// the log). Hanging legs carry none; what the effect library can put on a hanging leg (a 2x heavier leg link, the
+/// largest friction) reads as at most ~0.1 of it.
+pub const MAX_FOOT_LOAD_FRACTION: f64 = 0.3;
+/// Every this many states enter the foot-load median (the load of a standing robot changes slowly).
+const FOOT_LOAD_STRIDE: usize = 5;
 
 /// Outcome of the rig-assumption check (part of `report.json`).
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
@@ -62,6 +73,10 @@ pub struct RigCheck {
     pub p95_acc_m_s2: f64,
     /// Fraction of samples beyond any threshold.
     pub violating_fraction: f64,
+    /// Median vertical force on both feet over the body weight, from the leg torques ([`foot_load`]); `None` when
+    /// the log's torque estimates are all zero (not checked).
+    #[serde(default)]
+    pub foot_load_fraction: Option<f64>,
     /// One line for humans.
     pub message: String,
 }
@@ -109,6 +124,50 @@ pub fn imu_point_velocity(model: &RobotModel, q: &[f64], dq: &[f64]) -> Result<V
     let p0 = pos(q.to_vec())?;
     let p1 = pos(q.iter().zip(dq).map(|(a, b)| a + b * EPS).collect())?;
     Ok((p1 - p0) / EPS)
+}
+
+/// Vertical force on both feet (N, up positive) that explains a measurement's leg torques beyond those of the
+/// legs hanging from a pelvis held upright (quasi-static: gravity and velocity terms, no acceleration, which
+/// averages out over a log). Per leg, the six joints from hip to ankle carry a 6-D wrench on the ankle link:
+/// `τ_logged − τ_hanging = −Jᵀ w` (the motors hold against the ground), solved by SVD least squares, so a leg
+/// near a singular pose gives the minimum-norm wrench instead of an error.
+pub fn foot_load(model: &RobotModel, feet: &crate::floating::Feet, s: &Measurement) -> Result<f64, GapError> {
+    let nj = model.nj();
+    if s.tau.len() != nj || s.q.len() != nj || s.dq.len() != nj {
+        return Err(GapError::Log(format!("a state has {} joint angles and {} torques for a {nj}-joint model", s.q.len(), s.tau.len())));
+    }
+    let c = GenCoords { base_pos: RIG_BASE_POS, base_quat: [1.0, 0.0, 0.0, 0.0], q: s.q.clone() };
+    let mut v = vec![0.0; model.nv()];
+    v[6..].copy_from_slice(&s.dq);
+    let g = [0.0, 0.0, -robot_model::GRAVITY_EARTH];
+    let hanging = model.rnea(&c, &v, &vec![0.0; model.nv()], g, false).map_err(|e| GapError::Engine(e.to_string()))?;
+    let fk = model.fk(&c).map_err(|e| GapError::Engine(e.to_string()))?;
+    let mut fz = 0.0;
+    for &foot in &feet.links {
+        // The joints on the chain from the pelvis to this foot.
+        let mut chain = Vec::new();
+        let mut link = foot;
+        while let Some(j) = model.links[link].parent_joint {
+            chain.push(j);
+            link = model.joints[j].parent_link;
+        }
+        let p = fk.link_poses[foot].translation.vector;
+        let mut jt = nalgebra::DMatrix::<f64>::zeros(chain.len(), 6);
+        let mut rhs = nalgebra::DVector::<f64>::zeros(chain.len());
+        for (r, &j) in chain.iter().enumerate() {
+            let a = fk.joint_axes[j].into_inner();
+            // τ_j = a · ((p − r) × F) + a · M = F · (a × (p − r)) + M · a.
+            let lin = a.cross(&(p - fk.joint_points[j]));
+            for k in 0..3 {
+                jt[(r, k)] = lin[k];
+                jt[(r, 3 + k)] = a[k];
+            }
+            rhs[r] = -(s.tau[j] - hanging[6 + j]);
+        }
+        let w = jt.svd(true, true).solve(&rhs, 1e-6).map_err(|e| GapError::Engine(format!("foot wrench: {e}")))?;
+        fz += w[2];
+    }
+    Ok(fz)
 }
 
 /// Checks `log` against the rig assumption for `model`.
@@ -184,17 +243,38 @@ pub fn check(model: &RobotModel, log: &RobotLog) -> Result<RigCheck, GapError> {
     let bias_max = EffectKind::ImuBias.range().1;
     let const_rot = m.scaled_axis();
     let beyond_const = const_rot.norm() > mis_max + thr_r || bias.norm() > bias_max + thr_g;
-    let suspended = frac <= MAX_VIOLATING_FRACTION && !beyond_const;
+    // Foot load, where the log has torque estimates and the model has legs.
+    let torques_logged = log.states.iter().any(|s| s.tau.iter().any(|t| t.abs() > 1e-9));
+    let foot_load_fraction = match (torques_logged, crate::floating::Feet::of(model)) {
+        (true, Ok(feet)) => {
+            let weight = model.total_mass() * g;
+            let loads = log.states.iter().step_by(FOOT_LOAD_STRIDE).map(|s| foot_load(model, &feet, s).map(|f| f / weight)).collect::<Result<Vec<_>, _>>()?;
+            Some(median(loads))
+        }
+        _ => None,
+    };
+    let loaded = foot_load_fraction.is_some_and(|f| f > MAX_FOOT_LOAD_FRACTION);
+    let suspended = frac <= MAX_VIOLATING_FRACTION && !beyond_const && !loaded;
     let deg = |r: f64| r.to_degrees();
     let (p95r, maxr, p95g, maxg, p95a) =
         (percentile(&rn, 0.95), rn.iter().copied().fold(0.0, f64::max), percentile(&gn, 0.95), gn.iter().copied().fold(0.0, f64::max), percentile(&an, 0.95));
     let message = if suspended {
         format!(
-            "consistent with a suspended robot: torso IMU follows the joints within {:.1} deg / {:.2} rad/s on {:.1} % of samples (allowed {:.0} %)",
+            "consistent with a suspended robot: torso IMU follows the joints within {:.1} deg / {:.2} rad/s on {:.1} % of samples (allowed {:.0} %){}",
             deg(thr_r),
             thr_g,
             100.0 * (1.0 - frac),
-            100.0 * MAX_VIOLATING_FRACTION
+            100.0 * MAX_VIOLATING_FRACTION,
+            match foot_load_fraction {
+                Some(f) => format!("; the feet carry {:.0} % of the body weight (allowed {:.0} %)", 100.0 * f, 100.0 * MAX_FOOT_LOAD_FRACTION),
+                None => "; foot load not checked (no torque estimates in the log)".into(),
+            }
+        )
+    } else if loaded && frac <= MAX_VIOLATING_FRACTION && !beyond_const {
+        format!(
+            "log not from a suspended robot: the leg torques put {:.0} % of the body weight on the feet (median; a suspended robot's hanging legs carry none, allowed {:.0} %), so it stands on the ground although its torso IMU follows the joints",
+            100.0 * foot_load_fraction.unwrap_or(0.0),
+            100.0 * MAX_FOOT_LOAD_FRACTION
         )
     } else if beyond_const && frac <= MAX_VIOLATING_FRACTION {
         format!(
@@ -234,6 +314,7 @@ pub fn check(model: &RobotModel, log: &RobotLog) -> Result<RigCheck, GapError> {
         max_gyro_rad_s: maxg,
         p95_acc_m_s2: p95a,
         violating_fraction: frac,
+        foot_load_fraction,
         message,
     })
 }

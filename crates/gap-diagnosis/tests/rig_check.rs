@@ -106,7 +106,7 @@ fn standing_robot_replaying_the_excitation_plan_is_not_a_rig_log() {
 #[test]
 fn standing_robot_swinging_its_arms_is_not_a_rig_log() {
     // Subtler: legs held stiff on the ground, only the arms move (±0.2 rad chirp, 0.5 to 2 Hz over 3 s); the
-    // pelvis sways a few degrees in reaction. (A robot standing perfectly still passes: it is kinematically a rig.)
+    // pelvis sways a few degrees in reaction. The IMU alone must see it (the foot load would too).
     let m = model();
     let (kp, kd) = stand_gains(&m);
     let groups = joint_groups(&m);
@@ -129,6 +129,45 @@ fn standing_robot_swinging_its_arms_is_not_a_rig_log() {
     let c = rig_check::check(&m, &log).expect("check");
     eprintln!("{}", c.message);
     assert!(!c.suspended, "{c:?}");
+    assert!(c.violating_fraction > rig_check::MAX_VIOLATING_FRACTION, "the IMU test alone must catch a swaying robot: {c:?}");
+}
+
+#[test]
+fn robot_standing_perfectly_still_is_caught_by_its_foot_load() {
+    // Legs and arms held at the standing pose: the torso IMU follows the joints exactly as on a rig (a constant
+    // tilt reads as a misalignment), but the legs carry the body. The torques come from this test's PD law on
+    // MuJoCo's motion, the foot load from the library's rigid-body model.
+    let m = model();
+    let (kp, kd) = stand_gains(&m);
+    let q: Vec<f64> = m.joints.iter().map(|j| j.default_q).collect();
+    let log = standing_log(&m, 2.0, |t| Command { t, q: q.clone(), dq: vec![0.0; m.nj()], kp: kp.clone(), kd: kd.clone(), tau: vec![0.0; m.nj()] });
+    let c = rig_check::check(&m, &log).expect("check");
+    eprintln!("{}", c.message);
+    assert!(c.violating_fraction <= rig_check::MAX_VIOLATING_FRACTION, "the IMU cannot see a still robot: {c:?}");
+    let load = c.foot_load_fraction.expect("torques are logged");
+    assert!((0.85..1.15).contains(&load), "a standing robot's feet carry its weight, got {load:.3}");
+    assert!(!c.suspended, "{c:?}");
+    assert!(c.message.contains("body weight on the feet"), "{}", c.message);
+}
+
+#[test]
+fn heavy_rough_leg_on_the_rig_carries_no_foot_load() {
+    // The largest link mass and Coulomb friction the library fits, on the whole left leg of a rig log: torques
+    // that the rigid-body model of hanging legs does not predict, which must not read as standing.
+    let m = model();
+    let groups = joint_groups(&m);
+    let mut fx = Effects::none(m.nj());
+    for j in (0..m.nj()).filter(|&j| groups[j] == 0) {
+        EffectKind::LinkMass.set(&mut fx, j, EffectKind::LinkMass.range().1);
+        EffectKind::Friction.set(&mut fx, j, EffectKind::Friction.range().1);
+    }
+    let cfg = RealConfig { effects: fx, ..RealConfig::new(&m, 4.0, 5) };
+    let log = generate_log(&m, &cfg).expect("generate");
+    let c = rig_check::check(&m, &log).expect("check");
+    eprintln!("{}", c.message);
+    let load = c.foot_load_fraction.expect("torques are logged");
+    assert!(load.abs() < 0.5 * rig_check::MAX_FOOT_LOAD_FRACTION, "hanging legs carry no load, got {load:.3}");
+    assert!(c.suspended, "{c:?}");
 }
 
 /// A rig log of the benchmark's reference plant with one IMU effect at the library's largest magnitude.
@@ -175,4 +214,6 @@ fn plain_rig_log_passes() {
     // The thresholds come from the floors here: the bench's IMU noise is far below them.
     assert_eq!(c.threshold_orientation_rad, rig_check::ORIENTATION_FLOOR_RAD);
     assert!(c.violating_fraction < 0.01, "{c:?}");
+    let load = c.foot_load_fraction.expect("torques are logged");
+    assert!(load.abs() < 0.05, "hanging legs carry no load, got {load:.3}");
 }
