@@ -684,22 +684,14 @@ pub fn floating_trial_policy(i: usize, opts: &BenchOptions) -> Option<PolicyInpu
     Some(PolicyInput { spec, command })
 }
 
-/// Pelvis lower than this (m) means the robot fell.
-pub const FALLEN_HEIGHT: f64 = 0.6;
-/// Pelvis tilted more than this from upright (rad) means the robot fell.
-pub const FALLEN_TILT: f64 = std::f64::consts::FRAC_PI_4;
+pub use crate::floating::{FALLEN_HEIGHT, FALLEN_TILT};
 /// Magnitude draws per trial before the benchmark gives up on it.
 pub const MAX_DRAWS: usize = 8;
 
 /// The first logged sample at which the reference robot is down (pelvis below [`FALLEN_HEIGHT`] or tilted more
 /// than [`FALLEN_TILT`]), if any.
 pub fn fell_at(log: &crate::floating::FloatingLog) -> Option<usize> {
-    log.truth.iter().position(|b| {
-        let [_, x, y, _] = b.quat;
-        // z component of the pelvis z axis in the world: cos(tilt).
-        let cos_tilt = 1.0 - 2.0 * (x * x + y * y);
-        b.pos[2] < FALLEN_HEIGHT || cos_tilt < FALLEN_TILT.cos()
-    })
+    log.truth.iter().position(|b| crate::floating::is_down(b.pos[2], b.quat))
 }
 
 /// Generates the reference log of a floating trial: `policy` closed around the reference plant's true state every

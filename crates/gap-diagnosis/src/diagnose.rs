@@ -15,7 +15,8 @@ use serde::{Deserialize, Serialize};
 /// Schema version of `report.json`.
 /// `/2`: adds `outcome` and `rig_check` (the rig-assumption check, see [`crate::rig_check`]).
 /// `/3`: adds `plant` (rig or floating base) and `windows_unsettled`.
-pub const SCHEMA_VERSION: &str = "ulab-gap-report/3";
+/// `/4`: adds `windows_down` and `rig_check.foot_load_fraction`.
+pub const SCHEMA_VERSION: &str = "ulab-gap-report/4";
 
 /// Residual scales (what counts as "one unit" of gap per channel).
 pub const SIGMA_Q: f64 = 2e-3;
@@ -25,14 +26,21 @@ pub const SIGMA_TAU_FRAC: f64 = 0.01;
 pub const SIGMA_QUAT: f64 = 5e-3;
 pub const SIGMA_GYRO: f64 = 0.02;
 
+/// Every this many samples of a floating-base window are checked for a robot that is down.
+const DOWN_CHECK_STRIDE: usize = 5;
+
+/// Default window cap on the floating base ([`PlantKind::default_max_windows`]).
+pub const FLOATING_MAX_WINDOWS: usize = 120;
+
 /// Options of a diagnosis.
 #[derive(Debug, Clone)]
 pub struct DiagnoseOptions {
     pub engine: EngineChoice,
     /// Window length (s).
     pub window_s: f64,
-    /// At most this many windows (spread evenly over the log).
-    pub max_windows: usize,
+    /// At most this many windows (spread evenly over the log); `None`: the plant's default
+    /// ([`PlantKind::default_max_windows`]).
+    pub max_windows: Option<usize>,
     /// Train/held-out blocks alternate every `block_s` seconds.
     pub block_s: f64,
     /// Bootstrap resamples for confidence intervals.
@@ -81,6 +89,16 @@ pub enum PlantKind {
 }
 
 impl PlantKind {
+    /// Default window cap. A floating-base window (ground contact, a base estimate per start) costs about three
+    /// rig windows, so its cap is lower; both keep a 60 s log within a minute on 2 cores, and both are above
+    /// what a short log holds (a 6 s log at 0.1 s windows has at most 60).
+    pub fn default_max_windows(self) -> usize {
+        match self {
+            PlantKind::Rig => 300,
+            PlantKind::Floating => FLOATING_MAX_WINDOWS,
+        }
+    }
+
     pub fn name(self) -> &'static str {
         match self {
             PlantKind::Rig => "rig",
@@ -94,7 +112,7 @@ impl Default for DiagnoseOptions {
         DiagnoseOptions {
             engine: EngineChoice { integrator: "implicitfast".into() },
             window_s: 0.1,
-            max_windows: 300,
+            max_windows: None,
             block_s: 1.0,
             bootstrap: 200,
             seed: 1,
@@ -191,6 +209,10 @@ pub struct Report {
     /// was settled (every foot in contact had been in contact for [`crate::floating::SETTLE_S`]).
     #[serde(default)]
     pub windows_unsettled: usize,
+    /// Floating base only: nominal window starts dropped because the robot was down (fell: pelvis tilted beyond
+    /// [`crate::floating::FALLEN_TILT`] or lower than [`crate::floating::FALLEN_HEIGHT`]) within the window.
+    #[serde(default)]
+    pub windows_down: usize,
     pub robot: String,
     pub engine: String,
     pub log_duration_s: f64,
@@ -565,24 +587,40 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
     if eligible.len() < 4 {
         return Err(GapError::Log(format!("the log is too short for {} s windows after the first command", opts.window_s)));
     }
-    let count = opts.max_windows.min(eligible.len() / len.max(1)).max(4);
+    let count = opts.max_windows.unwrap_or(plant.default_max_windows()).min(eligible.len() / len.max(1)).max(4);
     let starts: Vec<usize> = (0..count).map(|k| eligible[k * eligible.len() / count]).collect();
     // Floating base: each start moves to the first settled sample within one window length (no foot in a
     // touchdown transient, where the kinematic base estimate is 10-15 times worse); starts with none are dropped.
     // This happens before the train/held-out split, so both sides see only settled windows.
     let feet = if plant == PlantKind::Floating { Some(Feet::of(model)?) } else { None };
     let mut windows_unsettled = 0;
+    let mut windows_down = 0;
     let starts = match &feet {
         None => starts,
         Some(feet) => {
             let null = Effects::none(nj);
             let usable = |i: usize| i + len + 1 < log.states.len() && fresh_run[i] > len;
+            // The robot is down (fell) at these samples: the plant models a robot on its feet.
+            let down = |i: usize| floating::logged_down(model, feet, &log.states[i], &null);
             let mut settled: Vec<usize> = Vec::with_capacity(starts.len());
             for s in starts {
+                // A window may begin up to one window length after its nominal start.
+                if (s..(s + 2 * len + 1).min(log.states.len())).step_by(DOWN_CHECK_STRIDE).map(down).collect::<Result<Vec<_>, _>>()?.into_iter().any(|d| d) {
+                    windows_down += 1;
+                    continue;
+                }
                 match floating::settled_start(model, feet, log, &null, s, s + len)? {
                     Some(i) if usable(i) && settled.last().is_none_or(|&p| i > p) => settled.push(i),
                     _ => windows_unsettled += 1,
                 }
+            }
+            if settled.len() < 4 && windows_down > 0 && windows_down >= windows_unsettled {
+                return Err(GapError::Log(format!(
+                    "the robot is down (pelvis tilted beyond {:.0} deg or lower than {} m) in {windows_down} of {} windows: the floating-base plant models a robot on its feet",
+                    floating::FALLEN_TILT.to_degrees(),
+                    floating::FALLEN_HEIGHT,
+                    settled.len() + windows_unsettled + windows_down
+                )));
             }
             if settled.len() < 4 {
                 return Err(GapError::Log(format!(
@@ -904,6 +942,7 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
         rig_check: rig,
         plant,
         windows_unsettled,
+        windows_down,
         robot: model.name.clone(),
         engine: opts.engine.name(),
         log_duration_s: log.duration(),
@@ -951,6 +990,7 @@ fn rig_violated(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions, rig:
         rig_check: rig,
         plant: PlantKind::Rig,
         windows_unsettled: 0,
+        windows_down: 0,
         robot: model.name.clone(),
         engine: opts.engine.name(),
         log_duration_s: log.duration(),

@@ -61,6 +61,29 @@ pub struct BaseEstimate {
     pub settled: bool,
 }
 
+/// Pelvis lower than this (m) means the robot is down (fell).
+pub const FALLEN_HEIGHT: f64 = 0.6;
+/// Pelvis tilted more than this from upright (rad) means the robot is down (fell).
+pub const FALLEN_TILT: f64 = std::f64::consts::FRAC_PI_4;
+
+/// Whether a pelvis at height `z` (m) with orientation `quat` (`[w, x, y, z]`, pelvis-to-world) is down: below
+/// [`FALLEN_HEIGHT`] or tilted beyond [`FALLEN_TILT`].
+pub fn is_down(z: f64, quat: [f64; 4]) -> bool {
+    let [w, x, y, zq] = quat;
+    let n2 = w * w + x * x + y * y + zq * zq;
+    // z component of the pelvis z axis in the world: cos(tilt).
+    let cos_tilt = 1.0 - 2.0 * (x * x + y * y) / n2.max(f64::MIN_POSITIVE);
+    z < FALLEN_HEIGHT || cos_tilt < FALLEN_TILT.cos()
+}
+
+/// Whether the robot is down at logged sample `m`, with the pelvis orientation from the torso IMU through the
+/// waist and its height from the lowest collision point (as the base estimate takes them). The floating plant
+/// models a robot on its feet; a window in which it is down is not diagnosed.
+pub fn logged_down(model: &RobotModel, feet: &Feet, m: &Measurement, fx: &Effects) -> Result<bool, GapError> {
+    let k = sample_kinematics(model, feet, m, fx)?;
+    Ok(is_down(k.z, [k.rb.w, k.rb.i, k.rb.j, k.rb.k]))
+}
+
 /// The feet: the last link of each leg, and the points of its collision shapes that can touch the ground (box
 /// corners; the bottom of other shapes at the zero pose), in the link frame.
 #[derive(Debug, Clone, PartialEq)]

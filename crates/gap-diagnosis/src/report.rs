@@ -36,6 +36,15 @@ pub fn markdown(r: &Report) -> String {
             crate::floating::SETTLE_S,
             r.windows_unsettled
         );
+        if r.windows_down > 0 {
+            s += &format!(
+                "**The robot was down** (pelvis tilted beyond {:.0} deg or lower than {} m) in {} nominal windows; they were \
+                 dropped (the plant models a robot on its feet). The diagnosis uses the windows before and between.\n\n",
+                crate::floating::FALLEN_TILT.to_degrees(),
+                crate::floating::FALLEN_HEIGHT,
+                r.windows_down
+            );
+        }
     }
     if r.windows_skipped_fraction > 0.0 {
         s += &format!(

@@ -6,7 +6,7 @@
 mod common;
 
 use common::{lstm_policy, model, shared_set};
-use gap_diagnosis::bench::generate_walking_log;
+use gap_diagnosis::bench::{fell_at, generate_walking_log};
 use gap_diagnosis::diagnose::PlantKind;
 use gap_diagnosis::plant::{joint_groups, Effects};
 use gap_diagnosis::{diagnose, DiagnoseOptions, EffectKind, Report, RobotLog};
@@ -126,4 +126,38 @@ fn walking_leg_link_mass_is_named() {
     let top = e.params.iter().max_by(|a, b| a.held_out_reduction.total_cmp(&b.held_out_reduction)).expect("a unit");
     assert_eq!(top.unit, "left_leg", "{:?}", e.params);
     assert!((top.value - 1.5).abs() <= 0.125, "fitted {} vs 1.5", top.value);
+}
+
+/// A robot that falls: legs at half their PD gains make the walking robot fall after about 1.8 s of a 5 s log.
+/// The windows in which it is down (judged from the log: torso IMU and joints) are dropped and counted; the ones
+/// before the fall are diagnosed. The part of the log after the fall alone is refused with a message that says so.
+#[test]
+fn windows_with_the_robot_down_are_dropped() {
+    if !shared_set() {
+        return;
+    }
+    let m = model();
+    let groups = joint_groups(&m);
+    let mut fx = Effects::none(m.nj());
+    (0..m.nj()).filter(|&j| groups[j] <= 1).for_each(|j| fx.gain_scale[j] = 0.5);
+    let log = generate_walking_log(&m, fx, 5.0, 3, &lstm_policy(WALK)).expect("reference log");
+    let fell = fell_at(&log).expect("half gains on the legs make the robot fall");
+    let t_fall = log.log.states[fell].t;
+    assert!((1.0..3.0).contains(&t_fall), "the robot must fall mid-log, fell at {t_fall} s");
+    let r = diagnose(&m, &log.log, &DiagnoseOptions { block_s: 0.5, ..Default::default() }).expect("diagnose the part before the fall");
+    eprintln!("fell at {t_fall:.2} s; {} + {} windows, {} unsettled, {} down", r.windows_train, r.windows_held_out, r.windows_unsettled, r.windows_down);
+    assert_eq!(r.plant, PlantKind::Floating);
+    // 50 nominal windows of 0.1 s; the robot is down from about 1.8 s on, so more than half are dropped for it.
+    let total = r.windows_train + r.windows_held_out + r.windows_unsettled + r.windows_down;
+    assert!(r.windows_down * 2 > total, "{} of {total} windows dropped as down", r.windows_down);
+    assert!(r.windows_train + r.windows_held_out <= ((t_fall / 0.1) as usize), "windows after the fall were diagnosed");
+    assert!(gap_diagnosis::report::markdown(&r).contains("The robot was down"));
+
+    let after = t_fall + 1.0;
+    let down_only = RobotLog {
+        commands: log.log.commands.iter().filter(|c| c.t >= after).cloned().collect(),
+        states: log.log.states.iter().filter(|s| s.t >= after).cloned().collect(),
+    };
+    let err = diagnose(&m, &down_only, &DiagnoseOptions { block_s: 0.5, ..Default::default() }).expect_err("a log of a fallen robot");
+    assert!(err.to_string().contains("the robot is down"), "{err}");
 }

@@ -63,9 +63,9 @@ struct DiagnoseArgs {
     /// Window length (s).
     #[arg(long, default_value_t = 0.1)]
     window: f64,
-    /// At most this many windows.
-    #[arg(long, default_value_t = 300)]
-    max_windows: usize,
+    /// At most this many windows [default: 300 on the rig, 120 on the floating base].
+    #[arg(long)]
+    max_windows: Option<usize>,
     /// Training and held-out segments alternate every this many seconds.
     #[arg(long, default_value_t = 1.0)]
     block: f64,
@@ -181,7 +181,7 @@ fn diagnose(a: DiagnoseArgs) -> Result<ExitCode> {
     }
     let log = read_log(&a.log, &model)?;
     let plant = PlantChoice::parse(&a.plant).context("--plant")?;
-    let opts = DiagnoseOptions { engine, window_s: a.window, max_windows: a.max_windows.max(4), block_s: a.block, seed: a.seed, plant, ..Default::default() };
+    let opts = DiagnoseOptions { engine, window_s: a.window, max_windows: a.max_windows.map(|n| n.max(4)), block_s: a.block, seed: a.seed, plant, ..Default::default() };
     let report = gap_diagnosis::diagnose(&model, &log, &opts).context("diagnosing")?;
     gap_diagnosis::report::write_all(&report, &a.out).context("writing the report")?;
     let violated = report.outcome == Outcome::RigAssumptionViolated;
@@ -194,11 +194,12 @@ fn diagnose(a: DiagnoseArgs) -> Result<ExitCode> {
         if !violated {
             let why = if report.rig_check.suspended { "the log passes the rig-assumption check" } else { "the log is not from a suspended robot" };
             println!(
-                "plant {} ({why}); {} training + {} held-out windows{}",
+                "plant {} ({why}); {} training + {} held-out windows{}{}",
                 report.plant.name(),
                 report.windows_train,
                 report.windows_held_out,
-                if report.windows_unsettled > 0 { format!(" ({} starts in touchdown transients dropped)", report.windows_unsettled) } else { String::new() }
+                if report.windows_unsettled > 0 { format!(" ({} starts in touchdown transients dropped)", report.windows_unsettled) } else { String::new() },
+                if report.windows_down > 0 { format!(" ({} windows with the robot down dropped)", report.windows_down) } else { String::new() }
             );
         }
         println!("baseline held-out gap metric {:.3} [{:.3}, {:.3}]", report.baseline_metric.value, report.baseline_metric.lo, report.baseline_metric.hi);
