@@ -113,3 +113,39 @@ fn bad_input_fails_cleanly() {
     assert_eq!(code, Some(2));
     assert!(err.contains("left_tail"), "{err}");
 }
+
+/// A walking robot through the CLI: `ulab gap bench --floating` writes one sealed trial log of Unitree's LSTM
+/// walking on the ground with a hidden effect; `ulab gap diagnose` on that MCAP picks the floating-base plant by
+/// itself and names what the opened seal says was injected; `--plant rig` on the same log abstains with exit 3.
+#[test]
+fn walking_log_is_diagnosed_on_the_floating_base() {
+    if std::env::var_os("ULAB_SHARED").is_none() {
+        eprintln!("skipped: ULAB_SHARED is not set (the walking policy's weights live in the shared reference folder)");
+        return;
+    }
+    let d = dir("floating");
+    let bench = d.join("bench");
+    let policy = root().join("robots/h1_2/policies/unitree_rl_gym_lstm.toml");
+    let (code, out, err) = ulab(&[
+        "gap", "bench", "--floating", "--policy", policy.to_str().unwrap_or(""), "--trials", "1", "--seed", "1", "--duration", "4",
+        "--out", bench.to_str().unwrap_or(""),
+    ]);
+    assert_eq!(code, Some(0), "bench failed:\n{}\n{}", tail(&out), tail(&err));
+    let scores: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(bench.join("scores.json")).unwrap_or_default()).expect("scores.json");
+    let injected = &scores[0]["injected"];
+    assert_eq!(injected.as_array().map(Vec::len), Some(1), "trial 0 is a single effect: {injected}");
+    let log = bench.join("trial_000.mcap");
+
+    let (code, out, err) = ulab(&["gap", "diagnose", "--log", log.to_str().unwrap_or(""), "--out", d.join("report").to_str().unwrap_or(""), "--format", "json", "--block", "0.5"]);
+    assert_eq!(code, Some(0), "diagnose failed:\n{}\n{err}", tail(&out));
+    let r: serde_json::Value = serde_json::from_str(&out).expect("JSON report on stdout");
+    assert_eq!(r["plant"], "floating", "rig check: {}", r["rig_check"]["message"]);
+    assert_eq!(r["rig_check"]["suspended"], false);
+    assert!(r["rig_check"]["foot_load_fraction"].as_f64().is_some_and(|f| f > 0.5), "a walking robot's feet carry it: {}", r["rig_check"]);
+    assert_eq!(r["windows_down"], 0);
+    assert_eq!(r["ranked"][0], injected[0]["kind"], "ranked {} for {injected}", r["ranked"]);
+
+    let (code, _, err) = ulab(&["gap", "diagnose", "--log", log.to_str().unwrap_or(""), "--out", d.join("report_rig").to_str().unwrap_or(""), "--plant", "rig"]);
+    assert_eq!(code, Some(3), "--plant rig on a walking log must abstain with exit 3:\n{err}");
+    assert!(err.contains("ABSTAINED"), "{err}");
+}
