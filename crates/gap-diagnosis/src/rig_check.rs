@@ -38,8 +38,8 @@ pub const NOISE_MULTIPLE: f64 = 8.0;
 pub const MAX_VIOLATING_FRACTION: f64 = 0.05;
 
 /// The log violates the rig assumption when the feet carry more than this fraction of the body weight (median over
-/// the log). Hanging legs carry none; what the effect library can put on a hanging leg (a 2x heavier leg link, the
-/// largest friction) reads as at most ~0.1 of it.
+/// the log). Hanging legs carry none: rig logs read 0 to -1 %, also with the library's largest link mass (x1.8) and
+/// Coulomb friction on a whole leg; a robot standing still reads 100 % (`tests/rig_check.rs`).
 pub const MAX_FOOT_LOAD_FRACTION: f64 = 0.3;
 /// Every this many states enter the foot-load median (the load of a standing robot changes slowly).
 const FOOT_LOAD_STRIDE: usize = 5;
