@@ -694,16 +694,22 @@ pub fn fell_at(log: &crate::floating::FloatingLog) -> Option<usize> {
     log.truth.iter().position(|b| crate::floating::is_down(b.pos[2], b.quat))
 }
 
-/// Generates the reference log of a floating trial: `policy` closed around the reference plant's true state every
-/// 20 ms (as `tests/floating_diagnose.rs` does), MuJoCo RK4 with ground, sensor noise, 0–2 ms command jitter.
+/// Generates the reference log of a floating trial: `policy` closed every 20 ms around what the reference robot
+/// reports (noisy joints and torso IMU, as on the robot), MuJoCo RK4 with ground, sensor noise, 0–2 ms command
+/// jitter.
 pub fn generate_walking_log(model: &RobotModel, fx: Effects, duration: f64, seed: u64, policy: &PolicyInput) -> Result<crate::floating::FloatingLog, GapError> {
     policy.spec.check_robot(model).map_err(|e| GapError::Input(format!("policy {}: {e}", policy.spec.name)))?;
     let mut ctl = PolicyController::from_spec(policy.spec.clone()).map_err(|e| GapError::Input(format!("policy {}: {e}", policy.spec.name)))?;
     ctl.reset();
     let cfg = crate::floating::FloatingRealConfig { effects: fx, ..crate::floating::FloatingRealConfig::new(model, duration, seed) };
     let vel = policy.command;
-    let mut act = |t: f64, s: &diff_physics::State| -> Result<crate::log::Command, GapError> {
-        let obs = RobotObservation { time: t, base_quat: s.base_quat, base_ang_vel: s.base_ang_vel, q: s.q.clone(), dq: s.dq.clone(), command: vel };
+    // The policy sees what the robot reports (noisy joints, the torso IMU turned into the pelvis frame through the
+    // waist, as the deploy scripts do); before the first report, the standing pose at rest.
+    let mut act = |t: f64, s: &diff_physics::State, m: Option<&crate::log::Measurement>| -> Result<crate::log::Command, GapError> {
+        let obs = match m {
+            Some(m) => RobotObservation::from_torso_imu(t, m.quat, m.gyro, m.q.clone(), m.dq.clone(), vel).map_err(|e| GapError::Input(format!("policy observation: {e}")))?,
+            None => RobotObservation { time: t, base_quat: s.base_quat, base_ang_vel: s.base_ang_vel, q: s.q.clone(), dq: s.dq.clone(), command: vel },
+        };
         let p = ctl.act(&obs).map_err(|e| GapError::Input(format!("policy step: {e}")))?;
         Ok(crate::log::Command { t, q: p.q_des, dq: p.dq_des, kp: p.kp, kd: p.kd, tau: p.tau_ff })
     };

@@ -509,12 +509,14 @@ pub struct FloatingLog {
     pub truth: Vec<BaseState>,
 }
 
-/// Runs `controller` (called every `cmd_period` with the time and the true state, returning the joint command) on
-/// the reference plant from the model's standing pose on the ground, and logs what the robot would report.
+/// Runs `controller` on the reference plant from the model's standing pose on the ground, and logs what the robot
+/// would report. The controller is called every `cmd_period` with the time, the true state and the latest logged
+/// measurement (what a controller on the robot sees: noisy joints and torso IMU; `None` before the first one), and
+/// returns the joint command.
 pub fn generate_floating_log(
     model: &RobotModel,
     cfg: &FloatingRealConfig,
-    controller: &mut dyn FnMut(f64, &State) -> Result<Command, GapError>,
+    controller: &mut dyn FnMut(f64, &State, Option<&Measurement>) -> Result<Command, GapError>,
 ) -> Result<FloatingLog, GapError> {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(cfg.seed);
     let fx = &cfg.effects;
@@ -537,7 +539,7 @@ pub fn generate_floating_log(
     for i in 0..steps {
         let t = i as f64 * DT;
         if i % decimation == 0 {
-            let mut c = controller(t, &plant.state())?;
+            let mut c = controller(t, &plant.state(), log.states.last())?;
             c.t = if i == 0 { 0.0 } else { t + rng.gen_range(0.0..=cfg.jitter_s.max(0.0)) };
             log.commands.push(c);
         }
