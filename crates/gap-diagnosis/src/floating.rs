@@ -509,6 +509,9 @@ pub struct FloatingLog {
     pub truth: Vec<BaseState>,
 }
 
+/// A controller of [`generate_floating_log`]: time, true state, latest logged measurement → joint command.
+pub type FloatingController<'a> = dyn FnMut(f64, &State, Option<&Measurement>) -> Result<Command, GapError> + 'a;
+
 /// Runs `controller` on the reference plant from the model's standing pose on the ground, and logs what the robot
 /// would report. The controller is called every `cmd_period` with the time, the true state and the latest logged
 /// measurement (what a controller on the robot sees: noisy joints and torso IMU; `None` before the first one), and
@@ -516,7 +519,7 @@ pub struct FloatingLog {
 pub fn generate_floating_log(
     model: &RobotModel,
     cfg: &FloatingRealConfig,
-    controller: &mut dyn FnMut(f64, &State, Option<&Measurement>) -> Result<Command, GapError>,
+    controller: &mut FloatingController<'_>,
 ) -> Result<FloatingLog, GapError> {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(cfg.seed);
     let fx = &cfg.effects;
