@@ -308,12 +308,6 @@ fn yaw_of(q: [f64; 4]) -> f64 {
     (2.0 * (w * z + x * y)).atan2(1.0 - 2.0 * (y * y + z * z))
 }
 
-/// Tilt of the pelvis z axis from the vertical (rad).
-pub fn tilt_of(q: [f64; 4]) -> f64 {
-    let [_, x, y, _] = q;
-    (1.0 - 2.0 * (x * x + y * y)).clamp(-1.0, 1.0).acos()
-}
-
 /// Observation, control, noise and jitter: the part of the loop that is the same for the windowed run and
 /// every free run (same random streams, so every engine sees the same noise sequence).
 struct Loop {
@@ -657,7 +651,7 @@ pub fn run_episode_on(
 
 /// Whether the robot has fallen: pelvis below half its standing height or tilted more than 1 rad.
 pub fn fallen(model: &RobotModel, st: &State) -> bool {
-    st.base_pos[2] < 0.5 * model.standing.base_pos[2] || tilt_of(st.base_quat) > 1.0
+    st.base_pos[2] < 0.5 * model.standing.base_pos[2] || robot_model::tilt_from_vertical(st.base_quat) > 1.0
 }
 
 /// One engine closed-loop over the episode (its own controller instance, the same noise streams).

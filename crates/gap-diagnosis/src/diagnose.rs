@@ -600,12 +600,19 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
         Some(feet) => {
             let null = Effects::none(nj);
             let usable = |i: usize| i + len + 1 < log.states.len() && fresh_run[i] > len;
-            // The robot is down (fell) at these samples: the plant models a robot on its feet.
-            let down = |i: usize| floating::logged_down(model, feet, &log.states[i], &null);
+            // Whether the robot is down (fell) anywhere in the span a window from nominal start `s` can cover (it may
+            // begin up to one window length later): the plant models a robot on its feet.
+            let down_within = |s: usize| -> Result<bool, GapError> {
+                for i in (s..(s + 2 * len + 1).min(log.states.len())).step_by(DOWN_CHECK_STRIDE) {
+                    if floating::logged_down(model, feet, &log.states[i], &null)? {
+                        return Ok(true);
+                    }
+                }
+                Ok(false)
+            };
             let mut settled: Vec<usize> = Vec::with_capacity(starts.len());
             for s in starts {
-                // A window may begin up to one window length after its nominal start.
-                if (s..(s + 2 * len + 1).min(log.states.len())).step_by(DOWN_CHECK_STRIDE).map(down).collect::<Result<Vec<_>, _>>()?.into_iter().any(|d| d) {
+                if down_within(s)? {
                     windows_down += 1;
                     continue;
                 }

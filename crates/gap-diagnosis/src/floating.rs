@@ -66,14 +66,10 @@ pub const FALLEN_HEIGHT: f64 = 0.6;
 /// Pelvis tilted more than this from upright (rad) means the robot is down (fell).
 pub const FALLEN_TILT: f64 = std::f64::consts::FRAC_PI_4;
 
-/// Whether a pelvis at height `z` (m) with orientation `quat` (`[w, x, y, z]`, pelvis-to-world) is down: below
-/// [`FALLEN_HEIGHT`] or tilted beyond [`FALLEN_TILT`].
+/// Whether a pelvis at height `z` (m) with orientation `quat` (unit, `[w, x, y, z]`, pelvis-to-world) is down:
+/// below [`FALLEN_HEIGHT`] or tilted beyond [`FALLEN_TILT`].
 pub fn is_down(z: f64, quat: [f64; 4]) -> bool {
-    let [w, x, y, zq] = quat;
-    let n2 = w * w + x * x + y * y + zq * zq;
-    // z component of the pelvis z axis in the world: cos(tilt).
-    let cos_tilt = 1.0 - 2.0 * (x * x + y * y) / n2.max(f64::MIN_POSITIVE);
-    z < FALLEN_HEIGHT || cos_tilt < FALLEN_TILT.cos()
+    z < FALLEN_HEIGHT || robot_model::tilt_from_vertical(quat) > FALLEN_TILT
 }
 
 /// Whether the robot is down at logged sample `m`, with the pelvis orientation from the torso IMU through the

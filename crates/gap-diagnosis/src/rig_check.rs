@@ -126,12 +126,35 @@ pub fn imu_point_velocity(model: &RobotModel, q: &[f64], dq: &[f64]) -> Result<V
     Ok((p1 - p0) / EPS)
 }
 
+/// Each foot link (ankle link) with the joints on the chain from the pelvis down to it, for [`foot_load`].
+#[derive(Debug, Clone)]
+pub struct LegChains(Vec<(usize, Vec<usize>)>);
+
+impl LegChains {
+    pub fn of(model: &RobotModel, feet: &crate::floating::Feet) -> Self {
+        LegChains(
+            feet.links
+                .iter()
+                .map(|&foot| {
+                    let mut chain = Vec::new();
+                    let mut link = foot;
+                    while let Some(j) = model.links[link].parent_joint {
+                        chain.push(j);
+                        link = model.joints[j].parent_link;
+                    }
+                    (foot, chain)
+                })
+                .collect(),
+        )
+    }
+}
+
 /// Vertical force on both feet (N, up positive) that explains a measurement's leg torques beyond those of the
 /// legs hanging from a pelvis held upright (quasi-static: gravity and velocity terms, no acceleration, which
 /// averages out over a log). Per leg, the six joints from hip to ankle carry a 6-D wrench on the ankle link:
 /// `τ_logged − τ_hanging = −Jᵀ w` (the motors hold against the ground), solved by SVD least squares, so a leg
 /// near a singular pose gives the minimum-norm wrench instead of an error.
-pub fn foot_load(model: &RobotModel, feet: &crate::floating::Feet, s: &Measurement) -> Result<f64, GapError> {
+pub fn foot_load(model: &RobotModel, legs: &LegChains, s: &Measurement) -> Result<f64, GapError> {
     let nj = model.nj();
     if s.tau.len() != nj || s.q.len() != nj || s.dq.len() != nj {
         return Err(GapError::Log(format!("a state has {} joint angles and {} torques for a {nj}-joint model", s.q.len(), s.tau.len())));
@@ -143,15 +166,8 @@ pub fn foot_load(model: &RobotModel, feet: &crate::floating::Feet, s: &Measureme
     let hanging = model.rnea(&c, &v, &vec![0.0; model.nv()], g, false).map_err(|e| GapError::Engine(e.to_string()))?;
     let fk = model.fk(&c).map_err(|e| GapError::Engine(e.to_string()))?;
     let mut fz = 0.0;
-    for &foot in &feet.links {
-        // The joints on the chain from the pelvis to this foot.
-        let mut chain = Vec::new();
-        let mut link = foot;
-        while let Some(j) = model.links[link].parent_joint {
-            chain.push(j);
-            link = model.joints[j].parent_link;
-        }
-        let p = fk.link_poses[foot].translation.vector;
+    for (foot, chain) in &legs.0 {
+        let p = fk.link_poses[*foot].translation.vector;
         let mut jt = nalgebra::DMatrix::<f64>::zeros(chain.len(), 6);
         let mut rhs = nalgebra::DVector::<f64>::zeros(chain.len());
         for (r, &j) in chain.iter().enumerate() {
@@ -248,7 +264,8 @@ pub fn check(model: &RobotModel, log: &RobotLog) -> Result<RigCheck, GapError> {
     let foot_load_fraction = match (torques_logged, crate::floating::Feet::of(model)) {
         (true, Ok(feet)) => {
             let weight = model.total_mass() * g;
-            let loads = log.states.iter().step_by(FOOT_LOAD_STRIDE).map(|s| foot_load(model, &feet, s).map(|f| f / weight)).collect::<Result<Vec<_>, _>>()?;
+            let legs = LegChains::of(model, &feet);
+            let loads = log.states.iter().step_by(FOOT_LOAD_STRIDE).map(|s| foot_load(model, &legs, s).map(|f| f / weight)).collect::<Result<Vec<_>, _>>()?;
             Some(median(loads))
         }
         _ => None,

@@ -47,6 +47,13 @@ pub struct FkResult {
     pub joint_points: Vec<Vector3<f64>>,
 }
 
+/// Angle (rad) between the world vertical and the z axis of a frame whose orientation is the unit quaternion
+/// `q = [w, x, y, z]` (body-to-world): how far a pelvis is tilted from upright.
+pub fn tilt_from_vertical(q: [f64; 4]) -> f64 {
+    let [_, x, y, _] = q;
+    (1.0 - 2.0 * (x * x + y * y)).clamp(-1.0, 1.0).acos()
+}
+
 /// `[w, x, y, z]` of a unit quaternion.
 pub fn quat_wxyz(q: &UnitQuaternion<f64>) -> [f64; 4] {
     [q.w, q.i, q.j, q.k]

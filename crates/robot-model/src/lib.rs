@@ -23,7 +23,7 @@ mod model;
 
 pub use dynamics::{RigidBodyDynamics, GRAVITY_EARTH};
 pub use error::ModelError;
-pub use kinematics::{quat_wxyz, FkResult, GenCoords};
+pub use kinematics::{quat_wxyz, tilt_from_vertical, FkResult, GenCoords};
 pub use load::SidecarFile;
 pub use mjcf::{MjcfOptions, ShapeFilter};
 pub use model::{
