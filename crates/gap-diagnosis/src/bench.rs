@@ -449,13 +449,10 @@ pub fn trial_plan(i: usize) -> usize {
     }
 }
 
-/// Draws the hidden effects of trial `i`.
-pub fn draw_trial(model: &RobotModel, i: usize, seed: u64) -> (Effects, Labels) {
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ (0x9e37_79b9_7f4a_7c15u64.wrapping_mul(i as u64 + 1)));
-    let mut fx = Effects::none(model.nj());
-    let kinds = injectable();
+/// The kinds hidden in trial `i` ([`trial_plan`] of them): the first cycles through `kinds` so a short benchmark
+/// still covers them all, the second (pairs) is drawn from `rng`.
+fn trial_kinds(i: usize, kinds: &[EffectKind], rng: &mut rand_chacha::ChaCha8Rng) -> Vec<EffectKind> {
     let n = trial_plan(i);
-    // Singles cycle through every kind so a short benchmark still covers them all.
     let mut chosen: Vec<EffectKind> = Vec::new();
     if n >= 1 {
         chosen.push(kinds[(i / 4 * 2 + i % 4) % kinds.len()]);
@@ -466,6 +463,14 @@ pub fn draw_trial(model: &RobotModel, i: usize, seed: u64) -> (Effects, Labels) 
             chosen.push(k);
         }
     }
+    chosen
+}
+
+/// Draws the hidden effects of trial `i`.
+pub fn draw_trial(model: &RobotModel, i: usize, seed: u64) -> (Effects, Labels) {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ (0x9e37_79b9_7f4a_7c15u64.wrapping_mul(i as u64 + 1)));
+    let mut fx = Effects::none(model.nj());
+    let chosen = trial_kinds(i, &injectable(), &mut rng);
     let injected = chosen.into_iter().map(|k| inject(model, k, &mut fx, &mut rng)).collect();
     (fx, Labels { trial: i, injected })
 }
@@ -654,18 +659,7 @@ pub fn draw_floating_trial(model: &RobotModel, i: usize, seed: u64, attempt: usi
     let base = seed ^ 0xf1_0a71_0000_0000 ^ 0x9e37_79b9_7f4a_7c15u64.wrapping_mul(i as u64 + 1);
     let mut kind_rng = rand_chacha::ChaCha8Rng::seed_from_u64(base);
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(base.wrapping_add(0x2545_f491_4f6c_dd1d_u64.wrapping_mul(attempt as u64 + 1)));
-    let kinds = injectable_floating();
-    let n = trial_plan(i);
-    let mut chosen: Vec<EffectKind> = Vec::new();
-    if n >= 1 {
-        chosen.push(kinds[(i / 4 * 2 + i % 4) % kinds.len()]);
-    }
-    while chosen.len() < n {
-        let k = kinds[kind_rng.gen_range(0..kinds.len())];
-        if !chosen.contains(&k) {
-            chosen.push(k);
-        }
-    }
+    let chosen = trial_kinds(i, &injectable_floating(), &mut kind_rng);
     let mut fx = Effects::none(model.nj());
     let injected = chosen.into_iter().map(|k| inject_floating(model, k, &mut fx, &mut rng)).collect();
     (fx, Labels { trial: i, injected })
