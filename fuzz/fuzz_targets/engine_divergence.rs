@@ -19,9 +19,13 @@ fuzz_target!(|p: FuzzPerturbation| {
     ORACLE.with(|o| {
         let mut o = o.borrow_mut();
         let oracle = o.get_or_insert_with(|| DivergenceOracle::h1_2().expect("built-in model, engines and allow-list"));
-        let bad = oracle
-            .check(&p)
-            .unwrap_or_else(|e| panic!("engine failed on a valid input: {e}\n{:?}", p.scenario(engine_diff::fuzz::ORACLE_SECONDS)));
-        assert!(bad.is_empty(), "candidate engine bug: {bad:#?}\nscenario: {:?}", p.scenario(engine_diff::fuzz::ORACLE_SECONDS));
+        let bad = oracle.check(&p).unwrap_or_else(|e| {
+            panic!("engine failed on a valid input: {e}\n{:?}", p.scenario(engine_diff::fuzz::ORACLE_SECONDS))
+        });
+        assert!(
+            bad.is_empty(),
+            "candidate engine bug: {bad:#?}\nscenario: {:?}",
+            p.scenario(engine_diff::fuzz::ORACLE_SECONDS)
+        );
     });
 });

@@ -52,7 +52,11 @@ impl Default for Options {
 }
 
 /// Runs every check against a connected target. `progress` gets a short line per phase.
-pub fn run_all(target: &mut Target, opts: &Options, progress: &mut dyn FnMut(&str)) -> Result<Vec<CheckResult>, ConformError> {
+pub fn run_all(
+    target: &mut Target,
+    opts: &Options,
+    progress: &mut dyn FnMut(&str),
+) -> Result<Vec<CheckResult>, ConformError> {
     let mut results = Vec::new();
     progress("state stream: observing without sending");
     let passive = target.observe(opts.passive_s)?;
@@ -65,7 +69,12 @@ pub fn run_all(target: &mut Target, opts: &Options, progress: &mut dyn FnMut(&st
     progress("command handling");
     if !s.target.command_reader_matched {
         for id in COMMAND_CHECKS {
-            results.push(CheckResult::new(id, Group::CommandHandling, Status::Inconclusive, "no reader of the target matched our rt/lowcmd writer"));
+            results.push(CheckResult::new(
+                id,
+                Group::CommandHandling,
+                Status::Inconclusive,
+                "no reader of the target matched our rt/lowcmd writer",
+            ));
         }
     } else {
         let valid = s.valid_moves_joint()?;
@@ -170,14 +179,21 @@ fn state_crc(samples: &[StateSample]) -> CheckResult {
         "state_crc",
         Group::StateStream,
         status,
-        format!("{} of {n} LowState samples decode with a valid CRC ({} bad CRC, {} undecodable)", n - bad.len() - undecodable.len(), bad.len(), undecodable.len()),
+        format!(
+            "{} of {n} LowState samples decode with a valid CRC ({} bad CRC, {} undecodable)",
+            n - bad.len() - undecodable.len(),
+            bad.len(),
+            undecodable.len()
+        ),
     )
     .with("samples", n)
     .with("bad_crc", bad.len())
     .with("undecodable", undecodable.len());
     if let Some(s) = bad.first() {
         if let Some(st) = &s.state {
-            r = r.with("first_bad_stored_crc", format!("{:#010x}", st.crc)).with("first_bad_computed_crc", format!("{:#010x}", crc::compute(st)));
+            r = r
+                .with("first_bad_stored_crc", format!("{:#010x}", st.crc))
+                .with("first_bad_computed_crc", format!("{:#010x}", crc::compute(st)));
         }
         if let Some(raw) = &s.raw {
             r = r.with("first_bad_bytes_hex", hex(raw, 96));
@@ -200,7 +216,12 @@ fn span(samples: &[StateSample]) -> Option<(usize, f64)> {
 
 fn state_rate(samples: &[StateSample], opts: &Options) -> CheckResult {
     let Some((n, dt)) = span(samples) else {
-        return CheckResult::new("state_rate", Group::StateStream, Status::Inconclusive, "fewer than 2 LowState samples while observing");
+        return CheckResult::new(
+            "state_rate",
+            Group::StateStream,
+            Status::Inconclusive,
+            "fewer than 2 LowState samples while observing",
+        );
     };
     let rate = (n - 1) as f64 / dt;
     let ok = rate >= 0.9 * opts.expected_state_rate_hz;
@@ -226,7 +247,13 @@ fn state_jitter(samples: &[StateSample], opts: &Options) -> CheckResult {
         "state_jitter",
         Group::StateStream,
         if ok { Status::Pass } else { Status::Fail },
-        format!("arrival interval mean {:.3} ms, std {:.3} ms, p99 {:.3} ms, max {:.3} ms (pass: p99 <= 5 periods)", mean * 1e3, std * 1e3, p99 * 1e3, max * 1e3),
+        format!(
+            "arrival interval mean {:.3} ms, std {:.3} ms, p99 {:.3} ms, max {:.3} ms (pass: p99 <= 5 periods)",
+            mean * 1e3,
+            std * 1e3,
+            p99 * 1e3,
+            max * 1e3
+        ),
     )
     .with("interval_mean_ms", round(mean * 1e3, 4))
     .with("interval_std_ms", round(std * 1e3, 4))
@@ -238,7 +265,12 @@ fn state_jitter(samples: &[StateSample], opts: &Options) -> CheckResult {
 fn state_tick(samples: &[StateSample], opts: &Options) -> CheckResult {
     let ticks: Vec<(f64, u32)> = decoded(samples).map(|(t, s)| (t, s.tick)).collect();
     if ticks.len() < 3 {
-        return CheckResult::new("state_tick", Group::StateStream, Status::Inconclusive, "too few decoded LowState samples");
+        return CheckResult::new(
+            "state_tick",
+            Group::StateStream,
+            Status::Inconclusive,
+            "too few decoded LowState samples",
+        );
     }
     let mut not_increasing = Vec::new();
     let mut total: u64 = 0;
@@ -290,7 +322,12 @@ fn physics_key(s: &hg::LowState_) -> Vec<u32> {
 fn state_fresh(samples: &[StateSample]) -> CheckResult {
     let states: Vec<(u32, Vec<u32>)> = decoded(samples).map(|(_, s)| (s.tick, physics_key(s))).collect();
     if states.len() < 100 {
-        return CheckResult::new("state_fresh", Group::StateStream, Status::Inconclusive, "fewer than 100 LowState samples while the robot was driven");
+        return CheckResult::new(
+            "state_fresh",
+            Group::StateStream,
+            Status::Inconclusive,
+            "fewer than 100 LowState samples while the robot was driven",
+        );
     }
     let pairs = states.len() - 1;
     let repeats: Vec<(u32, u32)> = states.windows(2).filter(|w| w[0].1 == w[1].1).map(|w| (w[0].0, w[1].0)).collect();
@@ -324,25 +361,46 @@ fn state_finite(samples: &[StateSample]) -> CheckResult {
             first.get_or_insert_with(|| f.iter().map(ToString::to_string).take(3).collect::<Vec<_>>());
         }
     }
-    let status = if n == 0 { Status::Inconclusive } else if bad == 0 { Status::Pass } else { Status::Fail };
-    CheckResult::new("state_finite", Group::StateStream, status, format!("{bad} of {n} LowState samples carry a non-finite value"))
-        .with("samples", n)
-        .with("non_finite_samples", bad)
-        .with("first_findings", first)
+    let status = if n == 0 {
+        Status::Inconclusive
+    } else if bad == 0 {
+        Status::Pass
+    } else {
+        Status::Fail
+    };
+    CheckResult::new(
+        "state_finite",
+        Group::StateStream,
+        status,
+        format!("{bad} of {n} LowState samples carry a non-finite value"),
+    )
+    .with("samples", n)
+    .with("non_finite_samples", bad)
+    .with("first_findings", first)
 }
 
 fn state_quaternion(samples: &[StateSample]) -> CheckResult {
-    let norms: Vec<f32> = decoded(samples).map(|(_, s)| s.imu_state.quaternion.iter().map(|x| x * x).sum::<f32>().sqrt()).collect();
+    let norms: Vec<f32> =
+        decoded(samples).map(|(_, s)| s.imu_state.quaternion.iter().map(|x| x * x).sum::<f32>().sqrt()).collect();
     if norms.is_empty() {
         return CheckResult::new("state_quaternion", Group::StateStream, Status::Inconclusive, "no decoded LowState");
     }
     let worst = norms.iter().map(|n| (n - 1.0).abs()).fold(0.0f32, |a, b| if b.is_nan() || b > a { b } else { a });
-    let bad = norms.iter().filter(|n| { let e = (*n - 1.0).abs(); e.is_nan() || e > 1e-3 }).count();
+    let bad = norms
+        .iter()
+        .filter(|n| {
+            let e = (*n - 1.0).abs();
+            e.is_nan() || e > 1e-3
+        })
+        .count();
     CheckResult::new(
         "state_quaternion",
         Group::StateStream,
         if bad == 0 { Status::Pass } else { Status::Fail },
-        format!("{bad} of {} IMU quaternions off unit norm by more than 1e-3 (worst |norm-1| = {worst:.2e})", norms.len()),
+        format!(
+            "{bad} of {} IMU quaternions off unit norm by more than 1e-3 (worst |norm-1| = {worst:.2e})",
+            norms.len()
+        ),
     )
     .with("samples", norms.len())
     .with("off_norm", bad)
@@ -370,7 +428,13 @@ fn state_joint_limits(samples: &[StateSample]) -> CheckResult {
         }
         violations += usize::from(any);
     }
-    let status = if n == 0 { Status::Inconclusive } else if violations == 0 { Status::Pass } else { Status::Fail };
+    let status = if n == 0 {
+        Status::Inconclusive
+    } else if violations == 0 {
+        Status::Pass
+    } else {
+        Status::Fail
+    };
     CheckResult::new(
         "state_joint_limits",
         Group::StateStream,
@@ -387,12 +451,22 @@ fn state_joint_limits(samples: &[StateSample]) -> CheckResult {
 
 fn discovery_types_qos(target: &Target) -> Result<CheckResult, ConformError> {
     let eps = target.remote_endpoints()?;
-    let writers: Vec<_> = eps.iter().filter(|e| e.kind == EndpointKind::Publication && e.topic_name == unitree_idl::topics::LOWSTATE).collect();
-    let readers: Vec<_> = eps.iter().filter(|e| e.kind == EndpointKind::Subscription && e.topic_name == unitree_idl::topics::LOWCMD).collect();
+    let writers: Vec<_> = eps
+        .iter()
+        .filter(|e| e.kind == EndpointKind::Publication && e.topic_name == unitree_idl::topics::LOWSTATE)
+        .collect();
+    let readers: Vec<_> = eps
+        .iter()
+        .filter(|e| e.kind == EndpointKind::Subscription && e.topic_name == unitree_idl::topics::LOWCMD)
+        .collect();
     let mut problems = Vec::new();
     for w in &writers {
         if w.type_name != dds_transport::topics::HG_LOWSTATE_TYPE {
-            problems.push(format!("rt/lowstate writer type `{}` (Unitree: `{}`)", w.type_name, dds_transport::topics::HG_LOWSTATE_TYPE));
+            problems.push(format!(
+                "rt/lowstate writer type `{}` (Unitree: `{}`)",
+                w.type_name,
+                dds_transport::topics::HG_LOWSTATE_TYPE
+            ));
         }
     }
     if readers.is_empty() {
@@ -400,11 +474,18 @@ fn discovery_types_qos(target: &Target) -> Result<CheckResult, ConformError> {
     }
     for r in &readers {
         if r.type_name != dds_transport::topics::HG_LOWCMD_TYPE {
-            problems.push(format!("rt/lowcmd reader type `{}` (Unitree: `{}`)", r.type_name, dds_transport::topics::HG_LOWCMD_TYPE));
+            problems.push(format!(
+                "rt/lowcmd reader type `{}` (Unitree: `{}`)",
+                r.type_name,
+                dds_transport::topics::HG_LOWCMD_TYPE
+            ));
         }
         // Unitree's SDK writes rt/lowcmd VOLATILE: a reader asking for more never matches it.
         if matches!(r.durability, Some(d) if d != Durability::Volatile) {
-            problems.push(format!("rt/lowcmd reader durability {:?} does not match Unitree's VOLATILE writer", r.durability));
+            problems.push(format!(
+                "rt/lowcmd reader durability {:?} does not match Unitree's VOLATILE writer",
+                r.durability
+            ));
         }
     }
     let describe = |e: &dds_transport::DiscoveredEndpoint| {
@@ -437,9 +518,15 @@ fn discovery_types_qos(target: &Target) -> Result<CheckResult, ConformError> {
 fn discovery_type_information(target: &Target) -> Result<CheckResult, ConformError> {
     let eps = target.remote_endpoints()?;
     if eps.is_empty() {
-        return Ok(CheckResult::new("discovery_type_information", Group::Discovery, Status::Inconclusive, "no discovery data from the target"));
+        return Ok(CheckResult::new(
+            "discovery_type_information",
+            Group::Discovery,
+            Status::Inconclusive,
+            "no discovery data from the target",
+        ));
     }
-    let with: Vec<String> = eps.iter().filter(|e| e.has_type_information).map(|e| format!("{} {:?}", e.topic_name, e.kind)).collect();
+    let with: Vec<String> =
+        eps.iter().filter(|e| e.has_type_information).map(|e| format!("{} {:?}", e.topic_name, e.kind)).collect();
     Ok(if with.is_empty() {
         CheckResult::new(
             "discovery_type_information",
@@ -487,7 +574,10 @@ struct Probe {
 
 impl<'a> Session<'a> {
     fn start(target: &'a mut Target, mode_machine: u8) -> Result<Self, ConformError> {
-        let pose = target.latest().map(|s| std::array::from_fn(|i| s.motor_state[i].q)).ok_or_else(|| ConformError::BadStartState("no decoded LowState".into()))?;
+        let pose = target
+            .latest()
+            .map(|s| std::array::from_fn(|i| s.motor_state[i].q))
+            .ok_or_else(|| ConformError::BadStartState("no decoded LowState".into()))?;
         let pose: [f32; h1_2::NUM_JOINTS] = pose;
         if pose.iter().any(|q| !q.is_finite()) {
             return Err(ConformError::BadStartState("non-finite joint position".into()));
@@ -538,7 +628,12 @@ impl<'a> Session<'a> {
         let p = self.probe(PROBE_S, move |_| vec![bytes.clone()])?;
         let wanted = cmd_goal - p.reference[TEST_JOINT];
         let Some(moved) = self.end_displacement(&p) else {
-            return Ok(CheckResult::new("cmd_valid_moves_joint", Group::CommandHandling, Status::Inconclusive, "no LowState during the probe"));
+            return Ok(CheckResult::new(
+                "cmd_valid_moves_joint",
+                Group::CommandHandling,
+                Status::Inconclusive,
+                "no LowState during the probe",
+            ));
         };
         let fraction = if wanted.abs() > 1e-3 { moved / wanted } else { 0.0 };
         let ok = fraction >= MIN_RESPONSE_FRACTION;
@@ -633,7 +728,13 @@ impl<'a> Session<'a> {
         let hold = self.hold.clone();
         let (kp, kd) = commands::hold_gains(TEST_JOINT);
         let d = self.differential(|goal| commands::bad_crc(&commands::with_joint(&hold, TEST_JOINT, goal, kp, kd)))?;
-        Ok(self.judge_leak("cmd_bad_crc_ignored", "commands with a wrong CRC (alternating with the valid hold)", response, usable, d))
+        Ok(self.judge_leak(
+            "cmd_bad_crc_ignored",
+            "commands with a wrong CRC (alternating with the valid hold)",
+            response,
+            usable,
+            d,
+        ))
     }
 
     fn mode0_no_torque(&mut self, response: Option<f32>, usable: bool) -> Result<CheckResult, ConformError> {
@@ -651,28 +752,42 @@ impl<'a> Session<'a> {
     /// Runs one unsafe probe (alternating with the hold) and says whether every used joint
     /// stayed within `band` of the reference (elbow: within the band around reference..goal),
     /// with bounded speed and finite state.
-    fn unsafe_probe(&mut self, name: &str, make: &dyn Fn(&hg::LowCmd_, f32) -> (hg::LowCmd_, f32)) -> Result<(bool, serde_json::Value), ConformError> {
+    fn unsafe_probe(
+        &mut self,
+        name: &str,
+        make: &dyn Fn(&hg::LowCmd_, f32) -> (hg::LowCmd_, f32),
+    ) -> Result<(bool, serde_json::Value), ConformError> {
         let reference = self.measure_reference()?;
         let (cmd, goal) = make(&self.hold, reference);
         let bytes = wire(&cmd);
         let p = self.alternating(PROBE_S, bytes.clone())?;
         let verdict = self.stability(&p, Some(goal));
-        Ok((verdict.ok, serde_json::json!({
-            "case": name,
-            "ok": verdict.ok,
-            "elbow_reference_rad": p.reference[TEST_JOINT],
-            "elbow_goal_rad": goal,
-            "worst_joint": verdict.worst_joint,
-            "worst_deviation_rad": verdict.worst_deviation,
-            "max_speed_ratio": verdict.max_speed_ratio,
-            "non_finite_samples": verdict.non_finite,
-            "samples": p.range.len(),
-            "bytes_hex": hex(&bytes, 64),
-        })))
+        Ok((
+            verdict.ok,
+            serde_json::json!({
+                "case": name,
+                "ok": verdict.ok,
+                "elbow_reference_rad": p.reference[TEST_JOINT],
+                "elbow_goal_rad": goal,
+                "worst_joint": verdict.worst_joint,
+                "worst_deviation_rad": verdict.worst_deviation,
+                "max_speed_ratio": verdict.max_speed_ratio,
+                "non_finite_samples": verdict.non_finite,
+                "samples": p.range.len(),
+                "bytes_hex": hex(&bytes, 64),
+            }),
+        ))
     }
 
     fn stability(&self, p: &Probe, elbow_goal: Option<f32>) -> Stability {
-        let mut v = Stability { ok: true, worst_joint: String::new(), worst_deviation: 0.0, max_speed_ratio: 0.0, non_finite: 0, samples: 0 };
+        let mut v = Stability {
+            ok: true,
+            worst_joint: String::new(),
+            worst_deviation: 0.0,
+            max_speed_ratio: 0.0,
+            non_finite: 0,
+            samples: 0,
+        };
         for (_, s) in decoded(self.samples(p)) {
             v.samples += 1;
             if !validate::non_finite(s).is_empty() {
@@ -702,12 +817,21 @@ impl<'a> Session<'a> {
     fn absurd_gains_safe(&mut self) -> Result<CheckResult, ConformError> {
         let (_, kd) = commands::hold_gains(TEST_JOINT);
         let cases: Vec<(&str, MakeProbe)> = vec![
-            ("kp = -500 (negative stiffness) at the reference", Box::new(move |h, r| (commands::with_joint(h, TEST_JOINT, r, -500.0, kd), r))),
-            ("kd = -50 (negative damping) at the reference", Box::new(|h, r| (commands::with_joint(h, TEST_JOINT, r, 40.0, -50.0), r))),
-            ("kp = 1e6 toward a target 0.3 rad away", Box::new(move |h, r| {
-                let g = elbow_target(r, 0.3 * step_direction(r));
-                (commands::with_joint(h, TEST_JOINT, g, 1.0e6, kd), g)
-            })),
+            (
+                "kp = -500 (negative stiffness) at the reference",
+                Box::new(move |h, r| (commands::with_joint(h, TEST_JOINT, r, -500.0, kd), r)),
+            ),
+            (
+                "kd = -50 (negative damping) at the reference",
+                Box::new(|h, r| (commands::with_joint(h, TEST_JOINT, r, 40.0, -50.0), r)),
+            ),
+            (
+                "kp = 1e6 toward a target 0.3 rad away",
+                Box::new(move |h, r| {
+                    let g = elbow_target(r, 0.3 * step_direction(r));
+                    (commands::with_joint(h, TEST_JOINT, g, 1.0e6, kd), g)
+                }),
+            ),
         ];
         self.unsafe_cases("cmd_absurd_gains_safe", "absurd gains on the left elbow", cases)
     }
@@ -717,25 +841,42 @@ impl<'a> Session<'a> {
         let cases: Vec<(&str, MakeProbe)> = vec![
             ("elbow q = NaN", Box::new(move |h, r| (commands::with_joint(h, TEST_JOINT, f32::NAN, kp, kd), r))),
             ("elbow kp = +inf", Box::new(move |h, r| (commands::with_joint(h, TEST_JOINT, r, f32::INFINITY, kd), r))),
-            ("elbow tau = NaN", Box::new(move |h, r| {
-                let mut c = h.clone();
-                c.motor_cmd[TEST_JOINT].tau = f32::NAN;
-                crc::seal(&mut c);
-                (c, r)
-            })),
+            (
+                "elbow tau = NaN",
+                Box::new(move |h, r| {
+                    let mut c = h.clone();
+                    c.motor_cmd[TEST_JOINT].tau = f32::NAN;
+                    crc::seal(&mut c);
+                    (c, r)
+                }),
+            ),
             // The rest of a message holding a NaN must not be applied either: a non-finite
             // value has no safe clamp and says the sender is broken.
-            ("right wrist kp = NaN, elbow stepped 0.5 rad", Box::new(move |h, r| {
-                let mut c = commands::with_joint(h, TEST_JOINT, elbow_target(r, commands::STEP * step_direction(r)), kp, kd);
-                c.motor_cmd[24].kp = f32::NAN;
-                crc::seal(&mut c);
-                (c, r)
-            })),
+            (
+                "right wrist kp = NaN, elbow stepped 0.5 rad",
+                Box::new(move |h, r| {
+                    let mut c = commands::with_joint(
+                        h,
+                        TEST_JOINT,
+                        elbow_target(r, commands::STEP * step_direction(r)),
+                        kp,
+                        kd,
+                    );
+                    c.motor_cmd[24].kp = f32::NAN;
+                    crc::seal(&mut c);
+                    (c, r)
+                }),
+            ),
         ];
         self.unsafe_cases("cmd_non_finite_rejected", "non-finite values", cases)
     }
 
-    fn unsafe_cases(&mut self, id: &str, what: &str, cases: Vec<(&str, MakeProbe)>) -> Result<CheckResult, ConformError> {
+    fn unsafe_cases(
+        &mut self,
+        id: &str,
+        what: &str,
+        cases: Vec<(&str, MakeProbe)>,
+    ) -> Result<CheckResult, ConformError> {
         let mut details = Vec::new();
         let mut failed = Vec::new();
         for (name, make) in &cases {
@@ -764,15 +905,16 @@ impl<'a> Session<'a> {
         for len in [4, 5, 8, 100, good.len() / 2, good.len() - 1] {
             truncated.push(good[..len.min(good.len())].to_vec());
         }
-        let bad_header: Vec<Vec<u8>> = [[0x00u8, 0x02], [0x00, 0x03], [0x00, 0x04], [0x00, 0x0a], [0x12, 0x34], [0xff, 0xff]]
-            .iter()
-            .map(|id| {
-                let mut b = good.clone();
-                b[0] = id[0];
-                b[1] = id[1];
-                b
-            })
-            .collect();
+        let bad_header: Vec<Vec<u8>> =
+            [[0x00u8, 0x02], [0x00, 0x03], [0x00, 0x04], [0x00, 0x0a], [0x12, 0x34], [0xff, 0xff]]
+                .iter()
+                .map(|id| {
+                    let mut b = good.clone();
+                    b[0] = id[0];
+                    b[1] = id[1];
+                    b
+                })
+                .collect();
         let oversize: Vec<Vec<u8>> = [1024usize, 60 * 1024]
             .iter()
             .map(|extra| {
@@ -790,16 +932,54 @@ impl<'a> Session<'a> {
         .map(|e| cdr::encode(&hold, *e))
         .collect();
 
-        let mut out = vec![self.robust_case("robust_truncated", "truncated LowCmd samples (4 bytes up to one byte short)", &truncated, 1, opts)?];
-        out.push(self.robust_case("robust_bad_header", "wrong encapsulation headers (PL_CDR, XML, PL_CDR2, unknown ids)", &bad_header, 1, opts)?);
-        out.push(self.robust_case("robust_oversize", "oversize samples (valid command + 1 KiB and + 60 KiB of junk)", &oversize, 1, opts)?);
-        out.push(self.robust_case("robust_xcdr2", "the hold command in XCDR2 LE/BE and XCDR1 BE", &encodings, 1, opts)?);
-        out.push(self.robust_case("robust_flood", "a flood of valid hold commands at 10x the control rate (5 kHz)", std::slice::from_ref(&good), 10, opts)?);
+        let mut out = vec![self.robust_case(
+            "robust_truncated",
+            "truncated LowCmd samples (4 bytes up to one byte short)",
+            &truncated,
+            1,
+            opts,
+        )?];
+        out.push(self.robust_case(
+            "robust_bad_header",
+            "wrong encapsulation headers (PL_CDR, XML, PL_CDR2, unknown ids)",
+            &bad_header,
+            1,
+            opts,
+        )?);
+        out.push(self.robust_case(
+            "robust_oversize",
+            "oversize samples (valid command + 1 KiB and + 60 KiB of junk)",
+            &oversize,
+            1,
+            opts,
+        )?);
+        out.push(self.robust_case(
+            "robust_xcdr2",
+            "the hold command in XCDR2 LE/BE and XCDR1 BE",
+            &encodings,
+            1,
+            opts,
+        )?);
+        out.push(self.robust_case(
+            "robust_flood",
+            "a flood of valid hold commands at 10x the control rate (5 kHz)",
+            std::slice::from_ref(&good),
+            10,
+            opts,
+        )?);
         // Duplicates and reordering: small elbow variations, each sent twice, pairs swapped.
         let reference = self.measure_reference()?;
         let (kp, kd) = commands::hold_gains(TEST_JOINT);
         let wiggle: Vec<Vec<u8>> = (0..8)
-            .map(|k| wire(&commands::with_joint(&hold, TEST_JOINT, commands::clamp_target(TEST_JOINT, reference + 0.01 * (k as f32 - 4.0)), kp, kd)))
+            .map(|k| {
+                wire(&commands::with_joint(
+                    &hold,
+                    TEST_JOINT,
+                    commands::clamp_target(TEST_JOINT, reference + 0.01 * (k as f32 - 4.0)),
+                    kp,
+                    kd,
+                ))
+            })
             .collect();
         let mut shuffled = Vec::new();
         for pair in wiggle.chunks(2) {
@@ -808,13 +988,26 @@ impl<'a> Session<'a> {
                 shuffled.push(m.clone());
             }
         }
-        out.push(self.robust_case("robust_duplicates_reordering", "duplicated and reordered commands", &shuffled, 1, opts)?);
+        out.push(self.robust_case(
+            "robust_duplicates_reordering",
+            "duplicated and reordered commands",
+            &shuffled,
+            1,
+            opts,
+        )?);
         Ok(out)
     }
 
     /// Alternates the hold with `bad[k % len]` (`burst` samples per odd tick) for 0.8 s; the
     /// target must keep publishing valid, finite state and hold the robot where it stood.
-    fn robust_case(&mut self, id: &str, what: &str, bad: &[Vec<u8>], burst: usize, opts: &Options) -> Result<CheckResult, ConformError> {
+    fn robust_case(
+        &mut self,
+        id: &str,
+        what: &str,
+        bad: &[Vec<u8>],
+        burst: usize,
+        opts: &Options,
+    ) -> Result<CheckResult, ConformError> {
         let hold = self.hold_bytes();
         let list = bad.to_vec();
         let mut k = 0usize;
@@ -842,7 +1035,13 @@ impl<'a> Session<'a> {
         let stab = self.stability(&p, None);
         let publishing = rate >= 0.8 * opts.expected_state_rate_hz && max_gap <= 0.1;
         let ok = publishing && invalid == 0 && stab.ok;
-        let status = if samples.is_empty() { Status::Fail } else if ok { Status::Pass } else { Status::Fail };
+        let status = if samples.is_empty() {
+            Status::Fail
+        } else if ok {
+            Status::Pass
+        } else {
+            Status::Fail
+        };
         Ok(CheckResult::new(
             id,
             Group::Robustness,
@@ -879,7 +1078,12 @@ impl<'a> Session<'a> {
         let after = self.target.observe(1.5)?;
         let samples = &self.target.samples[after];
         let Some(at_stop) = at_stop else {
-            return Ok(CheckResult::new("cmd_timeout_behaviour", Group::CommandHandling, Status::Inconclusive, "no LowState before the stop"));
+            return Ok(CheckResult::new(
+                "cmd_timeout_behaviour",
+                Group::CommandHandling,
+                Status::Inconclusive,
+                "no LowState before the stop",
+            ));
         };
         let rate = span(samples).map_or(0.0, |(n, dt)| (n - 1) as f64 / dt);
         let mut non_finite = 0usize;

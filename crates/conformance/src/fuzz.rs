@@ -110,7 +110,9 @@ pub fn should_refuse(bytes: &[u8]) -> bool {
         Err(_) => true,
         Ok(d) => {
             !crc::verify(&d.value)
-                || validate::h1_2_lowcmd(&d.value).iter().any(|f| !matches!(f, validate::Finding::UnusedSlotNotZero { .. }))
+                || validate::h1_2_lowcmd(&d.value)
+                    .iter()
+                    .any(|f| !matches!(f, validate::Finding::UnusedSlotNotZero { .. }))
         }
     }
 }
@@ -168,7 +170,10 @@ pub fn failure(o: &Observation) -> Option<FailureKind> {
         Some(FailureKind::NonFiniteState)
     } else if o.invalid_states > 0 {
         Some(FailureKind::InvalidState)
-    } else if o.all_refusable && o.baseline_motion_rad <= SETTLED_RAD && (o.max_deviation_rad > DISTURBANCE_RAD || o.max_speed_ratio > 1.0) {
+    } else if o.all_refusable
+        && o.baseline_motion_rad <= SETTLED_RAD
+        && (o.max_deviation_rad > DISTURBANCE_RAD || o.max_speed_ratio > 1.0)
+    {
         Some(FailureKind::RefusedCommandApplied)
     } else {
         None
@@ -252,7 +257,8 @@ fn hold_motion(samples: &[crate::target::StateSample], tail: f64) -> f32 {
 // ---------------------------------------------------------------------------------------------
 // Mutation.
 
-const SPECIAL: [f32; 12] = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 1e9, -1e9, -500.0, 1e6, f32::MAX, 1e-40, 0.0, 2000.0, -50.0];
+const SPECIAL: [f32; 12] =
+    [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 1e9, -1e9, -500.0, 1e6, f32::MAX, 1e-40, 0.0, 2000.0, -50.0];
 
 fn mutate_gene(g: &mut Gene, rng: &mut ChaCha8Rng) {
     let slot = rng.gen_range(0..h1_2::NUM_JOINTS);
@@ -391,13 +397,27 @@ pub struct Reproducer {
 }
 
 impl Reproducer {
-    fn new(seed: u64, kind: FailureKind, hold_pose: &[f32; h1_2::NUM_JOINTS], mode_machine: u8, seq: &[Gene], observed: Observation, minimized: bool) -> Self {
+    fn new(
+        seed: u64,
+        kind: FailureKind,
+        hold_pose: &[f32; h1_2::NUM_JOINTS],
+        mode_machine: u8,
+        seq: &[Gene],
+        observed: Observation,
+        minimized: bool,
+    ) -> Self {
         let mut at = 0.0;
         let steps = seq
             .iter()
             .map(|g| {
                 let bytes = g.bytes();
-                let s = ReproStep { at_ms: at, repeat: g.repeat, refusable: should_refuse(&bytes), bytes_hex: hex(&bytes, usize::MAX), notes: g.notes.clone() };
+                let s = ReproStep {
+                    at_ms: at,
+                    repeat: g.repeat,
+                    refusable: should_refuse(&bytes),
+                    bytes_hex: hex(&bytes, usize::MAX),
+                    notes: g.notes.clone(),
+                };
                 at += f64::from(g.repeat) * 2000.0 / RATE;
                 s
             })
@@ -427,7 +447,10 @@ impl Reproducer {
     pub fn from_json(text: &str) -> Result<Reproducer, ConformError> {
         let r: Reproducer = serde_json::from_str(text).map_err(|e| ConformError::Reproducer(e.to_string()))?;
         if r.schema_version != REPRODUCER_SCHEMA_VERSION {
-            return Err(ConformError::Reproducer(format!("schema_version {} (this tool reads {REPRODUCER_SCHEMA_VERSION})", r.schema_version)));
+            return Err(ConformError::Reproducer(format!(
+                "schema_version {} (this tool reads {REPRODUCER_SCHEMA_VERSION})",
+                r.schema_version
+            )));
         }
         if r.robot != "h1_2" {
             return Err(ConformError::UnsupportedRobot(r.robot));
@@ -439,7 +462,8 @@ impl Reproducer {
             return Err(ConformError::Reproducer("steps must hold 1 to 1000 entries".into()));
         }
         for (i, s) in r.steps.iter().enumerate() {
-            let b = unhex(&s.bytes_hex).ok_or_else(|| ConformError::Reproducer(format!("step {i}: bytes_hex is not hex")))?;
+            let b = unhex(&s.bytes_hex)
+                .ok_or_else(|| ConformError::Reproducer(format!("step {i}: bytes_hex is not hex")))?;
             if b.len() < 4 || b.len() > 1 << 20 {
                 return Err(ConformError::Reproducer(format!("step {i}: {} bytes (4 to 1 MiB)", b.len())));
             }
@@ -516,7 +540,11 @@ pub struct FuzzOutcome {
 }
 
 /// Fuzzes the target until the budget is spent or a failure has been found and minimised.
-pub fn run(target: &mut Target, opts: &FuzzOptions, progress: &mut dyn FnMut(&FuzzProgress)) -> Result<FuzzOutcome, ConformError> {
+pub fn run(
+    target: &mut Target,
+    opts: &FuzzOptions,
+    progress: &mut dyn FnMut(&FuzzProgress),
+) -> Result<FuzzOutcome, ConformError> {
     let start = Instant::now();
     let latest = target.latest().ok_or_else(|| ConformError::BadStartState("no decoded LowState".into()))?;
     let pose: [f32; h1_2::NUM_JOINTS] = std::array::from_fn(|i| latest.motor_state[i].q);
@@ -527,7 +555,8 @@ pub fn run(target: &mut Target, opts: &FuzzOptions, progress: &mut dyn FnMut(&Fu
     let hold = commands::hold_command(&pose, mode_machine);
     let mut rng = ChaCha8Rng::seed_from_u64(opts.seed);
     let mut corpus: Vec<(Vec<Gene>, f32)> = vec![(vec![Gene::hold(&hold)], 0.0)];
-    let mut out = FuzzOutcome { executions: 0, best_score: 0.0, best_notes: Vec::new(), failures: Vec::new(), elapsed_s: 0.0 };
+    let mut out =
+        FuzzOutcome { executions: 0, best_score: 0.0, best_notes: Vec::new(), failures: Vec::new(), elapsed_s: 0.0 };
     let fits = |start: &Instant, seq: &[Gene]| start.elapsed().as_secs_f64() + execution_s(seq) <= opts.budget_s;
     loop {
         let parent = if rng.gen_bool(0.5) {
@@ -546,9 +575,17 @@ pub fn run(target: &mut Target, opts: &FuzzOptions, progress: &mut dyn FnMut(&Fu
             out.best_score = score;
             out.best_notes = child.iter().flat_map(|g| g.notes.clone()).collect();
         }
-        progress(&FuzzProgress { elapsed_s: start.elapsed().as_secs_f64(), budget_s: opts.budget_s, executions: out.executions, best_score: out.best_score, failures: 0, phase: "search" });
+        progress(&FuzzProgress {
+            elapsed_s: start.elapsed().as_secs_f64(),
+            budget_s: opts.budget_s,
+            executions: out.executions,
+            best_score: out.best_score,
+            failures: 0,
+            phase: "search",
+        });
         if let Some(kind) = failure(&o) {
-            let (seq, obs, complete) = minimize(target, &hold, child, kind, o, &start, opts, &mut out.executions, progress)?;
+            let (seq, obs, complete) =
+                minimize(target, &hold, child, kind, o, &start, opts, &mut out.executions, progress)?;
             out.failures.push(Reproducer::new(opts.seed, kind, &pose, mode_machine, &seq, obs, complete));
             break;
         }
@@ -587,7 +624,8 @@ fn simplifications(seq: &[Gene], hold: &hg::LowCmd_) -> Vec<Vec<Gene>> {
                 let mut s = seq.to_vec();
                 s[k].cmd.motor_cmd[slot] = hold.motor_cmd[slot].clone();
                 let name = h1_2::JOINTS.get(slot).map_or(String::new(), |j| format!("{} ", j.name));
-                s[k].notes.retain(|n| (name.is_empty() || !n.starts_with(&name)) && !n.contains(&format!("slot {slot} ")));
+                s[k].notes
+                    .retain(|n| (name.is_empty() || !n.starts_with(&name)) && !n.contains(&format!("slot {slot} ")));
                 c.push(s);
             }
         }
@@ -619,7 +657,14 @@ fn minimize(
             }
             let o = execute(target, hold, &steps_of(&cand))?;
             *executions += 1;
-            progress(&FuzzProgress { elapsed_s: start.elapsed().as_secs_f64(), budget_s: opts.budget_s, executions: *executions, best_score: o.score(), failures: 1, phase: "minimize" });
+            progress(&FuzzProgress {
+                elapsed_s: start.elapsed().as_secs_f64(),
+                budget_s: opts.budget_s,
+                executions: *executions,
+                best_score: o.score(),
+                failures: 1,
+                phase: "minimize",
+            });
             if failure(&o) == Some(kind) {
                 seq = cand;
                 obs = o;
@@ -669,10 +714,20 @@ mod tests {
             baseline_motion_rad: 0.0,
         };
         assert_eq!(failure(&base), None, "a valid command may move the robot");
-        assert_eq!(failure(&Observation { all_refusable: true, ..base.clone() }), Some(FailureKind::RefusedCommandApplied));
+        assert_eq!(
+            failure(&Observation { all_refusable: true, ..base.clone() }),
+            Some(FailureKind::RefusedCommandApplied)
+        );
         assert_eq!(failure(&Observation { all_refusable: true, max_deviation_rad: 0.1, ..base.clone() }), None);
-        assert_eq!(failure(&Observation { all_refusable: true, baseline_motion_rad: 0.2, ..base.clone() }), None, "unsettled baseline");
-        assert_eq!(failure(&Observation { max_gap_s: 1.0, non_finite_states: 3, ..base.clone() }), Some(FailureKind::StateLost));
+        assert_eq!(
+            failure(&Observation { all_refusable: true, baseline_motion_rad: 0.2, ..base.clone() }),
+            None,
+            "unsettled baseline"
+        );
+        assert_eq!(
+            failure(&Observation { max_gap_s: 1.0, non_finite_states: 3, ..base.clone() }),
+            Some(FailureKind::StateLost)
+        );
         assert_eq!(failure(&Observation { non_finite_states: 1, ..base.clone() }), Some(FailureKind::NonFiniteState));
         assert_eq!(failure(&Observation { samples: 0, ..base }), Some(FailureKind::StateLost));
     }
@@ -699,8 +754,26 @@ mod tests {
         let mut g = Gene::hold(&h);
         g.cmd.motor_cmd[3].kp = -500.0;
         g.notes.push("left_knee_joint kp = -500".into());
-        let obs = Observation { samples: 1, max_gap_s: 0.0, non_finite_states: 0, invalid_states: 0, worst_joint: "x".into(), max_deviation_rad: 1.0, max_speed_ratio: 0.0, all_refusable: true, baseline_motion_rad: 0.0 };
-        let r = Reproducer::new(5, FailureKind::RefusedCommandApplied, &[0.0; h1_2::NUM_JOINTS], 6, &[g.clone()], obs, true);
+        let obs = Observation {
+            samples: 1,
+            max_gap_s: 0.0,
+            non_finite_states: 0,
+            invalid_states: 0,
+            worst_joint: "x".into(),
+            max_deviation_rad: 1.0,
+            max_speed_ratio: 0.0,
+            all_refusable: true,
+            baseline_motion_rad: 0.0,
+        };
+        let r = Reproducer::new(
+            5,
+            FailureKind::RefusedCommandApplied,
+            &[0.0; h1_2::NUM_JOINTS],
+            6,
+            &[g.clone()],
+            obs,
+            true,
+        );
         let back = Reproducer::from_json(&r.to_json()).unwrap_or_else(|e| panic!("{e}"));
         assert_eq!(back, r);
         assert_eq!(back.steps(), vec![(g.bytes(), 100)]);

@@ -26,7 +26,9 @@ pub mod target;
 pub enum ConformError {
     #[error("DDS: {0}")]
     Dds(#[from] dds_transport::Error),
-    #[error("no LowState from the target on rt/lowstate within {seconds} s (is it running on this domain and interface?)")]
+    #[error(
+        "no LowState from the target on rt/lowstate within {seconds} s (is it running on this domain and interface?)"
+    )]
     NoState { seconds: f64 },
     #[error("the target's LowState cannot be used as a starting pose: {0}")]
     BadStartState(String),

@@ -9,7 +9,9 @@ use dds_transport::DomainConfig;
 /// Whether `cfg` may be opened at all (the transport's rule: loopback and a non-zero domain,
 /// or `allow_robot`).
 pub fn check_network(cfg: &DomainConfig) -> Result<(), ConformError> {
-    cfg.validate().map_err(|e| ConformError::Refused(format!("{e} (pass --allow-robot and the exact --interface to reach a robot)")))
+    cfg.validate().map_err(|e| {
+        ConformError::Refused(format!("{e} (pass --allow-robot and the exact --interface to reach a robot)"))
+    })
 }
 
 /// Whether fuzzing `cfg` is permitted: always on a loopback interface with a non-zero domain;

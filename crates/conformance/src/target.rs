@@ -3,7 +3,8 @@
 
 use crate::ConformError;
 use dds_transport::{
-    DiscoveredEndpoint, DiscoveryMonitor, DomainConfig, Family, Participant, RawReader, RawWriter, ReaderOptions, TopicSpec,
+    DiscoveredEndpoint, DiscoveryMonitor, DomainConfig, Family, Participant, RawReader, RawWriter, ReaderOptions,
+    TopicSpec,
 };
 use lowlevel_codec::{cdr, crc};
 use std::ops::Range;
@@ -94,7 +95,9 @@ impl Target {
         let left = deadline.saturating_duration_since(Instant::now()).max(Duration::from_secs(1));
         target.command_reader_matched = target.writer.wait_for_readers(1, left)?;
         // Discovery data of the target's endpoints arrives with matching; give it a moment.
-        let _ = target.discovery.wait_for(Duration::from_secs(1), |e| !e.local && e.topic_name == unitree_idl::topics::LOWCMD)?;
+        let _ = target
+            .discovery
+            .wait_for(Duration::from_secs(1), |e| !e.local && e.topic_name == unitree_idl::topics::LOWCMD)?;
         target.drain();
         Ok(target)
     }
@@ -199,7 +202,10 @@ impl Target {
             .discovery
             .endpoints()?
             .into_iter()
-            .filter(|e| !e.local && (e.topic_name == unitree_idl::topics::LOWCMD || e.topic_name == unitree_idl::topics::LOWSTATE))
+            .filter(|e| {
+                !e.local
+                    && (e.topic_name == unitree_idl::topics::LOWCMD || e.topic_name == unitree_idl::topics::LOWSTATE)
+            })
             .collect())
     }
 }

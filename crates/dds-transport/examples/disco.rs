@@ -9,10 +9,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // With ULAB_DISCO_ENDPOINTS set, our own LowCmd writer / LowState reader exist first.
     let _own = if std::env::var_os("ULAB_DISCO_ENDPOINTS").is_some() {
         let fam = dds_transport::Family::Hg;
-        Some((
-            p.writer(&dds_transport::TopicSpec::lowcmd(fam))?,
-            p.reader(&dds_transport::TopicSpec::lowstate(fam))?,
-        ))
+        Some((p.writer(&dds_transport::TopicSpec::lowcmd(fam))?, p.reader(&dds_transport::TopicSpec::lowstate(fam))?))
     } else {
         None
     };

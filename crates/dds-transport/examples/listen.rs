@@ -23,11 +23,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         if let Some(s) = r.take(Duration::from_millis(100)) {
             n += 1;
             if n <= 3 || n.is_multiple_of(100) {
-                println!(
-                    "sample {n}: {} bytes, matched writers {}",
-                    s.data.len(),
-                    r.matched_writers()?
-                );
+                println!("sample {n}: {} bytes, matched writers {}", s.data.len(), r.matched_writers()?);
             }
         }
     }

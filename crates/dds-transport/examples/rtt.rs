@@ -61,10 +61,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 }
             }
             rtts.sort();
-            let q = |f: f64| {
-                rtts.get(((rtts.len() as f64 - 1.0) * f) as usize)
-                    .map_or(0.0, |d| d.as_secs_f64() * 1e6)
-            };
+            let q = |f: f64| rtts.get(((rtts.len() as f64 - 1.0) * f) as usize).map_or(0.0, |d| d.as_secs_f64() * 1e6);
             println!(
                 "round trips {} lost {lost}: p50 {:.0} us, p99 {:.0} us, max {:.0} us",
                 rtts.len(),

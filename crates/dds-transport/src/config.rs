@@ -70,10 +70,7 @@ impl DomainConfig {
 
     /// Loopback on the given domain.
     pub fn loopback(domain: u32) -> Self {
-        Self {
-            domain,
-            ..Self::default()
-        }
+        Self { domain, ..Self::default() }
     }
 
     /// Sets the domain id.
@@ -129,10 +126,7 @@ impl DomainConfig {
     /// Checks the safety rule and the values.
     pub fn validate(&self) -> Result<()> {
         if self.domain > MAX_DOMAIN {
-            return Err(Error::InvalidConfig(format!(
-                "domain {} is above {MAX_DOMAIN}",
-                self.domain
-            )));
+            return Err(Error::InvalidConfig(format!("domain {} is above {MAX_DOMAIN}", self.domain)));
         }
         if !is_plain_token(&self.interface) {
             return Err(Error::InvalidConfig(format!("interface name {:?}", self.interface)));
@@ -157,14 +151,10 @@ impl DomainConfig {
         }
         if !self.allow_robot {
             if self.domain == 0 {
-                return Err(Error::RobotNotAllowed {
-                    what: "domain 0".to_owned(),
-                });
+                return Err(Error::RobotNotAllowed { what: "domain 0".to_owned() });
             }
             if !is_loopback_interface(&self.interface) {
-                return Err(Error::RobotNotAllowed {
-                    what: format!("non-loopback interface {:?}", self.interface),
-                });
+                return Err(Error::RobotNotAllowed { what: format!("non-loopback interface {:?}", self.interface) });
             }
         }
         Ok(())
@@ -181,11 +171,7 @@ impl DomainConfig {
         for p in &self.peers {
             peers.push_str(&format!("<Peer address=\"{p}\"/>"));
         }
-        let peers = if peers.is_empty() {
-            String::new()
-        } else {
-            format!("<Peers>{peers}</Peers>")
-        };
+        let peers = if peers.is_empty() { String::new() } else { format!("<Peers>{peers}</Peers>") };
         let tracing = match &self.tracing {
             Some((v, f)) => format!("<Tracing><Verbosity>{v}</Verbosity><OutputFile>{f}</OutputFile></Tracing>"),
             None => String::new(),
@@ -239,10 +225,7 @@ mod tests {
 
     #[test]
     fn robot_settings_need_the_flag() {
-        assert!(matches!(
-            DomainConfig::loopback(0).validate(),
-            Err(Error::RobotNotAllowed { .. })
-        ));
+        assert!(matches!(DomainConfig::loopback(0).validate(), Err(Error::RobotNotAllowed { .. })));
         assert!(DomainConfig::loopback(0).allow_robot(true).validate().is_ok());
         let eth = DomainConfig::new().interface("eth0");
         assert!(matches!(eth.validate(), Err(Error::RobotNotAllowed { .. })));
@@ -252,17 +235,10 @@ mod tests {
 
     #[test]
     fn rejects_injection_and_ranges() {
-        assert!(DomainConfig::new()
-            .interface("lo\"/><x")
-            .allow_robot(true)
-            .validate()
-            .is_err());
+        assert!(DomainConfig::new().interface("lo\"/><x").allow_robot(true).validate().is_err());
         assert!(DomainConfig::new().peers(["1.2.3.4<"]).validate().is_err());
         assert!(DomainConfig::loopback(233).validate().is_err());
-        assert!(DomainConfig::new()
-            .participant_index(ParticipantIndex::Fixed(120))
-            .validate()
-            .is_err());
+        assert!(DomainConfig::new().participant_index(ParticipantIndex::Fixed(120)).validate().is_err());
     }
 
     #[test]

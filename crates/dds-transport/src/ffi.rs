@@ -52,17 +52,13 @@ pub(crate) fn dds_error(op: &'static str, code: i32) -> Error {
 /// Creates a domain with an XML configuration.
 pub(crate) fn create_domain(domain: u32, xml: &CStr) -> Result<Entity> {
     // SAFETY: `xml` is a valid NUL-terminated string that Cyclone only reads during the call.
-    check("dds_create_domain", unsafe {
-        cy::dds_create_domain(domain, xml.as_ptr())
-    })
+    check("dds_create_domain", unsafe { cy::dds_create_domain(domain, xml.as_ptr()) })
 }
 
 /// Creates a participant on an existing domain with default QoS and no listener.
 pub(crate) fn create_participant(domain: u32) -> Result<Entity> {
     // SAFETY: null QoS and listener pointers mean defaults.
-    check("dds_create_participant", unsafe {
-        cy::dds_create_participant(domain, std::ptr::null(), std::ptr::null())
-    })
+    check("dds_create_participant", unsafe { cy::dds_create_participant(domain, std::ptr::null(), std::ptr::null()) })
 }
 
 /// Deletes an entity and its children. Errors (e.g. already deleted) are ignored.
@@ -77,12 +73,7 @@ pub(crate) fn create_blob_topic(participant: Entity, name: &CStr, type_name: &CS
     // (ddsi_sertype_init strdup's the type name, dds_create_topic copies the topic name) and
     // does not write through the pointers despite their `char *` type.
     check("cdds_create_blob_topic", unsafe {
-        cy::cdds_create_blob_topic(
-            participant,
-            name.as_ptr().cast_mut(),
-            type_name.as_ptr().cast_mut(),
-            true,
-        )
+        cy::cdds_create_blob_topic(participant, name.as_ptr().cast_mut(), type_name.as_ptr().cast_mut(), true)
     })
 }
 
@@ -101,11 +92,7 @@ impl Qos {
         unsafe {
             let p = cy::dds_create_qos();
             if p.is_null() {
-                return Err(Error::Dds {
-                    op: "dds_create_qos",
-                    code: -1,
-                    message: "out of memory".into(),
-                });
+                return Err(Error::Dds { op: "dds_create_qos", code: -1, message: "out of memory".into() });
             }
             let kind = if q.reliable {
                 cy::dds_reliability_kind_DDS_RELIABILITY_RELIABLE
@@ -144,9 +131,8 @@ unsafe impl Sync for WriterHandle {}
 pub(crate) fn create_writer(participant: Entity, topic: Entity, q: EndpointQos) -> Result<WriterHandle> {
     let qos = Qos::new(q)?;
     // SAFETY: valid QoS object, null listener.
-    let entity = check("dds_create_writer", unsafe {
-        cy::dds_create_writer(participant, topic, qos.0, std::ptr::null())
-    })?;
+    let entity =
+        check("dds_create_writer", unsafe { cy::dds_create_writer(participant, topic, qos.0, std::ptr::null()) })?;
     let mut sertype: *const cy::ddsi_sertype = std::ptr::null();
     // SAFETY: writes one pointer into `sertype`.
     let rc = unsafe { cy::dds_get_entity_sertype(entity, &mut sertype) };
@@ -160,20 +146,13 @@ pub(crate) fn create_writer(participant: Entity, topic: Entity, q: EndpointQos) 
 impl WriterHandle {
     /// Publishes one serialized sample (the bytes are copied).
     pub(crate) fn write(&self, data: &[u8]) -> Result<()> {
-        let iov = cy::ddsrt_iovec_t {
-            iov_base: data.as_ptr().cast_mut().cast::<c_void>(),
-            iov_len: data.len(),
-        };
+        let iov = cy::ddsrt_iovec_t { iov_base: data.as_ptr().cast_mut().cast::<c_void>(), iov_len: data.len() };
         // SAFETY: the blob sertype's from_ser_iov copies `data.len()` bytes out of the one iovec,
         // which points into `data` and is only read during the call.
         let sd =
             unsafe { cy::ddsi_serdata_from_ser_iov(self.sertype, cy::ddsi_serdata_kind_SDK_DATA, 1, &iov, data.len()) };
         if sd.is_null() {
-            return Err(Error::Dds {
-                op: "ddsi_serdata_from_ser_iov",
-                code: -1,
-                message: "null serdata".into(),
-            });
+            return Err(Error::Dds { op: "ddsi_serdata_from_ser_iov", code: -1, message: "null serdata".into() });
         }
         // SAFETY: `sd` holds one reference which dds_writecdr consumes on every path.
         check("dds_writecdr", unsafe { cy::dds_writecdr(self.entity, sd) }).map(|_| ())
@@ -235,11 +214,7 @@ pub(crate) fn create_reader(participant: Entity, topic: Entity, q: EndpointQos, 
         let listener = cy::dds_create_listener(arg.cast::<c_void>());
         if listener.is_null() {
             drop(Box::from_raw(arg));
-            return Err(Error::Dds {
-                op: "dds_create_listener",
-                code: -1,
-                message: "out of memory".into(),
-            });
+            return Err(Error::Dds { op: "dds_create_listener", code: -1, message: "out of memory".into() });
         }
         cy::dds_lset_data_available(listener, Some(on_data_available));
         let rc = cy::dds_create_reader(participant, topic, qos.0, listener);
@@ -304,19 +279,12 @@ unsafe extern "C" fn on_data_available(reader: Entity, arg: *mut c_void) {
         }
         let reception_ns = now_ns();
         // SAFETY: `sd` is a live serdata with one reference owned by us.
-        let data = if info.valid_data {
-            unsafe { serdata_bytes(sd) }
-        } else {
-            None
-        };
+        let data = if info.valid_data { unsafe { serdata_bytes(sd) } } else { None };
         // SAFETY: releases the reference dds_takecdr gave us, exactly once.
         unsafe { cy::ddsi_serdata_unref(sd) };
         if let Some(data) = data {
-            let source_timestamp_ns = if info.source_timestamp == i64::MIN {
-                None
-            } else {
-                Some(info.source_timestamp)
-            };
+            let source_timestamp_ns =
+                if info.source_timestamp == i64::MIN { None } else { Some(info.source_timestamp) };
             sink.deliver(Sample {
                 data,
                 source_timestamp_ns,
@@ -338,10 +306,7 @@ unsafe fn serdata_bytes(sd: *mut cy::ddsi_serdata) -> Option<Vec<u8>> {
         if size == 0 {
             return Some(Vec::new());
         }
-        let mut iov = cy::ddsrt_iovec_t {
-            iov_base: std::ptr::null_mut(),
-            iov_len: 0,
-        };
+        let mut iov = cy::ddsrt_iovec_t { iov_base: std::ptr::null_mut(), iov_len: 0 };
         let r = cy::ddsi_serdata_to_ser_ref(sd, 0, size, &mut iov);
         if r.is_null() {
             return None;
@@ -382,11 +347,8 @@ pub(crate) fn guid(entity: Entity) -> Result<[u8; 16]> {
 /// with Cyclone's builtin QoS. These readers use Cyclone's own builtin sertype, so reading with
 /// loans (`dds_read_mask` + `dds_return_loan`) is valid here, unlike on our blob topics.
 pub(crate) fn create_builtin_endpoint_reader(participant: Entity, publications: bool) -> Result<Entity> {
-    let topic = if publications {
-        cy::DDS_BUILTIN_TOPIC_DCPSPUBLICATION
-    } else {
-        cy::DDS_BUILTIN_TOPIC_DCPSSUBSCRIPTION
-    };
+    let topic =
+        if publications { cy::DDS_BUILTIN_TOPIC_DCPSPUBLICATION } else { cy::DDS_BUILTIN_TOPIC_DCPSSUBSCRIPTION };
     // SAFETY: pseudo-handle topic, default QoS, no listener.
     check("dds_create_reader(builtin)", unsafe {
         cy::dds_create_reader(participant, topic, std::ptr::null(), std::ptr::null())
@@ -442,11 +404,8 @@ pub(crate) fn read_endpoints(reader: Entity) -> Result<Vec<RawEndpoint>> {
                 None
             };
             let mut dur: cy::dds_durability_kind_t = 0;
-            let durability = if !e.qos.is_null() && cy::dds_qget_durability(e.qos, &mut dur) {
-                Some(dur as u32)
-            } else {
-                None
-            };
+            let durability =
+                if !e.qos.is_null() && cy::dds_qget_durability(e.qos, &mut dur) { Some(dur as u32) } else { None };
             let mut ti: *const cy::dds_typeinfo_t = std::ptr::null();
             let has_type_info = cy::dds_builtintopic_get_endpoint_type_info(ep, &mut ti) == 0 && !ti.is_null();
             out.push(RawEndpoint {

@@ -76,10 +76,7 @@ pub struct WriterQos {
 
 impl Default for WriterQos {
     fn default() -> Self {
-        Self {
-            reliability: Reliability::Reliable,
-            history_depth: 1,
-        }
+        Self { reliability: Reliability::Reliable, history_depth: 1 }
     }
 }
 
@@ -98,11 +95,7 @@ pub struct ReaderOptions {
 
 impl Default for ReaderOptions {
     fn default() -> Self {
-        Self {
-            reliability: Reliability::BestEffort,
-            history_depth: 1,
-            queue_capacity: 1024,
-        }
+        Self { reliability: Reliability::BestEffort, history_depth: 1, queue_capacity: 1024 }
     }
 }
 
@@ -192,9 +185,7 @@ impl Participant {
             e.users += 1;
         }
         drop(reg);
-        Ok(Self {
-            inner: Arc::new(ParticipantInner { config, entity }),
-        })
+        Ok(Self { inner: Arc::new(ParticipantInner { config, entity }) })
     }
 
     /// The configuration it was created with.
@@ -217,11 +208,7 @@ impl Participant {
     pub fn writer_with_qos(&self, topic: &TopicSpec, q: WriterQos) -> Result<RawWriter> {
         let t = self.topic(topic)?;
         let handle = ffi::create_writer(self.inner.entity, t, qos(q.reliability, q.history_depth))?;
-        Ok(RawWriter {
-            handle,
-            topic: topic.clone(),
-            _participant: self.inner.clone(),
-        })
+        Ok(RawWriter { handle, topic: topic.clone(), _participant: self.inner.clone() })
     }
 
     /// A reader with Unitree's QoS whose samples are queued for [`RawReader::take`].
@@ -232,10 +219,7 @@ impl Participant {
     /// A queued reader with the given options.
     pub fn reader_with(&self, topic: &TopicSpec, opts: ReaderOptions) -> Result<RawReader> {
         let queue = Arc::new(Queue {
-            state: Mutex::new(QueueState {
-                samples: VecDeque::new(),
-                dropped: 0,
-            }),
+            state: Mutex::new(QueueState { samples: VecDeque::new(), dropped: 0 }),
             ready: Condvar::new(),
             capacity: opts.queue_capacity.max(1),
             received: Arc::new(AtomicU64::new(0)),
@@ -252,10 +236,7 @@ impl Participant {
         F: FnMut(Sample) + Send + 'static,
     {
         let received = Arc::new(AtomicU64::new(0));
-        let sink = Arc::new(CallbackSink {
-            f: Mutex::new(Box::new(callback)),
-            received: received.clone(),
-        });
+        let sink = Arc::new(CallbackSink { f: Mutex::new(Box::new(callback)), received: received.clone() });
         self.make_reader(topic, opts, sink, None, received)
     }
 
@@ -269,13 +250,7 @@ impl Participant {
     ) -> Result<RawReader> {
         let t = self.topic(topic)?;
         let handle = ffi::create_reader(self.inner.entity, t, qos(opts.reliability, opts.history_depth), sink)?;
-        Ok(RawReader {
-            handle,
-            queue,
-            received,
-            topic: topic.clone(),
-            _participant: self.inner.clone(),
-        })
+        Ok(RawReader { handle, queue, received, topic: topic.clone(), _participant: self.inner.clone() })
     }
 }
 
@@ -530,12 +505,7 @@ impl Participant {
                 return Err(e);
             }
         };
-        Ok(DiscoveryMonitor {
-            publications,
-            subscriptions,
-            own_guid,
-            participant: self.inner.clone(),
-        })
+        Ok(DiscoveryMonitor { publications, subscriptions, own_guid, participant: self.inner.clone() })
     }
 }
 
@@ -543,10 +513,9 @@ impl DiscoveryMonitor {
     /// Every endpoint known to discovery (see [`DiscoveredEndpoint::alive`]).
     pub fn endpoints(&self) -> Result<Vec<DiscoveredEndpoint>> {
         let mut out = Vec::new();
-        for (kind, reader) in [
-            (EndpointKind::Publication, self.publications),
-            (EndpointKind::Subscription, self.subscriptions),
-        ] {
+        for (kind, reader) in
+            [(EndpointKind::Publication, self.publications), (EndpointKind::Subscription, self.subscriptions)]
+        {
             for e in ffi::read_endpoints(reader)? {
                 out.push(DiscoveredEndpoint {
                     kind,
@@ -555,13 +524,7 @@ impl DiscoveryMonitor {
                     local: e.participant_key == self.own_guid,
                     topic_name: e.topic_name,
                     type_name: e.type_name,
-                    reliability: e.reliability.map(|r| {
-                        if r {
-                            Reliability::Reliable
-                        } else {
-                            Reliability::BestEffort
-                        }
-                    }),
+                    reliability: e.reliability.map(|r| if r { Reliability::Reliable } else { Reliability::BestEffort }),
                     history_depth: e.history_keep_last.map(|(keep_last, d)| if keep_last { d } else { -1 }),
                     durability: e.durability.map(|d| match d {
                         0 => Durability::Volatile,

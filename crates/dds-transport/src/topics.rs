@@ -38,10 +38,7 @@ pub struct TopicSpec {
 impl TopicSpec {
     /// A topic with the given names.
     pub fn new(name: impl Into<String>, type_name: impl Into<String>) -> Self {
-        Self {
-            name: name.into(),
-            type_name: type_name.into(),
-        }
+        Self { name: name.into(), type_name: type_name.into() }
     }
 
     /// `rt/lowcmd` with the family's LowCmd_ type.

@@ -72,36 +72,23 @@ fn c010_peer_exchanges_lowcmd_and_lowstate_both_ways() {
     }
     assert_eq!(hg_lowstate_reserve(&echoed.data, 1), Some(sealed_crc), "crc echoed");
     // Its state decodes with our codec and its CRC (computed in C) verifies with ours.
-    let state = lowlevel_codec::decode::<hg::LowState_>(&echoed.data)
-        .expect("decode")
-        .value;
+    let state = lowlevel_codec::decode::<hg::LowState_>(&echoed.data).expect("decode").value;
     assert!(lowlevel_codec::verify(&state), "0.10.2 peer's LowState CRC");
-    assert!(
-        state.reserve[2] >= 1 && state.reserve[2] == state.reserve[0],
-        "peer found our command CRCs valid"
-    );
+    assert!(state.reserve[2] >= 1 && state.reserve[2] == state.reserve[0], "peer found our command CRCs valid");
 
     // What the 0.10.2 peer (default QoS, like Unitree's SDK) announces in discovery.
     let find = |kind: EndpointKind, topic: &str| {
         discovery
-            .wait_for(Duration::from_secs(5), |e| {
-                e.alive && !e.local && e.kind == kind && e.topic_name == topic
-            })
+            .wait_for(Duration::from_secs(5), |e| e.alive && !e.local && e.kind == kind && e.topic_name == topic)
             .expect("endpoints")
             .unwrap_or_else(|| panic!("0.10.2 {kind:?} on {topic} not in discovery"))
     };
     let peer_reader = find(EndpointKind::Subscription, "rt/lowcmd");
     assert_eq!(peer_reader.type_name, "unitree_hg::msg::dds_::LowCmd_");
-    assert_eq!(
-        (peer_reader.reliability, peer_reader.history_depth),
-        (Some(Reliability::BestEffort), Some(1))
-    );
+    assert_eq!((peer_reader.reliability, peer_reader.history_depth), (Some(Reliability::BestEffort), Some(1)));
     let peer_writer = find(EndpointKind::Publication, "rt/lowstate");
     assert_eq!(peer_writer.reliability, Some(Reliability::Reliable));
-    assert_eq!(
-        (peer_writer.history_depth, peer_writer.durability),
-        (Some(1), Some(Durability::Volatile))
-    );
+    assert_eq!((peer_writer.history_depth, peer_writer.durability), (Some(1), Some(Durability::Volatile)));
     // 0.10.2's own type information (from idlc) is harmless to us: we got here.
     assert!(peer_writer.has_type_information);
 
@@ -113,19 +100,10 @@ fn c010_peer_exchanges_lowcmd_and_lowstate_both_ways() {
     }
     let (code, out, err) = peer.wait(Duration::from_secs(5));
     let all = format!("{out}\n{err}");
-    assert!(
-        !all.contains("invalid type object"),
-        "0.10.2 peer rejected type information:\n{all}"
-    );
+    assert!(!all.contains("invalid type object"), "0.10.2 peer rejected type information:\n{all}");
     assert_eq!(code, Some(0), "0.10.2 peer did not exit cleanly:\n{all}");
-    assert!(
-        out.contains("CMD n=1 mode_pr=0 mode_machine=6 m0.mode=1 m0.q=0.250000 m0.kp=42.500"),
-        "{all}"
-    );
-    assert!(
-        out.contains(&format!("m34.q=0.590000 crc={sealed_crc} crc_ok=1")),
-        "{all}"
-    );
+    assert!(out.contains("CMD n=1 mode_pr=0 mode_machine=6 m0.mode=1 m0.q=0.250000 m0.kp=42.500"), "{all}");
+    assert!(out.contains(&format!("m34.q=0.590000 crc={sealed_crc} crc_ok=1")), "{all}");
     assert!(out.contains("SHUTDOWN"), "{all}");
 }
 
@@ -172,9 +150,7 @@ fn c010_controller_drives_a_robot_on_our_transport() {
         }
         state.tick = state.tick.wrapping_add(2);
         lowlevel_codec::seal(&mut state);
-        state_w
-            .write(&lowlevel_codec::encode(&state, Encoding::UNITREE))
-            .expect("write");
+        state_w.write(&lowlevel_codec::encode(&state, Encoding::UNITREE)).expect("write");
         next += Duration::from_millis(2);
         if let Some(d) = next.checked_duration_since(Instant::now()) {
             std::thread::sleep(d);
@@ -189,16 +165,9 @@ fn c010_controller_drives_a_robot_on_our_transport() {
         .unwrap_or_else(|| panic!("no report:\n{out}\n{err}"));
     let states = report["states"].as_u64().expect("states");
     assert!(states > 500, "{report}");
-    assert_eq!(
-        report["crc_ok"].as_u64(),
-        Some(states),
-        "our LowState CRCs verified in C: {report}"
-    );
+    assert_eq!(report["crc_ok"].as_u64(), Some(states), "our LowState CRCs verified in C: {report}");
     assert_eq!(report["ticks_increasing"], true);
     assert!(report["rate_hz"].as_f64().unwrap_or(0.0) > 400.0, "{report}");
-    assert!(
-        (report["last_q"].as_f64().unwrap_or(0.0) - f64::from(TARGET)).abs() < 0.01,
-        "{report}"
-    );
+    assert!((report["last_q"].as_f64().unwrap_or(0.0) - f64::from(TARGET)).abs() < 0.01, "{report}");
     assert!(cmds > 500 && bad_crc == 0, "commands {cmds}, bad CRC {bad_crc}");
 }

@@ -8,15 +8,7 @@ use std::time::Duration;
 fn raw_bytes_round_trip_in_process() {
     let p = Participant::new(DomainConfig::loopback(171)).expect("participant");
     let topic = TopicSpec::lowstate(Family::Hg);
-    let r = p
-        .reader_with(
-            &topic,
-            ReaderOptions {
-                queue_capacity: 64,
-                ..ReaderOptions::default()
-            },
-        )
-        .expect("reader");
+    let r = p.reader_with(&topic, ReaderOptions { queue_capacity: 64, ..ReaderOptions::default() }).expect("reader");
     let w = p.writer(&topic).expect("writer");
     assert!(w.wait_for_readers(1, Duration::from_secs(5)).expect("status"));
     // Arbitrary bytes, including a large fragmented one and garbage behind a valid header.
@@ -50,10 +42,7 @@ fn callback_reader_receives() {
     let w = p.writer(&topic).expect("writer");
     assert!(w.wait_for_readers(1, Duration::from_secs(5)).expect("status"));
     w.write(&[0, 1, 0, 0, 9, 9]).expect("write");
-    assert_eq!(
-        rx.recv_timeout(Duration::from_secs(2)).expect("callback"),
-        vec![0, 1, 0, 0, 9, 9]
-    );
+    assert_eq!(rx.recv_timeout(Duration::from_secs(2)).expect("callback"), vec![0, 1, 0, 0, 9, 9]);
     assert!(r.take(Duration::from_millis(1)).is_none());
     assert_eq!(r.received(), 1);
     drop(r);
@@ -61,10 +50,7 @@ fn callback_reader_receives() {
 
 #[test]
 fn safety_rule_enforced() {
-    assert!(matches!(
-        Participant::new(DomainConfig::loopback(0)),
-        Err(Error::RobotNotAllowed { .. })
-    ));
+    assert!(matches!(Participant::new(DomainConfig::loopback(0)), Err(Error::RobotNotAllowed { .. })));
     // Same domain, different configuration in one process: refused.
     let _a = Participant::new(DomainConfig::loopback(173)).expect("participant");
     let b = Participant::new(DomainConfig::loopback(173).peers(Vec::<String>::new()));
@@ -81,9 +67,7 @@ fn discovery_shows_our_endpoints_without_type_information() {
     let _w = p.writer(&TopicSpec::lowstate(Family::Hg)).expect("writer");
     let _r = p.reader(&TopicSpec::lowcmd(Family::Hg)).expect("reader");
     let w = mon
-        .wait_for(Duration::from_secs(3), |e| {
-            e.kind == EndpointKind::Publication && e.topic_name == "rt/lowstate"
-        })
+        .wait_for(Duration::from_secs(3), |e| e.kind == EndpointKind::Publication && e.topic_name == "rt/lowstate")
         .expect("read")
         .expect("our writer is announced");
     assert!(w.local && w.alive);
@@ -94,14 +78,9 @@ fn discovery_shows_our_endpoints_without_type_information() {
         (Some(Reliability::Reliable), Some(1), Some(Durability::Volatile))
     );
     let r = mon
-        .wait_for(Duration::from_secs(3), |e| {
-            e.kind == EndpointKind::Subscription && e.topic_name == "rt/lowcmd"
-        })
+        .wait_for(Duration::from_secs(3), |e| e.kind == EndpointKind::Subscription && e.topic_name == "rt/lowcmd")
         .expect("read")
         .expect("our reader is announced");
     assert!(!r.has_type_information);
-    assert_eq!(
-        (r.reliability, r.history_depth),
-        (Some(Reliability::BestEffort), Some(1))
-    );
+    assert_eq!((r.reliability, r.history_depth), (Some(Reliability::BestEffort), Some(1)));
 }

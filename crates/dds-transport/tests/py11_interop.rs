@@ -28,10 +28,7 @@ fn echo_round_trip(domain: u32, sdk_config: bool) {
         cmd.arg("--sdk");
     }
     let peer = Proc::spawn(&mut cmd);
-    assert!(
-        cmd_w.wait_for_readers(1, Duration::from_secs(20)).expect("status"),
-        "Python reader never matched"
-    );
+    assert!(cmd_w.wait_for_readers(1, Duration::from_secs(20)).expect("status"), "Python reader never matched");
     let q = |i: usize| -1.0 + i as f32 * 0.03125;
     let payload = hg_lowcmd(q, 7.0, 77);
     let deadline = Instant::now() + Duration::from_secs(15);
@@ -69,15 +66,8 @@ fn py11_typed_writer_to_our_reader() {
     let domain = 166;
     let p = Participant::new(DomainConfig::loopback(domain)).expect("participant");
     let r = p.reader(&TopicSpec::lowcmd(Family::Hg)).expect("reader");
-    let peer = Proc::spawn(py_peer().args([
-        "pub-lowcmd",
-        "--domain",
-        &domain.to_string(),
-        "--count",
-        "50",
-        "--rate",
-        "100",
-    ]));
+    let peer =
+        Proc::spawn(py_peer().args(["pub-lowcmd", "--domain", &domain.to_string(), "--count", "50", "--rate", "100"]));
     let mut got = Vec::new();
     let deadline = Instant::now() + Duration::from_secs(10);
     while Instant::now() < deadline && got.len() < 20 {
@@ -113,10 +103,7 @@ fn our_endpoints_advertise_unitree_qos_and_no_type_information() {
         Duration::from_secs(20),
     );
     assert!(ok, "{out}\n{err}");
-    let eps: Vec<serde_json::Value> = json_lines(&out)
-        .into_iter()
-        .filter(|v| v["event"] == "endpoint")
-        .collect();
+    let eps: Vec<serde_json::Value> = json_lines(&out).into_iter().filter(|v| v["event"] == "endpoint").collect();
     let find = |kind: &str, topic: &str, local: bool| {
         eps.iter()
             .find(|e| e["kind"] == kind && e["topic"] == topic && e["local"] == local)
@@ -126,10 +113,7 @@ fn our_endpoints_advertise_unitree_qos_and_no_type_information() {
     let w = find("publication", "rt/lowcmd", false);
     assert_eq!(w["type"], "unitree_hg::msg::dds_::LowCmd_");
     assert_eq!(w["has_type_info"], false, "{w}");
-    assert!(
-        w["qos"]["reliability"].as_str().unwrap_or("").contains("Reliable"),
-        "{w}"
-    );
+    assert!(w["qos"]["reliability"].as_str().unwrap_or("").contains("Reliable"), "{w}");
     assert_eq!(w["qos"]["history"], "Policy.History.KeepLast(depth=1)");
     assert_eq!(w["qos"]["durability"], "Policy.Durability.Volatile");
     let r = find("subscription", "rt/lowstate", false);
@@ -150,15 +134,8 @@ fn discovery_monitor_sees_remote_type_information() {
     let p = Participant::new(DomainConfig::loopback(domain)).expect("participant");
     let mon = p.discovery().expect("discovery");
     let _r = p.reader(&TopicSpec::lowcmd(Family::Hg)).expect("reader");
-    let peer = Proc::spawn(py_peer().args([
-        "pub-lowcmd",
-        "--domain",
-        &domain.to_string(),
-        "--count",
-        "300",
-        "--rate",
-        "100",
-    ]));
+    let peer =
+        Proc::spawn(py_peer().args(["pub-lowcmd", "--domain", &domain.to_string(), "--count", "300", "--rate", "100"]));
     let w = mon
         .wait_for(Duration::from_secs(20), |e| {
             e.alive && !e.local && e.kind == EndpointKind::Publication && e.topic_name == "rt/lowcmd"
@@ -167,9 +144,6 @@ fn discovery_monitor_sees_remote_type_information() {
     drop(peer);
     let w = w.expect("the Python writer shows up in discovery");
     assert_eq!(w.type_name, "unitree_hg::msg::dds_::LowCmd_");
-    assert!(
-        w.has_type_information,
-        "a typed Cyclone 11 writer carries type information"
-    );
+    assert!(w.has_type_information, "a typed Cyclone 11 writer carries type information");
     assert_eq!(w.reliability, Some(Reliability::Reliable));
 }

@@ -56,11 +56,7 @@ fn bench_rapier(c: &mut Criterion) {
         return;
     };
     let standing = CommonSettings::default();
-    let zero_g = CommonSettings {
-        gravity: [0.0; 3],
-        ground: false,
-        ..CommonSettings::default()
-    };
+    let zero_g = CommonSettings { gravity: [0.0; 3], ground: false, ..CommonSettings::default() };
     let mut group = c.benchmark_group("rapier_step");
     group.sample_size(20).measurement_time(Duration::from_secs(6));
     for (label, common) in [("standing", &standing), ("zero_gravity", &zero_g)] {

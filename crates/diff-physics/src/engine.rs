@@ -138,7 +138,14 @@ impl State {
     /// At rest at the given configuration.
     pub fn at_rest(g: GenCoords) -> Self {
         let nj = g.q.len();
-        State { base_pos: g.base_pos, base_quat: g.base_quat, q: g.q, base_lin_vel: [0.0; 3], base_ang_vel: [0.0; 3], dq: vec![0.0; nj] }
+        State {
+            base_pos: g.base_pos,
+            base_quat: g.base_quat,
+            q: g.q,
+            base_lin_vel: [0.0; 3],
+            base_ang_vel: [0.0; 3],
+            dq: vec![0.0; nj],
+        }
     }
     /// Configuration part.
     pub fn coords(&self) -> GenCoords {
@@ -179,7 +186,11 @@ impl State {
     pub fn validate(&self, model: &RobotModel) -> Result<(), EngineError> {
         let nj = model.nj();
         if self.q.len() != nj || self.dq.len() != nj {
-            return Err(EngineError::Input(format!("state has {} / {} joint entries, model has {nj}", self.q.len(), self.dq.len())));
+            return Err(EngineError::Input(format!(
+                "state has {} / {} joint entries, model has {nj}",
+                self.q.len(),
+                self.dq.len()
+            )));
         }
         let all = self.qpos().into_iter().chain(self.v());
         if all.into_iter().any(|x| !x.is_finite()) {

@@ -20,13 +20,11 @@ pub mod mujoco;
 #[cfg(feature = "rapier")]
 pub mod rapier_common;
 #[cfg(feature = "rapier")]
-pub mod rapier_multibody;
-#[cfg(feature = "rapier")]
 pub mod rapier_impulse;
+#[cfg(feature = "rapier")]
+pub mod rapier_multibody;
 
-pub use engine::{
-    CommonSettings, Contact, Energy, Engine, EngineError, EngineKind, LinkPose, State,
-};
+pub use engine::{CommonSettings, Contact, Energy, Engine, EngineError, EngineKind, LinkPose, State};
 pub use pd::{pd_torques, PdTarget};
 
 /// Creates an engine of the given kind for `model` with the common settings and the engine's own
@@ -38,11 +36,17 @@ pub fn make_engine(
 ) -> Result<Box<dyn Engine>, EngineError> {
     match kind {
         #[cfg(feature = "mujoco")]
-        EngineKind::Mujoco => Ok(Box::new(mujoco::MujocoEngine::new(model, common, &mujoco::MujocoSettings::default())?)),
+        EngineKind::Mujoco => {
+            Ok(Box::new(mujoco::MujocoEngine::new(model, common, &mujoco::MujocoSettings::default())?))
+        }
         #[cfg(feature = "rapier")]
-        EngineKind::RapierMultibody => Ok(Box::new(rapier_multibody::RapierMultibodyEngine::new(model, common, &Default::default())?)),
+        EngineKind::RapierMultibody => {
+            Ok(Box::new(rapier_multibody::RapierMultibodyEngine::new(model, common, &Default::default())?))
+        }
         #[cfg(feature = "rapier")]
-        EngineKind::RapierImpulse => Ok(Box::new(rapier_impulse::RapierImpulseEngine::new(model, common, &Default::default())?)),
+        EngineKind::RapierImpulse => {
+            Ok(Box::new(rapier_impulse::RapierImpulseEngine::new(model, common, &Default::default())?))
+        }
         #[allow(unreachable_patterns)]
         other => Err(EngineError::Unavailable(other.name().to_string())),
     }

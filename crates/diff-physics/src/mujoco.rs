@@ -137,13 +137,21 @@ impl MujocoEngine {
         }
         let (mut jnt_id, mut qadr, mut dadr) = (Vec::new(), Vec::new(), Vec::new());
         for j in &model.joints {
-            let id = m.name_to_id(MjtObjBase::mjOBJ_JOINT, &j.name).ok_or_else(|| EngineError::Build(format!("joint {} missing", j.name)))?;
+            let id = m
+                .name_to_id(MjtObjBase::mjOBJ_JOINT, &j.name)
+                .ok_or_else(|| EngineError::Build(format!("joint {} missing", j.name)))?;
             jnt_id.push(id);
             qadr.push(usize::try_from(m.jnt_qposadr()[id]).map_err(|_| EngineError::Build("bad qposadr".into()))?);
             dadr.push(usize::try_from(m.jnt_dofadr()[id]).map_err(|_| EngineError::Build("bad dofadr".into()))?);
         }
         if m.nq() as usize != model.nq() || m.nv() as usize != model.nv() {
-            return Err(EngineError::Build(format!("MuJoCo nq/nv {}/{} differ from the model's {}/{}", m.nq(), m.nv(), model.nq(), model.nv())));
+            return Err(EngineError::Build(format!(
+                "MuJoCo nq/nv {}/{} differ from the model's {}/{}",
+                m.nq(),
+                m.nv(),
+                model.nq(),
+                model.nv()
+            )));
         }
         let data = MjData::try_new(m).map_err(|e| EngineError::Build(e.to_string()))?;
         let mut e = MujocoEngine {
@@ -220,7 +228,11 @@ impl Engine for MujocoEngine {
     fn reset(&mut self, s: &State) -> Result<(), EngineError> {
         let nj = self.nj;
         if s.q.len() != nj || s.dq.len() != nj {
-            return Err(EngineError::Input(format!("state has {} / {} joint entries, model has {nj}", s.q.len(), s.dq.len())));
+            return Err(EngineError::Input(format!(
+                "state has {} / {} joint entries, model has {nj}",
+                s.q.len(),
+                s.dq.len()
+            )));
         }
         self.check("state", &s.qpos(), 7 + nj)?;
         self.check("state", &s.v(), 6 + nj)?;
@@ -287,7 +299,8 @@ impl Engine for MujocoEngine {
         let m = self.data.model();
         let geom_body = m.geom_bodyid();
         let name_of = |g: i32| -> String {
-            let b = usize::try_from(g).ok().and_then(|g| geom_body.get(g).copied()).and_then(|b| usize::try_from(b).ok());
+            let b =
+                usize::try_from(g).ok().and_then(|g| geom_body.get(g).copied()).and_then(|b| usize::try_from(b).ok());
             match b {
                 Some(0) | None => "ground".to_string(),
                 Some(b) => m.id_to_name(MjtObjBase::mjOBJ_BODY, b).unwrap_or("?").to_string(),

@@ -62,14 +62,30 @@ impl Report {
         for u in &self.unavailable {
             s += &format!("engine {u}: not available in this build\n");
         }
-        s += &format!("{:<10} {:<44} {:<18} {:>12} {:>12} {:<8} {}\n", "group", "check", "engine", "error", "tolerance", "unit", "result");
+        s += &format!(
+            "{:<10} {:<44} {:<18} {:>12} {:>12} {:<8} {}\n",
+            "group", "check", "engine", "error", "tolerance", "unit", "result"
+        );
         for c in &self.checks {
-            let res = if c.passed { "ok".to_string() } else if let Some(k) = &c.known_difference { format!("KNOWN: {k}") } else { "FAIL".to_string() };
-            s += &format!("{:<10} {:<44} {:<18} {:>12.3e} {:>12.3e} {:<8} {}\n", c.group, c.name, c.engine, c.error, c.tolerance, c.unit, res);
+            let res = if c.passed {
+                "ok".to_string()
+            } else if let Some(k) = &c.known_difference {
+                format!("KNOWN: {k}")
+            } else {
+                "FAIL".to_string()
+            };
+            s += &format!(
+                "{:<10} {:<44} {:<18} {:>12.3e} {:>12.3e} {:<8} {}\n",
+                c.group, c.name, c.engine, c.error, c.tolerance, c.unit, res
+            );
         }
         let failed = self.checks.iter().filter(|c| !c.passed && c.known_difference.is_none()).count();
-        s += &format!("{} checks, {} failed, {} known differences\n", self.checks.len(), failed,
-            self.checks.iter().filter(|c| !c.passed && c.known_difference.is_some()).count());
+        s += &format!(
+            "{} checks, {} failed, {} known differences\n",
+            self.checks.len(),
+            failed,
+            self.checks.iter().filter(|c| !c.passed && c.known_difference.is_some()).count()
+        );
         s
     }
 }
@@ -102,7 +118,16 @@ pub fn known_difference(engine: &str, check: &str) -> Option<&'static str> {
 }
 
 #[allow(clippy::too_many_arguments)]
-fn push(out: &mut Vec<CheckResult>, group: &str, name: &str, engine: &str, error: f64, tolerance: f64, unit: &str, note: &str) {
+fn push(
+    out: &mut Vec<CheckResult>,
+    group: &str,
+    name: &str,
+    engine: &str,
+    error: f64,
+    tolerance: f64,
+    unit: &str,
+    note: &str,
+) {
     let passed = error.is_finite() && error <= tolerance;
     let known = if passed { None } else { known_difference(engine, name).map(str::to_string) };
     out.push(CheckResult {
@@ -195,7 +220,9 @@ pub fn run_checks(model: &RobotModel, kinds: &[EngineKind], opts: &CheckOptions)
                 available.push(k);
             }
             Err(EngineError::Unavailable(n)) => unavailable.push(n),
-            Err(err) => push(&mut checks, "build", "engine builds", k.name(), f64::INFINITY, 0.0, "-", &err.to_string()),
+            Err(err) => {
+                push(&mut checks, "build", "engine builds", k.name(), f64::INFINITY, 0.0, "-", &err.to_string())
+            }
         }
     }
     for &k in &available {
@@ -215,7 +242,13 @@ pub fn run_checks(model: &RobotModel, kinds: &[EngineKind], opts: &CheckOptions)
     }
 }
 
-fn build(model: &RobotModel, k: EngineKind, common: &CommonSettings, name: &str, out: &mut Vec<CheckResult>) -> Option<Box<dyn Engine>> {
+fn build(
+    model: &RobotModel,
+    k: EngineKind,
+    common: &CommonSettings,
+    name: &str,
+    out: &mut Vec<CheckResult>,
+) -> Option<Box<dyn Engine>> {
     match crate::make_engine(k, model, common) {
         Ok(e) => Some(e),
         Err(err) => {
@@ -271,7 +304,16 @@ pub fn model_equivalence(model: &RobotModel, k: EngineKind, opts: &CheckOptions,
     // FK composes ≤ 9 transforms per chain in f64 (unit roundoff 1.1e-16); positions ~1 m, so accumulated
     // rounding is ~1e-14 m. Engines that keep poses in f32 would need ~1e-6. Tolerance 1e-9 m / 1e-9 rad
     // (angle_to of nearly equal quaternions resolves ~1e-8 rad, so orientations use 1e-7 rad).
-    push(out, "model", "link-frame FK position", en, pos_err, 1e-9, "m", &format!("{} random configs, all links", opts.samples));
+    push(
+        out,
+        "model",
+        "link-frame FK position",
+        en,
+        pos_err,
+        1e-9,
+        "m",
+        &format!("{} random configs, all links", opts.samples),
+    );
     push(out, "model", "link-frame FK orientation", en, rot_err, 1e-7, "rad", "angle between quaternions");
     push(out, "model", "centre of mass", en, com_err, 1e-9, "m", "");
     push(out, "model", "joint axes (world)", en, axis_err, 1e-9, "-", "|a − a_ref| of unit axes");
@@ -285,7 +327,12 @@ pub fn dynamics(model: &RobotModel, k: EngineKind, opts: &CheckOptions, out: &mu
     for armature in [false, true] {
         let common = CommonSettings { timestep: opts.timestep, armature, ..CommonSettings::rigid_body_only() };
         let Some(mut e) = build(model, k, &common, "dynamics", out) else { return };
-        let analytic = e.settings().get("acceleration_method").and_then(|m| m.as_str()).map(|m| m.starts_with("analytic")).unwrap_or(false);
+        let analytic = e
+            .settings()
+            .get("acceleration_method")
+            .and_then(|m| m.as_str())
+            .map(|m| m.starts_with("analytic"))
+            .unwrap_or(false);
         let mut rng = ChaCha8Rng::seed_from_u64(opts.seed ^ 0xD1);
         let (mut m_direct, mut m_acc, mut b_err, mut a_err) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
         let mut have_direct = false;
@@ -298,7 +345,9 @@ pub fn dynamics(model: &RobotModel, k: EngineKind, opts: &CheckOptions, out: &mu
             }
             let c = s.coords();
             let v = s.v();
-            let (Ok(m_ref), Ok(b_ref)) = (model.mass_matrix(&c, armature), model.bias_forces(&c, &v, g)) else { continue };
+            let (Ok(m_ref), Ok(b_ref)) = (model.mass_matrix(&c, armature), model.bias_forces(&c, &v, g)) else {
+                continue;
+            };
             if let Some(m) = e.mass_matrix() {
                 have_direct = true;
                 m_direct = m_direct.max(rel_err(&row_major(&m, nv), &m_ref));
@@ -326,13 +375,40 @@ pub fn dynamics(model: &RobotModel, k: EngineKind, opts: &CheckOptions, out: &mu
         // Finite-difference routes (one semi-implicit step): first-order error ~ dt·|Ṁ|/|M| ≈ 2e-3·(|v|≈2) → 1e-2.
         let (tol_m, tol_a) = if analytic { (1e-8, 1e-8) } else { (1e-2, 1e-2) };
         if have_direct {
-            push(out, "dynamics", &format!("mass matrix (engine's own){tag}"), en, m_direct, 1e-9, "rel", "Frobenius, vs RNEA columns");
+            push(
+                out,
+                "dynamics",
+                &format!("mass matrix (engine's own){tag}"),
+                en,
+                m_direct,
+                1e-9,
+                "rel",
+                "Frobenius, vs RNEA columns",
+            );
         }
-        push(out, "dynamics", &format!("mass matrix from accelerations{tag}"), en, m_acc, tol_m, "rel", "M⁻¹ columns = a(e_i) − a(0)");
+        push(
+            out,
+            "dynamics",
+            &format!("mass matrix from accelerations{tag}"),
+            en,
+            m_acc,
+            tol_m,
+            "rel",
+            "M⁻¹ columns = a(e_i) − a(0)",
+        );
         if have_bias && !armature {
             push(out, "dynamics", "bias forces C(q,v)v + g", en, b_err, 1e-9, "rel", "");
         }
-        push(out, "dynamics", &format!("accelerations under random (q,v,tau){tag}"), en, a_err, tol_a, "rel", "gravity on, no contact");
+        push(
+            out,
+            "dynamics",
+            &format!("accelerations under random (q,v,tau){tag}"),
+            en,
+            a_err,
+            tol_a,
+            "rel",
+            "gravity on, no contact",
+        );
     }
 }
 
@@ -374,11 +450,34 @@ pub fn standing(model: &RobotModel, k: EngineKind, opts: &CheckOptions, out: &mu
         }
     }
     let weight = model.total_mass() * robot_model::GRAVITY_EARTH;
-    let err = if let Some(f) = failed { push(out, "contact", "standing 1.5 s", en, f64::INFINITY, 0.0, "-", &f); return } else { (fsum / n.max(1) as f64 - weight).abs() / weight };
+    let err = if let Some(f) = failed {
+        push(out, "contact", "standing 1.5 s", en, f64::INFINITY, 0.0, "-", &f);
+        return;
+    } else {
+        (fsum / n.max(1) as f64 - weight).abs() / weight
+    };
     // Quasi-static: the feet carry the weight. Residual sway under PD moves the COM by millimetres with
     // accelerations ≲ 0.2 m/s², i.e. ≲ 2% of g. Tolerance 2%.
-    push(out, "contact", "standing: mean normal force vs weight", en, err, 0.02, "rel", "PD hold of the standing pose, t = 1..1.5 s");
-    push(out, "contact", "standing: contacts off the soles", en, non_foot as f64, 0.0, "count", "robot-ground contacts only on *_ankle_roll_link");
+    push(
+        out,
+        "contact",
+        "standing: mean normal force vs weight",
+        en,
+        err,
+        0.02,
+        "rel",
+        "PD hold of the standing pose, t = 1..1.5 s",
+    );
+    push(
+        out,
+        "contact",
+        "standing: contacts off the soles",
+        en,
+        non_foot as f64,
+        0.0,
+        "count",
+        "robot-ground contacts only on *_ankle_roll_link",
+    );
     let s = e.state();
     let drop = (s.base_pos[2] - model.standing.base_pos[2]).abs();
     // PD compliance under load: knee/hip torques of ~20-30 N·m against kp 200-300 deflect the joints by ~0.1 rad,
@@ -410,11 +509,47 @@ pub fn one_step_cross(model: &RobotModel, kinds: &[EngineKind], opts: &CheckOpti
     for (k, s) in results.iter().skip(1) {
         let en = format!("{} vs {}", k0.name(), k.name());
         let d = |a: &[f64], b: &[f64]| max_abs_diff(a, b);
-        push(out, "contact", "one step: base position", &en, d(&s.base_pos, &s0.base_pos), tx, "m", "standing reset, PD torques");
+        push(
+            out,
+            "contact",
+            "one step: base position",
+            &en,
+            d(&s.base_pos, &s0.base_pos),
+            tx,
+            "m",
+            "standing reset, PD torques",
+        );
         push(out, "contact", "one step: base orientation", &en, quat_angle(s.base_quat, s0.base_quat), tx, "rad", "");
-        push(out, "contact", "one step: joint angles", &en, d(&s.q, &s0.q), tx * 10.0, "rad", "joint accel. ≲ 25 g/m lever");
-        push(out, "contact", "one step: base linear velocity", &en, d(&s.base_lin_vel, &s0.base_lin_vel), tv, "m/s", "");
-        push(out, "contact", "one step: base angular velocity", &en, d(&s.base_ang_vel, &s0.base_ang_vel), tv * 10.0, "rad/s", "");
+        push(
+            out,
+            "contact",
+            "one step: joint angles",
+            &en,
+            d(&s.q, &s0.q),
+            tx * 10.0,
+            "rad",
+            "joint accel. ≲ 25 g/m lever",
+        );
+        push(
+            out,
+            "contact",
+            "one step: base linear velocity",
+            &en,
+            d(&s.base_lin_vel, &s0.base_lin_vel),
+            tv,
+            "m/s",
+            "",
+        );
+        push(
+            out,
+            "contact",
+            "one step: base angular velocity",
+            &en,
+            d(&s.base_ang_vel, &s0.base_ang_vel),
+            tv * 10.0,
+            "rad/s",
+            "",
+        );
         push(out, "contact", "one step: joint velocities", &en, d(&s.dq, &s0.dq), tv * 10.0, "rad/s", "");
     }
 }
@@ -444,8 +579,26 @@ pub fn invariants(model: &RobotModel, k: EngineKind, opts: &CheckOptions, out: &
             let v = s0.v();
             if let (Ok(ke), Ok(pe)) = (model.kinetic_energy(&c, &v, true), model.potential_energy(&c, g)) {
                 // Same quadratic form evaluated in f64: relative 1e-9.
-                push(out, "invariant", "kinetic energy at reset", en, (en0.kinetic - ke).abs() / ke, 1e-9, "rel", "½ vᵀ(M + armature)v");
-                push(out, "invariant", "potential energy at reset", en, (en0.potential - pe).abs() / pe.abs(), 1e-9, "rel", "−m g·com");
+                push(
+                    out,
+                    "invariant",
+                    "kinetic energy at reset",
+                    en,
+                    (en0.kinetic - ke).abs() / ke,
+                    1e-9,
+                    "rel",
+                    "½ vᵀ(M + armature)v",
+                );
+                push(
+                    out,
+                    "invariant",
+                    "potential energy at reset",
+                    en,
+                    (en0.potential - pe).abs() / pe.abs(),
+                    1e-9,
+                    "rel",
+                    "−m g·com",
+                );
             }
         }
     }
@@ -455,7 +608,8 @@ pub fn invariants(model: &RobotModel, k: EngineKind, opts: &CheckOptions, out: &
     // (a) internal power exchange ~ KE0·|ω| with |ω| ≲ 2 rad/s → ~ 2e-3·2 ≈ 4e-3 of KE0 per second;
     // (b) free fall alone gives m g² dt t / 2 ≈ 6.7 J of ~3.2 kJ ≈ 2e-3. Tolerance 1% for both.
     for (label, gravity) in [("zero g", [0.0; 3]), ("gravity", g)] {
-        let common = CommonSettings { timestep: opts.timestep, gravity, armature: true, ..CommonSettings::rigid_body_only() };
+        let common =
+            CommonSettings { timestep: opts.timestep, gravity, armature: true, ..CommonSettings::rigid_body_only() };
         let Some(mut e) = build(model, k, &common, "energy drift", out) else { continue };
         if e.reset(&s0).is_err() {
             continue;
@@ -474,8 +628,16 @@ pub fn invariants(model: &RobotModel, k: EngineKind, opts: &CheckOptions, out: &
             worst = worst.max((en.total() - e_start).abs());
         }
         let scale = if label == "zero g" { en0.kinetic } else { ke_max };
-        push(out, "invariant", &format!("energy drift, free flight 1 s, {label}"), en, worst / scale,
-            0.01, if label == "zero g" { "rel KE0" } else { "rel KEmax" }, "τ = 0, no damping");
+        push(
+            out,
+            "invariant",
+            &format!("energy drift, free flight 1 s, {label}"),
+            en,
+            worst / scale,
+            0.01,
+            if label == "zero g" { "rel KE0" } else { "rel KEmax" },
+            "τ = 0, no damping",
+        );
     }
 
     // Momentum in zero gravity: linear momentum exactly conserved by the continuous dynamics; the discrete
@@ -498,8 +660,26 @@ pub fn invariants(model: &RobotModel, k: EngineKind, opts: &CheckOptions, out: &
                     }
                 }
                 let (nl, np) = (Vector3::from(l0).norm(), Vector3::from(p0).norm());
-                push(out, "invariant", "linear momentum drift, zero g 1 s", en, dp / np, 5e-3, "rel", "momentum from engine state via reference");
-                push(out, "invariant", "angular momentum drift, zero g 1 s", en, dl / nl, 5e-3, "rel", "about the world origin");
+                push(
+                    out,
+                    "invariant",
+                    "linear momentum drift, zero g 1 s",
+                    en,
+                    dp / np,
+                    5e-3,
+                    "rel",
+                    "momentum from engine state via reference",
+                );
+                push(
+                    out,
+                    "invariant",
+                    "angular momentum drift, zero g 1 s",
+                    en,
+                    dl / nl,
+                    5e-3,
+                    "rel",
+                    "about the world origin",
+                );
             }
         }
     }
@@ -535,5 +715,14 @@ pub fn invariants(model: &RobotModel, k: EngineKind, opts: &CheckOptions, out: &
     push(out, "invariant", "timestep refinement: |q(dt) − q(dt/4)|", en, e1, 1e-2, "rad", "0.2 s free flight");
     let ratio = if e2 > 0.0 { e1 / e2 } else { f64::INFINITY };
     // Reported as "1/ratio" so that smaller is better like every other row: pass when ratio ≥ 1.8.
-    push(out, "invariant", "timestep refinement: convergence 1/ratio", en, 1.0 / ratio, 1.0 / 1.8, "-", &format!("ratio {ratio:.2}, first order → 3"));
+    push(
+        out,
+        "invariant",
+        "timestep refinement: convergence 1/ratio",
+        en,
+        1.0 / ratio,
+        1.0 / 1.8,
+        "-",
+        &format!("ratio {ratio:.2}, first order → 3"),
+    );
 }

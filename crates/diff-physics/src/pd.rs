@@ -29,10 +29,20 @@ impl PdTarget {
 /// Computes clamped PD torques into `out` (slot order). `limits` are the per-joint torque limits (>= 0).
 /// Entries beyond the shortest input are left untouched. NaN inputs give NaN torques (not hidden by clamping).
 pub fn pd_torques_into(t: &PdTarget, q: &[f64], dq: &[f64], limits: &[f64], out: &mut [f64]) {
-    let n = [t.q_des.len(), t.dq_des.len(), t.kp.len(), t.kd.len(), t.tau_ff.len(), q.len(), dq.len(), limits.len(), out.len()]
-        .into_iter()
-        .min()
-        .unwrap_or(0);
+    let n = [
+        t.q_des.len(),
+        t.dq_des.len(),
+        t.kp.len(),
+        t.kd.len(),
+        t.tau_ff.len(),
+        q.len(),
+        dq.len(),
+        limits.len(),
+        out.len(),
+    ]
+    .into_iter()
+    .min()
+    .unwrap_or(0);
     for i in 0..n {
         let raw = t.tau_ff[i] + t.kp[i] * (t.q_des[i] - q[i]) + t.kd[i] * (t.dq_des[i] - dq[i]);
         let lim = limits[i];
@@ -54,7 +64,13 @@ mod tests {
 
     #[test]
     fn law_and_clamp() {
-        let t = PdTarget { q_des: vec![1.0, 0.0], dq_des: vec![0.0, 2.0], kp: vec![10.0, 0.0], kd: vec![1.0, 3.0], tau_ff: vec![0.5, -1.0] };
+        let t = PdTarget {
+            q_des: vec![1.0, 0.0],
+            dq_des: vec![0.0, 2.0],
+            kp: vec![10.0, 0.0],
+            kd: vec![1.0, 3.0],
+            tau_ff: vec![0.5, -1.0],
+        };
         let mut out = [0.0; 2];
         // joint 0: 0.5 + 10*(1-0.2) + 1*(0-0.1) = 8.4 -> clamped to 5; joint 1: -1 + 3*(2-1) = 2 (within 5)
         pd_torques_into(&t, &[0.2, 0.0], &[0.1, 1.0], &[5.0, 5.0], &mut out);

@@ -237,16 +237,10 @@ pub fn add_robot(
     gyroscopic: bool,
 ) -> Result<BuiltRobot, EngineError> {
     if link_poses.len() != model.links.len() || frame_offsets.len() != model.links.len() {
-        return Err(EngineError::Build(
-            "link pose / offset count does not match the model".into(),
-        ));
+        return Err(EngineError::Build("link pose / offset count does not match the model".into()));
     }
     let self_collision = model.contact.self_collision;
-    let robot_filter = if self_collision {
-        ROBOT_GROUP | GROUND_GROUP
-    } else {
-        GROUND_GROUP
-    };
+    let robot_filter = if self_collision { ROBOT_GROUP | GROUND_GROUP } else { GROUND_GROUP };
     let robot_groups = InteractionGroups::new(ROBOT_GROUP, robot_filter, InteractionTestMode::And);
     let mut bodies = Vec::with_capacity(model.links.len());
     for (li, link) in model.links.iter().enumerate() {
@@ -315,22 +309,14 @@ pub fn add_robot(
             .friction_combine_rule(CoefficientCombineRule::Average)
             .restitution(model.contact.restitution)
             .restitution_combine_rule(CoefficientCombineRule::Average)
-            .collision_groups(InteractionGroups::new(
-                GROUND_GROUP,
-                ROBOT_GROUP,
-                InteractionTestMode::And,
-            ))
+            .collision_groups(InteractionGroups::new(GROUND_GROUP, ROBOT_GROUP, InteractionTestMode::And))
             .build();
         world.insert_collider(c, Some(g));
         Some(g)
     } else {
         None
     };
-    Ok(BuiltRobot {
-        bodies,
-        frame_offsets,
-        ground,
-    })
+    Ok(BuiltRobot { bodies, frame_offsets, ground })
 }
 
 /// The Rapier joint description of model joint `ji`: a revolute joint whose local X axis is the model axis,
@@ -405,11 +391,7 @@ fn body_name(model: &RobotModel, world: &PhysicsWorld, h: Option<RigidBodyHandle
     match h.and_then(|h| world.bodies.get(h)) {
         Some(rb) if rb.user_data > 0 => {
             let li = (rb.user_data - 1) as usize;
-            model
-                .links
-                .get(li)
-                .map(|l| l.name.clone())
-                .unwrap_or_else(|| "unknown".into())
+            model.links.get(li).map(|l| l.name.clone()).unwrap_or_else(|| "unknown".into())
         }
         _ => "ground".into(),
     }
@@ -438,11 +420,7 @@ pub fn read_contacts(model: &RobotModel, world: &PhysicsWorld, dt: f64) -> Vec<C
                 let p2 = *c2.position() * pt.local_p2;
                 let mid = (p1 + p2) * 0.5;
                 let normal = if flip { -n } else { n };
-                let (a, b) = if flip {
-                    (name2.clone(), name1.clone())
-                } else {
-                    (name1.clone(), name2.clone())
-                };
+                let (a, b) = if flip { (name2.clone(), name1.clone()) } else { (name1.clone(), name2.clone()) };
                 out.push(Contact {
                     body_a: a,
                     body_b: b,
@@ -550,11 +528,7 @@ pub fn add_joint_torque(world: &mut PhysicsWorld, robot: &BuiltRobot, joint: &ro
 /// Checks a torque vector's length and finiteness.
 pub fn check_tau(model: &RobotModel, tau: &[f64]) -> Result<(), EngineError> {
     if tau.len() != model.nj() {
-        return Err(EngineError::Input(format!(
-            "expected {} joint torques, got {}",
-            model.nj(),
-            tau.len()
-        )));
+        return Err(EngineError::Input(format!("expected {} joint torques, got {}", model.nj(), tau.len())));
     }
     if tau.iter().any(|t| !t.is_finite()) {
         return Err(EngineError::Input("non-finite joint torque".into()));

@@ -21,9 +21,9 @@
 //! - A reset rebuilds the whole Rapier world, so no joint or contact warm start survives it.
 use crate::engine::{CommonSettings, Contact, Energy, Engine, EngineError, LinkPose, State};
 use crate::rapier_common::{
-    add_joint_torque, add_robot, armature_inertia, clear_user_forces, arr, bodies_com, bodies_energy, check_tau, iso_from_pose, link_masses, link_poses,
-    link_velocities, new_world, read_contacts, revolute_joint, v_from_r, v_to_r, BuiltRobot, RapierSolverSettings,
-    RAPIER_VERSION,
+    add_joint_torque, add_robot, armature_inertia, arr, bodies_com, bodies_energy, check_tau, clear_user_forces,
+    iso_from_pose, link_masses, link_poses, link_velocities, new_world, read_contacts, revolute_joint, v_from_r,
+    v_to_r, BuiltRobot, RapierSolverSettings, RAPIER_VERSION,
 };
 use nalgebra::{Isometry3, Point3, Vector3};
 use rapier3d_f64::prelude::{ImpulseJointHandle, JointAxis, MotorModel, PhysicsWorld};
@@ -125,10 +125,7 @@ impl RapierImpulseEngine {
         state: &State,
     ) -> Result<Self, EngineError> {
         if !(common.timestep.is_finite() && common.timestep > 0.0) {
-            return Err(EngineError::Input(format!(
-                "timestep {} must be positive",
-                common.timestep
-            )));
+            return Err(EngineError::Input(format!("timestep {} must be positive", common.timestep)));
         }
         state.validate(model)?;
         let fk = model.fk(&state.coords())?;
@@ -215,11 +212,7 @@ impl RapierImpulseEngine {
     }
 
     fn body_angvel(&self, li: usize) -> Vector3<f64> {
-        self.world
-            .bodies
-            .get(self.robot.bodies[li])
-            .map(|rb| v_from_r(rb.angvel()))
-            .unwrap_or_else(Vector3::zeros)
+        self.world.bodies.get(self.robot.bodies[li]).map(|rb| v_from_r(rb.angvel())).unwrap_or_else(Vector3::zeros)
     }
 
     /// Applies `tau` (+ explicit viscous damping) as equal and opposite body torques; clears other user forces.
@@ -285,11 +278,7 @@ impl Engine for RapierImpulseEngine {
 
     fn step(&mut self, tau: &[f64]) -> Result<(), EngineError> {
         check_tau(&self.model, tau)?;
-        let dq = if self.common.joint_damping {
-            self.state().dq
-        } else {
-            Vec::new()
-        };
+        let dq = if self.common.joint_damping { self.state().dq } else { Vec::new() };
         self.apply_joint_torques(tau, &dq);
         self.world.step();
         self.time += self.common.timestep;
@@ -297,10 +286,7 @@ impl Engine for RapierImpulseEngine {
         for &h in &self.robot.bodies {
             if let Some(rb) = self.world.bodies.get(h) {
                 if !(rb.linvel().is_finite() && rb.angvel().is_finite() && rb.translation().is_finite()) {
-                    return Err(EngineError::Diverged(format!(
-                        "non-finite body state at t = {}",
-                        self.time
-                    )));
+                    return Err(EngineError::Diverged(format!("non-finite body state at t = {}", self.time)));
                 }
             }
         }
@@ -312,12 +298,7 @@ impl Engine for RapierImpulseEngine {
         let pelvis = self.body_pose(0);
         let mut st = State {
             base_pos: arr(&pelvis.translation.vector),
-            base_quat: [
-                pelvis.rotation.w,
-                pelvis.rotation.i,
-                pelvis.rotation.j,
-                pelvis.rotation.k,
-            ],
+            base_quat: [pelvis.rotation.w, pelvis.rotation.i, pelvis.rotation.j, pelvis.rotation.k],
             q: vec![0.0; nj],
             base_lin_vel: [0.0; 3],
             base_ang_vel: [0.0; 3],
@@ -374,11 +355,7 @@ impl Engine for RapierImpulseEngine {
     }
 
     fn joint_axes(&mut self) -> Vec<[f64; 3]> {
-        self.model
-            .joints
-            .iter()
-            .map(|j| arr(&(self.body_pose(j.child_link).rotation * j.axis.into_inner())))
-            .collect()
+        self.model.joints.iter().map(|j| arr(&(self.body_pose(j.child_link).rotation * j.axis.into_inner()))).collect()
     }
 
     fn joint_limits(&self) -> Vec<(f64, f64)> {
@@ -413,10 +390,7 @@ impl Engine for RapierImpulseEngine {
             settings.solver.pgs_iterations_per_substep = self.settings.acceleration_probe_pgs_iterations;
             self.probe = Some(Box::new(Self::build(&self.model, &common, &settings, &state)?));
         }
-        let probe = self
-            .probe
-            .as_mut()
-            .ok_or_else(|| EngineError::Build("probe missing".into()))?;
+        let probe = self.probe.as_mut().ok_or_else(|| EngineError::Build("probe missing".into()))?;
         probe.reset(&state)?;
         probe.apply_joint_torques(&f[6..], &state.dq);
         let pelvis = probe.body_pose(0);

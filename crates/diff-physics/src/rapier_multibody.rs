@@ -22,8 +22,9 @@
 //!   so no warm start or contact history survives it.
 use crate::engine::{CommonSettings, Contact, Energy, Engine, EngineError, LinkPose, State};
 use crate::rapier_common::{
-    add_joint_torque, add_robot, arr, clear_user_forces, bodies_com, check_tau, iso_from_pose, link_masses, link_poses, link_poses_from_bodies, new_world, read_contacts,
-    revolute_joint, v_to_r, wxyz_to_quat, BuiltRobot, RapierSolverSettings, RAPIER_VERSION,
+    add_joint_torque, add_robot, arr, bodies_com, check_tau, clear_user_forces, iso_from_pose, link_masses, link_poses,
+    link_poses_from_bodies, new_world, read_contacts, revolute_joint, v_to_r, wxyz_to_quat, BuiltRobot,
+    RapierSolverSettings, RAPIER_VERSION,
 };
 use nalgebra::{DMatrix, Isometry3, Matrix3, Translation3, Vector3};
 use rapier3d_f64::na as rna;
@@ -98,10 +99,7 @@ impl RapierMultibodyEngine {
         state: &State,
     ) -> Result<Self, EngineError> {
         if !(common.timestep.is_finite() && common.timestep > 0.0) {
-            return Err(EngineError::Input(format!(
-                "timestep {} must be positive",
-                common.timestep
-            )));
+            return Err(EngineError::Input(format!("timestep {} must be positive", common.timestep)));
         }
         state.validate(model)?;
         let coords = state.coords();
@@ -124,12 +122,9 @@ impl RapierMultibodyEngine {
                 settings.solver.parent_child_contacts,
             );
             let child = robot.bodies[model.joints[ji].child_link];
-            world
-                .multibody_joints
-                .insert(robot.bodies[pl], child, joint, true)
-                .ok_or_else(|| {
-                    EngineError::Build(format!("Rapier refused multibody joint {}", model.joints[ji].name))
-                })?;
+            world.multibody_joints.insert(robot.bodies[pl], child, joint, true).ok_or_else(|| {
+                EngineError::Build(format!("Rapier refused multibody joint {}", model.joints[ji].name))
+            })?;
         }
         let root_link = world
             .multibody_joints
@@ -146,10 +141,7 @@ impl RapierMultibodyEngine {
                 .rigid_body_link(robot.bodies[j.child_link])
                 .ok_or_else(|| EngineError::Build(format!("link of joint {} missing", j.name)))?;
             if l.multibody != mb_index {
-                return Err(EngineError::Build(format!(
-                    "joint {} is not in the pelvis multibody",
-                    j.name
-                )));
+                return Err(EngineError::Build(format!("joint {} is not in the pelvis multibody", j.name)));
             }
             link_ids.push(l.id);
         }
@@ -199,16 +191,11 @@ impl RapierMultibodyEngine {
         mb.set_self_contacts_enabled(self.settings.self_contacts);
         let nd = mb.ndofs();
         if nd != 6 + model.nj() {
-            return Err(EngineError::Build(format!(
-                "multibody has {nd} DoFs, expected {}",
-                6 + model.nj()
-            )));
+            return Err(EngineError::Build(format!("multibody has {nd} DoFs, expected {}", 6 + model.nj())));
         }
         let mut dofs = Vec::with_capacity(model.nj());
         for &lid in &self.link_ids {
-            let link = mb
-                .link(lid)
-                .ok_or_else(|| EngineError::Build("multibody link missing".into()))?;
+            let link = mb.link(lid).ok_or_else(|| EngineError::Build("multibody link missing".into()))?;
             dofs.push(link.assembly_id());
         }
         mb.damping_mut().fill(0.0);
@@ -291,9 +278,7 @@ impl RapierMultibodyEngine {
             .inv_augmented_mass()
             .solve(&rna::DMatrix::<f64>::identity(n, n))
             .ok_or_else(|| EngineError::Diverged("singular multibody mass matrix".into()))?;
-        let m = minv
-            .try_inverse()
-            .ok_or_else(|| EngineError::Diverged("singular inverse mass matrix".into()))?;
+        let m = minv.try_inverse().ok_or_else(|| EngineError::Diverged("singular inverse mass matrix".into()))?;
         let mut out = DMatrix::zeros(n, n);
         for r in 0..n {
             for c in 0..n {
@@ -382,10 +367,7 @@ impl Engine for RapierMultibodyEngine {
         self.time += self.common.timestep;
         let mb = self.multibody()?;
         if mb.generalized_velocity().iter().any(|x| !x.is_finite()) {
-            return Err(EngineError::Diverged(format!(
-                "non-finite velocity at t = {}",
-                self.time
-            )));
+            return Err(EngineError::Diverged(format!("non-finite velocity at t = {}", self.time)));
         }
         Ok(())
     }
@@ -455,11 +437,7 @@ impl Engine for RapierMultibodyEngine {
 
     fn joint_axes(&mut self) -> Vec<[f64; 3]> {
         let poses = link_poses_from_bodies(&self.world, &self.robot);
-        self.model
-            .joints
-            .iter()
-            .map(|j| arr(&(poses[j.child_link].rotation * j.axis.into_inner())))
-            .collect()
+        self.model.joints.iter().map(|j| arr(&(poses[j.child_link].rotation * j.axis.into_inner()))).collect()
     }
 
     fn joint_limits(&self) -> Vec<(f64, f64)> {
@@ -490,10 +468,7 @@ impl Engine for RapierMultibodyEngine {
             };
             self.probe = Some(Box::new(Self::build(&self.model, &common, &self.settings, &state)?));
         }
-        let probe = self
-            .probe
-            .as_mut()
-            .ok_or_else(|| EngineError::Build("probe missing".into()))?;
+        let probe = self.probe.as_mut().ok_or_else(|| EngineError::Build("probe missing".into()))?;
         probe.reset(&state)?;
         probe.apply_joint_torques(&f[6..]);
         // Base wrench: force through the pelvis origin (world), moment about the pelvis origin (pelvis frame).

@@ -113,7 +113,12 @@ fn oracles_detect_typical_translation_bugs() {
     let mut e = MujocoEngine::new(&bad, &common, &MujocoSettings::default()).expect("engine");
     e.reset(&State::at_rest(c.clone())).expect("reset");
     let fk = model.fk(&c).expect("fk");
-    let worst = e.link_poses().iter().zip(&fk.link_poses).map(|(p, r)| (nalgebra::Vector3::from(p.pos) - r.translation.vector).norm()).fold(0.0, f64::max);
+    let worst = e
+        .link_poses()
+        .iter()
+        .zip(&fk.link_poses)
+        .map(|(p, r)| (nalgebra::Vector3::from(p.pos) - r.translation.vector).norm())
+        .fold(0.0, f64::max);
     assert!(worst > 1e-3, "flipped axis went unnoticed: {worst}");
 
     // 3. Quaternion convention [x, y, z, w] fed where [w, x, y, z] is expected.
@@ -124,7 +129,13 @@ fn oracles_detect_typical_translation_bugs() {
     e.reset(&s).expect("reset");
     let base = e.link_poses()[0];
     let q = fk.link_poses[0].rotation;
-    let angle = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(base.quat[0], base.quat[1], base.quat[2], base.quat[3])).angle_to(&q);
+    let angle = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+        base.quat[0],
+        base.quat[1],
+        base.quat[2],
+        base.quat[3],
+    ))
+    .angle_to(&q);
     assert!(angle > 1e-3, "quaternion convention swap went unnoticed");
 
     // 4. Armature forgotten: the with-armature mass matrix differs by 0.1 on the joint diagonal.

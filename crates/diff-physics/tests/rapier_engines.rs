@@ -29,17 +29,10 @@ fn engines(common: &CommonSettings) -> Vec<Box<dyn Engine>> {
 
 /// Random configuration: base anywhere within 1 m, random orientation, joints uniform within their limits.
 fn random_coords(m: &RobotModel, rng: &mut ChaCha8Rng) -> GenCoords {
-    let q = UnitQuaternion::from_euler_angles(
-        rng.gen_range(-3.0..3.0),
-        rng.gen_range(-1.5..1.5),
-        rng.gen_range(-3.0..3.0),
-    );
+    let q =
+        UnitQuaternion::from_euler_angles(rng.gen_range(-3.0..3.0), rng.gen_range(-1.5..1.5), rng.gen_range(-3.0..3.0));
     GenCoords {
-        base_pos: [
-            rng.gen_range(-1.0..1.0),
-            rng.gen_range(-1.0..1.0),
-            rng.gen_range(0.5..1.5),
-        ],
+        base_pos: [rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0), rng.gen_range(0.5..1.5)],
         base_quat: [q.w, q.i, q.j, q.k],
         q: m.joints.iter().map(|j| rng.gen_range(j.lower..j.upper)).collect(),
     }
@@ -94,20 +87,11 @@ fn link_frames_match_model_fk() {
             "{}: FK worst position {worst_pos:.3e} m, rotation {worst_rot:.3e} rad, state round trip {worst_q:.3e}",
             e.name()
         );
-        assert!(
-            worst_pos < 1e-9 && worst_rot < 1e-9,
-            "{}: FK disagrees with the model",
-            e.name()
-        );
+        assert!(worst_pos < 1e-9 && worst_rot < 1e-9, "{}: FK disagrees with the model", e.name());
         assert!(worst_q < 1e-9, "{}: state does not round-trip", e.name());
         let masses = e.link_masses();
         for (a, l) in masses.iter().zip(&m.links) {
-            assert!(
-                (a - l.inertial.mass).abs() < 1e-12 * l.inertial.mass.max(1.0),
-                "{} mass of {}",
-                e.name(),
-                l.name
-            );
+            assert!((a - l.inertial.mass).abs() < 1e-12 * l.inertial.mass.max(1.0), "{} mass of {}", e.name(), l.name);
         }
         let lim = e.joint_limits();
         assert_eq!(lim.len(), m.nj());
@@ -117,11 +101,7 @@ fn link_frames_match_model_fk() {
 /// Momentum drift (relative) over 1 s of zero-gravity, contact-free, torque-free motion from `s0` at `dt`.
 fn momentum_drift(name: &str, s0: &State, dt: f64) -> (f64, f64) {
     let m = model();
-    let common = CommonSettings {
-        gravity: [0.0; 3],
-        timestep: dt,
-        ..CommonSettings::rigid_body_only()
-    };
+    let common = CommonSettings { gravity: [0.0; 3], timestep: dt, ..CommonSettings::rigid_body_only() };
     let mut e: Box<dyn Engine> = match name {
         "rapier_multibody" => {
             Box::new(RapierMultibodyEngine::new(&m, &common, &RapierMultibodySettings::default()).unwrap())
@@ -157,10 +137,7 @@ fn momentum_conserved_in_zero_gravity() {
         // Bound: symplectic Euler's per-step error on a body rotating at |ω| ≲ 1 rad/s is O(dt²|ω|²) ≈ 4e-6
         // relative; if it accumulated coherently over 500 steps that is 2e-3. Drift must stay below it ...
         let bound = 2e-3;
-        assert!(
-            dp < bound && dl < bound,
-            "{name}: momentum drift {dp:e} / {dl:e} above {bound:e}"
-        );
+        assert!(dp < bound && dl < bound, "{name}: momentum drift {dp:e} / {dl:e} above {bound:e}");
         // ... and must be a discretisation error: halving dt must reduce it (at least first order gives 0.5;
         // 0.75 leaves margin), unless it is already at rounding level (1e-10 relative).
         for (a, b, what) in [(dp, dp2, "linear"), (dl, dl2, "angular")] {
@@ -209,19 +186,11 @@ fn free_fall_com_follows_parabola() {
             worst_discrete = worst_discrete.max((c - want_discrete).norm());
         }
         println!("{}: free-fall COM: worst excess over the integrator bound {worst:.3e} m, worst vs discrete symplectic-Euler parabola {worst_discrete:.3e} m", e.name());
-        assert!(
-            worst <= 0.0,
-            "{}: COM leaves the parabola by {worst:e} m beyond the integrator bound",
-            e.name()
-        );
+        assert!(worst <= 0.0, "{}: COM leaves the parabola by {worst:e} m beyond the integrator bound", e.name());
         // Against the exact discrete trajectory: internal forces cancel, so only momentum drift moves the COM off
         // it; the measured linear-momentum drift (< 3e-5 relative over 1 s, see the momentum test) at |v_c| < 1 m/s
         // bounds that by ~3e-5 m; 1e-4 m leaves a factor 3.
-        assert!(
-            worst_discrete < 1e-4,
-            "{}: COM off the discrete parabola by {worst_discrete:e} m",
-            e.name()
-        );
+        assert!(worst_discrete < 1e-4, "{}: COM off the discrete parabola by {worst_discrete:e} m", e.name());
     }
 }
 
@@ -246,9 +215,7 @@ fn contact_free_dynamics_match_reference() {
                 worst_m = if worst_m.is_nan() { err } else { worst_m.max(err) };
             }
             let f: Vec<f64> = (0..m.nv()).map(|_| rng.gen_range(-20.0..20.0)).collect();
-            let aref = m
-                .forward_dynamics(&s.coords(), &s.v(), &f, common.gravity, false)
-                .unwrap();
+            let aref = m.forward_dynamics(&s.coords(), &s.v(), &f, common.gravity, false).unwrap();
             let a = DVector::from_vec(e.generalized_acceleration(&f).unwrap());
             worst_a = worst_a.max((&a - &aref).amax() / aref.amax().max(1.0));
         }
@@ -306,13 +273,8 @@ fn stands_with_pd() {
         let dz = s.base_pos[2] - s0.base_pos[2];
         // Feet must not slide (static Coulomb friction, mu = 1, on flat ground): horizontal motion of the
         // ankle-roll (foot) frames since the reset.
-        let feet: Vec<usize> = m
-            .links
-            .iter()
-            .enumerate()
-            .filter(|(_, l)| l.name.contains("ankle_roll"))
-            .map(|(i, _)| i)
-            .collect();
+        let feet: Vec<usize> =
+            m.links.iter().enumerate().filter(|(_, l)| l.name.contains("ankle_roll")).map(|(i, _)| i).collect();
         let fk0 = m.fk(&s0.coords()).unwrap();
         let poses = e.link_poses();
         let drift_xy = feet
@@ -332,17 +294,11 @@ fn stands_with_pd() {
         // A foot rocking on its sole edge moves its frame by < 1 cm horizontally; 1 cm bound.
         assert!(drift_xy < 0.01, "{}: a foot moved {drift_xy} m horizontally", e.name());
         assert!(
-            contacts
-                .iter()
-                .all(|c| c.body_a == "ground" && c.body_b.contains("ankle_roll")),
+            contacts.iter().all(|c| c.body_a == "ground" && c.body_b.contains("ankle_roll")),
             "{}: unexpected contact {contacts:?}",
             e.name()
         );
-        assert!(
-            contacts.iter().all(|c| c.normal[2] > 0.99),
-            "{}: ground normals must point up",
-            e.name()
-        );
+        assert!(contacts.iter().all(|c| c.normal[2] > 0.99), "{}: ground normals must point up", e.name());
         // Contact points lie on the floor: within the allowed penetration (1 mm) plus the contact spring's
         // static compression (a few mm at 60 Hz under ~330 N per foot) of z = 0; 1 cm bound.
         assert!(
@@ -445,11 +401,7 @@ fn queries_do_not_perturb() {
 #[test]
 fn joint_limits_and_friction_act() {
     let m = model();
-    let common = CommonSettings {
-        gravity: [0.0; 3],
-        ground: false,
-        ..CommonSettings::default()
-    };
+    let common = CommonSettings { gravity: [0.0; 3], ground: false, ..CommonSettings::default() };
     let knee = m.joint_index("left_knee_joint").unwrap();
     let elbow = m.joint_index("left_elbow_joint").unwrap();
     for mut e in engines(&common) {
@@ -473,10 +425,7 @@ fn joint_limits_and_friction_act() {
     }
     let sub_friction = 0.5 * m.joints[elbow].frictionloss;
     for (friction, label) in [(true, "with"), (false, "without")] {
-        let c = CommonSettings {
-            joint_friction: friction,
-            ..common.clone()
-        };
+        let c = CommonSettings { joint_friction: friction, ..common.clone() };
         for mut e in engines(&c) {
             e.reset(&State::standing(&m)).unwrap();
             let mut tau = vec![0.0; m.nj()];
@@ -486,10 +435,7 @@ fn joint_limits_and_friction_act() {
                 e.step(&tau).unwrap();
                 max_speed = max_speed.max(e.state().dq[elbow].abs());
             }
-            println!(
-                "{}: elbow max |dq| {max_speed:.3e} rad/s under {sub_friction} N·m {label} friction",
-                e.name()
-            );
+            println!("{}: elbow max |dq| {max_speed:.3e} rad/s under {sub_friction} N·m {label} friction", e.name());
             // Without friction the torque drives the elbow towards τ/d = 0.1 rad/s (viscous damping 1 N·m·s/rad,
             // time constant (I + armature)/d ≈ 0.1 s): it must exceed 10x the friction bound. With friction the
             // bounded constraint absorbs it all: 1e-3 rad/s bound (solver residual).
@@ -497,17 +443,9 @@ fn joint_limits_and_friction_act() {
             // leaves a residual (measured 1.2e-3 rad/s): known difference, bound 5e-3 rad/s.
             let bound = if e.name() == "rapier_impulse" { 5e-3 } else { 1e-3 };
             if friction {
-                assert!(
-                    max_speed < bound,
-                    "{}: elbow moved at {max_speed} rad/s under sub-friction torque",
-                    e.name()
-                );
+                assert!(max_speed < bound, "{}: elbow moved at {max_speed} rad/s under sub-friction torque", e.name());
             } else {
-                assert!(
-                    max_speed > 10.0 * bound,
-                    "{}: elbow did not move without friction ({max_speed})",
-                    e.name()
-                );
+                assert!(max_speed > 10.0 * bound, "{}: elbow did not move without friction ({max_speed})", e.name());
             }
         }
     }

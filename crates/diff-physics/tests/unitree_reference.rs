@@ -71,17 +71,29 @@ fn map(m: &MjModel, model: &RobotModel) -> Map {
     let body = model
         .links
         .iter()
-        .map(|l| m.name_to_id(MjtObjBase::mjOBJ_BODY, &l.name).unwrap_or_else(|| panic!("Unitree model lacks body {}", l.name)))
+        .map(|l| {
+            m.name_to_id(MjtObjBase::mjOBJ_BODY, &l.name)
+                .unwrap_or_else(|| panic!("Unitree model lacks body {}", l.name))
+        })
         .collect();
     let jid: Vec<usize> = model
         .joints
         .iter()
-        .map(|j| m.name_to_id(MjtObjBase::mjOBJ_JOINT, &j.name).unwrap_or_else(|| panic!("Unitree model lacks joint {}", j.name)))
+        .map(|j| {
+            m.name_to_id(MjtObjBase::mjOBJ_JOINT, &j.name)
+                .unwrap_or_else(|| panic!("Unitree model lacks joint {}", j.name))
+        })
         .collect();
     let free = m.name_to_id(MjtObjBase::mjOBJ_JOINT, "floating_base_joint").expect("free joint");
     let qa = |j: usize| m.jnt_qposadr()[j] as usize;
     let da = |j: usize| m.jnt_dofadr()[j] as usize;
-    Map { body, qadr: jid.iter().map(|&j| qa(j)).collect(), dadr: jid.iter().map(|&j| da(j)).collect(), free_q: qa(free), free_d: da(free) }
+    Map {
+        body,
+        qadr: jid.iter().map(|&j| qa(j)).collect(),
+        dadr: jid.iter().map(|&j| da(j)).collect(),
+        free_q: qa(free),
+        free_d: da(free),
+    }
 }
 
 fn set_config(d: &mut MjData<&MjModel>, mp: &Map, c: &GenCoords) {
@@ -102,7 +114,11 @@ fn masses_match_unitree() {
     let bm = m.body_mass();
     // Masses are decimal figures copied by the generator: equal to ~1e-12 kg (f64 printing round trip).
     let total_unitree: f64 = bm.iter().sum();
-    assert!((total_unitree - model.total_mass()).abs() < 1e-9, "total mass: Unitree {total_unitree}, ours {}", model.total_mass());
+    assert!(
+        (total_unitree - model.total_mass()).abs() < 1e-9,
+        "total mass: Unitree {total_unitree}, ours {}",
+        model.total_mass()
+    );
     assert_eq!(bm.len(), model.links.len() + 1, "Unitree's model has bodies we do not (or vice versa)");
     for (l, &b) in model.links.iter().zip(&mp.body) {
         assert!((bm[b] - l.inertial.mass).abs() < 1e-12, "{}: Unitree {} ours {}", l.name, bm[b], l.inertial.mass);

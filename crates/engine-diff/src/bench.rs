@@ -37,11 +37,22 @@ fn row(what: String, threads: usize, rollouts: usize, wall: f64, engine_s: f64, 
 }
 
 /// Free rollouts per engine (1 thread, then `threads` in parallel) and windowed diff episodes.
-pub fn run(model: &RobotModel, factories: &[Arc<dyn EngineFactory>], ctrl: &ControllerFactory, cfg: &HarnessConfig, seconds: f64, rollouts: usize, threads: usize) -> Result<Vec<BenchRow>, DiffError> {
+pub fn run(
+    model: &RobotModel,
+    factories: &[Arc<dyn EngineFactory>],
+    ctrl: &ControllerFactory,
+    cfg: &HarnessConfig,
+    seconds: f64,
+    rollouts: usize,
+    threads: usize,
+) -> Result<Vec<BenchRow>, DiffError> {
     let dt = cfg.common.timestep;
     let steps = ((seconds / dt).round() as usize).max(1);
     let mut rows = Vec::new();
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads.max(1)).build().map_err(|e| DiffError::Input(e.to_string()))?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads.max(1))
+        .build()
+        .map_err(|e| DiffError::Input(e.to_string()))?;
     for f in factories {
         for t in [1, threads.max(1)] {
             let t0 = Instant::now();
@@ -51,7 +62,11 @@ pub fn run(model: &RobotModel, factories: &[Arc<dyn EngineFactory>], ctrl: &Cont
                 let ((_, es), n) = harness::free_run(e.as_mut(), &f.name(), model, ctrl, &s, dt, steps)?;
                 Ok((es, n))
             };
-            let res: Vec<Result<(f64, u64), DiffError>> = if t == 1 { (0..rollouts).map(one).collect() } else { pool.install(|| (0..rollouts).into_par_iter().map(one).collect()) };
+            let res: Vec<Result<(f64, u64), DiffError>> = if t == 1 {
+                (0..rollouts).map(one).collect()
+            } else {
+                pool.install(|| (0..rollouts).into_par_iter().map(one).collect())
+            };
             let wall = t0.elapsed().as_secs_f64();
             let (mut es, mut n) = (0.0, 0);
             for r in res {
@@ -69,8 +84,14 @@ pub fn run(model: &RobotModel, factories: &[Arc<dyn EngineFactory>], ctrl: &Cont
     let dcfg = HarnessConfig { free_runs: false, ..cfg.clone() };
     for t in [1, threads.max(1)] {
         let t0 = Instant::now();
-        let one = |i: usize| harness::run_episode(model, factories, ctrl, &Scenario::excitation(i as u64 + 1, seconds), &dcfg);
-        let res: Vec<Result<harness::EpisodeResult, DiffError>> = if t == 1 { (0..rollouts).map(one).collect() } else { pool.install(|| (0..rollouts).into_par_iter().map(one).collect()) };
+        let one = |i: usize| {
+            harness::run_episode(model, factories, ctrl, &Scenario::excitation(i as u64 + 1, seconds), &dcfg)
+        };
+        let res: Vec<Result<harness::EpisodeResult, DiffError>> = if t == 1 {
+            (0..rollouts).map(one).collect()
+        } else {
+            pool.install(|| (0..rollouts).into_par_iter().map(one).collect())
+        };
         let wall = t0.elapsed().as_secs_f64();
         let (mut es, mut n) = (0.0, 0);
         for r in res {

@@ -42,7 +42,9 @@ impl ExcitationController {
         }
         let leg = |n: &str| n.contains("hip") || n.contains("knee") || n.contains("ankle");
         let scale = model.joints.iter().map(|j| if leg(&j.motor_name) { 1.0 / 3.0 } else { 1.0 }).collect();
-        let find = |pat: &str| model.joints.iter().enumerate().filter(|(_, j)| j.motor_name.contains(pat)).map(|(i, _)| i).collect();
+        let find = |pat: &str| {
+            model.joints.iter().enumerate().filter(|(_, j)| j.motor_name.contains(pat)).map(|(i, _)| i).collect()
+        };
         let n = model.nj();
         let mut c = ExcitationController {
             base,
@@ -82,7 +84,11 @@ impl Controller for ExcitationController {
     fn act(&mut self, obs: &RobotObservation) -> Result<PdTarget, PolicyError> {
         let n = self.base.q_des.len();
         if obs.q.len() != n || obs.dq.len() != n {
-            return Err(PolicyError::Observation(format!("expected {n} joints, got {} / {}", obs.q.len(), obs.dq.len())));
+            return Err(PolicyError::Observation(format!(
+                "expected {n} joints, got {} / {}",
+                obs.q.len(),
+                obs.dq.len()
+            )));
         }
         while obs.time >= self.segment_start + Self::HOLD {
             self.from = std::mem::take(&mut self.to);

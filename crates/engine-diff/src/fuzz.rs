@@ -48,7 +48,13 @@ pub struct FuzzOutcome {
 fn entry_of(r: &EpisodeResult, friction: f64) -> CorpusEntry {
     let divergence = r.worst_ratio();
     let magnitude = r.scenario.magnitude(friction);
-    CorpusEntry { scenario: r.scenario.clone(), divergence, magnitude, score: divergence / (1.0 + magnitude), patterns: r.contact_patterns.iter().cloned().collect() }
+    CorpusEntry {
+        scenario: r.scenario.clone(),
+        divergence,
+        magnitude,
+        score: divergence / (1.0 + magnitude),
+        patterns: r.contact_patterns.iter().cloned().collect(),
+    }
 }
 
 /// Runs the search. `progress(done)` is called after every evaluated input.
@@ -78,27 +84,28 @@ pub fn fuzz(
     let mut best: BTreeMap<(String, String, String, String), (f64, usize)> = BTreeMap::new();
     let mut kept: Vec<EpisodeResult> = Vec::new();
     let mut failed = 0;
-    let mut absorb = |r: EpisodeResult, corpus: &mut Vec<CorpusEntry>, parent_score: f64, patterns: &mut BTreeSet<String>| {
-        let e = entry_of(&r, friction);
-        let novel = r.contact_patterns.iter().any(|p| !patterns.contains(p));
-        patterns.extend(r.contact_patterns.iter().cloned());
-        if novel || e.score > parent_score || corpus.is_empty() {
-            corpus.push(e.clone());
-        }
-        // Keep the episode if it holds the best-per-unit instance of some finding group.
-        let mut useful = false;
-        for f in &r.findings {
-            let per_unit = f.ratio() / (1.0 + e.magnitude);
-            let slot = best.entry(f.group_key()).or_insert((f64::NEG_INFINITY, usize::MAX));
-            if per_unit > slot.0 {
-                *slot = (per_unit, kept.len());
-                useful = true;
+    let mut absorb =
+        |r: EpisodeResult, corpus: &mut Vec<CorpusEntry>, parent_score: f64, patterns: &mut BTreeSet<String>| {
+            let e = entry_of(&r, friction);
+            let novel = r.contact_patterns.iter().any(|p| !patterns.contains(p));
+            patterns.extend(r.contact_patterns.iter().cloned());
+            if novel || e.score > parent_score || corpus.is_empty() {
+                corpus.push(e.clone());
             }
-        }
-        if useful {
-            kept.push(r);
-        }
-    };
+            // Keep the episode if it holds the best-per-unit instance of some finding group.
+            let mut useful = false;
+            for f in &r.findings {
+                let per_unit = f.ratio() / (1.0 + e.magnitude);
+                let slot = best.entry(f.group_key()).or_insert((f64::NEG_INFINITY, usize::MAX));
+                if per_unit > slot.0 {
+                    *slot = (per_unit, kept.len());
+                    useful = true;
+                }
+            }
+            if useful {
+                kept.push(r);
+            }
+        };
     let first: Vec<Result<EpisodeResult, DiffError>> = seeds.par_iter().map(&eval).collect();
     let mut evaluated = first.len();
     for r in first {
@@ -130,7 +137,8 @@ pub fn fuzz(
             }
             children.push((corpus[pi].score, child));
         }
-        let results: Vec<(f64, Result<EpisodeResult, DiffError>)> = children.par_iter().map(|(ps, c)| (*ps, eval(c))).collect();
+        let results: Vec<(f64, Result<EpisodeResult, DiffError>)> =
+            children.par_iter().map(|(ps, c)| (*ps, eval(c))).collect();
         evaluated += results.len();
         for (ps, r) in results {
             match r {
@@ -151,12 +159,7 @@ pub fn fuzz(
 /// cross-engine bound, with the allow-list applied (translation checks are left to `ulab diff`). Returns
 /// the findings that are neither allow-listed nor within their bounds.
 pub fn oracle_findings(result: &EpisodeResult, allow: &AllowList) -> Vec<harness::Finding> {
-    result
-        .findings
-        .iter()
-        .filter(|f| f.kind != "k_step_bound" && allow.matching(f).is_none())
-        .cloned()
-        .collect()
+    result.findings.iter().filter(|f| f.kind != "k_step_bound" && allow.matching(f).is_none()).cloned().collect()
 }
 
 /// The whole check of the `engine_divergence` cargo-fuzz target, kept here so that `cargo test` replays the
@@ -179,7 +182,8 @@ impl std::fmt::Debug for DivergenceOracle {
 }
 
 /// Lead engine first: MuJoCo against Rapier multibody (Rapier's Rust code gives the coverage).
-const ORACLE_ENGINES: [diff_physics::EngineKind; 2] = [diff_physics::EngineKind::Mujoco, diff_physics::EngineKind::RapierMultibody];
+const ORACLE_ENGINES: [diff_physics::EngineKind; 2] =
+    [diff_physics::EngineKind::Mujoco, diff_physics::EngineKind::RapierMultibody];
 
 /// Rollout length per input: two 50 Hz control ticks.
 pub const ORACLE_SECONDS: f64 = 0.04;

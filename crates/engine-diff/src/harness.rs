@@ -38,9 +38,9 @@ pub fn builtin_factories(names: &[String]) -> Result<Vec<Arc<dyn EngineFactory>>
     names
         .iter()
         .map(|n| {
-            EngineKind::parse(n.trim())
-                .map(|k| Arc::new(BuiltinEngine(k)) as Arc<dyn EngineFactory>)
-                .ok_or_else(|| DiffError::Input(format!("unknown engine {n:?} (mujoco, rapier_multibody, rapier_impulse)")))
+            EngineKind::parse(n.trim()).map(|k| Arc::new(BuiltinEngine(k)) as Arc<dyn EngineFactory>).ok_or_else(|| {
+                DiffError::Input(format!("unknown engine {n:?} (mujoco, rapier_multibody, rapier_impulse)"))
+            })
         })
         .collect()
 }
@@ -134,7 +134,12 @@ impl Bounds {
     pub fn new(dt: f64, k: usize) -> Self {
         let a = 2.5 * robot_model::GRAVITY_EARTH;
         let tw = dt * k as f64;
-        Bounds { one_step_base_lin_vel: a * dt, one_step_joint_vel: 10.0 * a * dt, one_step_base_ang_vel: 10.0 * a * dt, k_step_link_pos: 0.5 * a * tw * tw }
+        Bounds {
+            one_step_base_lin_vel: a * dt,
+            one_step_joint_vel: 10.0 * a * dt,
+            one_step_base_ang_vel: 10.0 * a * dt,
+            k_step_link_pos: 0.5 * a * tw * tw,
+        }
     }
     /// (quantity, value, bound) of the one-step checks.
     pub fn one_step(&self, d: &Div) -> [(&'static str, f64, f64); 3] {
@@ -196,7 +201,11 @@ pub struct Finding {
 
 impl Finding {
     pub fn ratio(&self) -> f64 {
-        if self.bound > 0.0 { self.value / self.bound } else { f64::INFINITY }
+        if self.bound > 0.0 {
+            self.value / self.bound
+        } else {
+            f64::INFINITY
+        }
     }
     /// Findings of one group are the same divergence seen several times.
     pub fn group_key(&self) -> (String, String, String, String) {
@@ -285,11 +294,8 @@ pub fn initial_state(model: &RobotModel, s: &Scenario) -> Result<State, DiffErro
 
 /// Contact phase name and the robot bodies touching the ground.
 pub fn phase_of(contacts: &[Contact]) -> (String, Vec<String>) {
-    let mut bodies: Vec<String> = contacts
-        .iter()
-        .filter(|c| c.body_a == "ground" && c.normal_force > 0.0)
-        .map(|c| c.body_b.clone())
-        .collect();
+    let mut bodies: Vec<String> =
+        contacts.iter().filter(|c| c.body_a == "ground" && c.normal_force > 0.0).map(|c| c.body_b.clone()).collect();
     bodies.sort();
     bodies.dedup();
     let foot = |side: &str| bodies.iter().any(|b| b.starts_with(side) && b.contains("ankle"));
@@ -350,7 +356,11 @@ impl Loop {
             let obs = RobotObservation {
                 time: t,
                 base_quat: st.base_quat,
-                base_ang_vel: [st.base_ang_vel[0] + noise(10.0), st.base_ang_vel[1] + noise(10.0), st.base_ang_vel[2] + noise(10.0)],
+                base_ang_vel: [
+                    st.base_ang_vel[0] + noise(10.0),
+                    st.base_ang_vel[1] + noise(10.0),
+                    st.base_ang_vel[2] + noise(10.0),
+                ],
                 q: st.q.iter().map(|x| x + noise(1.0)).collect(),
                 dq: st.dq.iter().map(|x| x + noise(10.0)).collect(),
                 command: s.command_at(t),
@@ -360,7 +370,15 @@ impl Loop {
             if a > 0.0 {
                 target.q_des.iter_mut().for_each(|x| *x += self.act_rng.gen_range(-a..=a));
             }
-            if target.q_des.iter().chain(&target.kp).chain(&target.kd).chain(&target.tau_ff).chain(&target.dq_des).any(|x| !x.is_finite()) {
+            if target
+                .q_des
+                .iter()
+                .chain(&target.kp)
+                .chain(&target.kd)
+                .chain(&target.tau_ff)
+                .chain(&target.dq_des)
+                .any(|x| !x.is_finite())
+            {
                 return Err(DiffError::Input(format!("controller {} returned a non-finite target", self.ctrl.name())));
             }
             let delay = if s.timing_jitter > 0 { self.jit_rng.gen_range(0..=s.timing_jitter as usize) } else { 0 };
@@ -458,7 +476,12 @@ fn simulate_window(
     let torque_limits: Vec<f64> = model.joints.iter().map(|j| j.torque_limit).collect();
     let joint_limits: Vec<(f64, f64)> = model.joints.iter().map(|j| (j.lower, j.upper)).collect();
     let ne = engines.len();
-    let mut inv = InvariantState { energy_start: vec![0.0; ne], work: vec![0.0; ne], abs_work: vec![0.0; ne], ..Default::default() };
+    let mut inv = InvariantState {
+        energy_start: vec![0.0; ne],
+        work: vec![0.0; ne],
+        abs_work: vec![0.0; ne],
+        ..Default::default()
+    };
     let mut engine_time = Duration::ZERO;
     for (i, e) in engines.iter_mut().enumerate() {
         e.reset(&input.start)?;
@@ -497,7 +520,8 @@ fn simulate_window(
             let after = e.state();
             let w: f64 = tau.iter().zip(after.q.iter().zip(&st.q)).map(|(t, (a, b))| t * (a - b)).sum();
             inv.work[i] += w;
-            inv.abs_work[i] += tau.iter().zip(after.q.iter().zip(&st.q)).map(|(t, (a, b))| (t * (a - b)).abs()).sum::<f64>();
+            inv.abs_work[i] +=
+                tau.iter().zip(after.q.iter().zip(&st.q)).map(|(t, (a, b))| (t * (a - b)).abs()).sum::<f64>();
             check_step(&mut inv, i, e.as_ref(), &after, &joint_limits);
             if s == 0 {
                 after_one.push((after.clone(), e.link_poses()));
@@ -529,13 +553,24 @@ fn simulate_window(
 }
 
 /// Replays a window (no controller): the same function the episode used, so results are bit-identical.
-pub fn replay_window(engines: &mut [Box<dyn Engine>], model: &RobotModel, input: &WindowInput, steps: usize, dt: f64, trace: bool) -> Result<WindowRun, DiffError> {
+pub fn replay_window(
+    engines: &mut [Box<dyn Engine>],
+    model: &RobotModel,
+    input: &WindowInput,
+    steps: usize,
+    dt: f64,
+    trace: bool,
+) -> Result<WindowRun, DiffError> {
     let mut inp = input.clone();
     simulate_window(engines, model, &mut inp, steps.min(input.steps).max(1), None, dt, trace)
 }
 
 /// Builds every engine for a scenario's model.
-pub fn build_engines(factories: &[Arc<dyn EngineFactory>], model: &RobotModel, common: &CommonSettings) -> Result<Vec<Box<dyn Engine>>, DiffError> {
+pub fn build_engines(
+    factories: &[Arc<dyn EngineFactory>],
+    model: &RobotModel,
+    common: &CommonSettings,
+) -> Result<Vec<Box<dyn Engine>>, DiffError> {
     factories.iter().map(|f| f.build(model, common).map_err(DiffError::from)).collect()
 }
 
@@ -646,7 +681,15 @@ pub fn run_episode_on(
         }
     }
     timing.total_s = wall.elapsed().as_secs_f64();
-    Ok(EpisodeResult { scenario: scenario.clone(), engines: names.to_vec(), windows, findings, outcomes, timing, contact_patterns: patterns })
+    Ok(EpisodeResult {
+        scenario: scenario.clone(),
+        engines: names.to_vec(),
+        windows,
+        findings,
+        outcomes,
+        timing,
+        contact_patterns: patterns,
+    })
 }
 
 /// Whether the robot has fallen: pelvis below half its standing height or tilted more than 1 rad.
@@ -669,7 +712,14 @@ pub fn free_run(
     let mut lp = Loop::new(ctrl_factory, model, s, dt)?;
     let limits: Vec<f64> = model.joints.iter().map(|j| j.torque_limit).collect();
     let mut tau = vec![0.0; model.nj()];
-    let mut out = Outcome { engine: name.into(), fell: false, fall_time: None, joint_tracking_rms: 0.0, velocity_tracking_rms: 0.0, error: None };
+    let mut out = Outcome {
+        engine: name.into(),
+        fell: false,
+        fall_time: None,
+        joint_tracking_rms: 0.0,
+        velocity_tracking_rms: 0.0,
+        error: None,
+    };
     let (mut jsum, mut vsum, mut n) = (0.0, 0.0, 0usize);
     let mut engine_s = 0.0;
     let mut steps = 0u64;
@@ -722,5 +772,7 @@ pub fn free_run(
 /// The built-in excitation controller factory.
 pub fn excitation_factory(model: &RobotModel) -> Box<ControllerFactory> {
     let m = model.clone();
-    Box::new(move |s: &Scenario| Ok(Box::new(crate::excitation::ExcitationController::new(&m, s.excitation, s.seed)) as Box<dyn Controller>))
+    Box::new(move |s: &Scenario| {
+        Ok(Box::new(crate::excitation::ExcitationController::new(&m, s.excitation, s.seed)) as Box<dyn Controller>)
+    })
 }

@@ -155,7 +155,13 @@ fn mann_whitney_p(a: &[f64], b: &[f64]) -> Option<f64> {
     let mut u = 0.0;
     for x in a {
         for y in b {
-            u += if x > y { 1.0 } else if x == y { 0.5 } else { 0.0 };
+            u += if x > y {
+                1.0
+            } else if x == y {
+                0.5
+            } else {
+                0.0
+            };
         }
     }
     let mu = n1 * n2 / 2.0;
@@ -164,7 +170,8 @@ fn mann_whitney_p(a: &[f64], b: &[f64]) -> Option<f64> {
     // Two-sided p from the normal tail: erfc(z/√2), Abramowitz-Stegun 7.1.26 (|error| < 1.5e-7).
     let x = z / std::f64::consts::SQRT_2;
     let t = 1.0 / (1.0 + 0.327_591_1 * x);
-    let poly = t * (0.254_829_592 + t * (-0.284_496_736 + t * (1.421_413_741 + t * (-1.453_152_027 + t * 1.061_405_429))));
+    let poly =
+        t * (0.254_829_592 + t * (-0.284_496_736 + t * (1.421_413_741 + t * (-1.453_152_027 + t * 1.061_405_429))));
     Some((poly * (-x * x).exp()).clamp(0.0, 1.0))
 }
 
@@ -175,7 +182,10 @@ pub fn analyse(a: &Analysis<'_>, episodes: &[EpisodeResult]) -> Result<(Report, 
     let lead = names.first().cloned().unwrap_or_default();
     let infos = {
         let engines = crate::harness::build_engines(a.factories, model, &a.cfg.common)?;
-        engines.iter().map(|e| EngineInfo { name: e.name().to_string(), version: e.version(), settings: e.settings() }).collect()
+        engines
+            .iter()
+            .map(|e| EngineInfo { name: e.name().to_string(), version: e.version(), settings: e.settings() })
+            .collect()
     };
     let k = a.cfg.window_steps;
     let bounds = Bounds::new(a.cfg.common.timestep, k);
@@ -193,7 +203,9 @@ pub fn analyse(a: &Analysis<'_>, episodes: &[EpisodeResult]) -> Result<(Report, 
             .flat_map(|e| e.windows.iter().filter(|w| w.input.steps == k))
             .flat_map(|w| w.divs.iter().filter(|d| &d.engine == en))
             .collect();
-        let col = |f: &dyn Fn(&crate::harness::EngineDiv) -> f64, v: &[&crate::harness::EngineDiv]| Stats::of(&v.iter().map(|d| f(d)).collect::<Vec<_>>());
+        let col = |f: &dyn Fn(&crate::harness::EngineDiv) -> f64, v: &[&crate::harness::EngineDiv]| {
+            Stats::of(&v.iter().map(|d| f(d)).collect::<Vec<_>>())
+        };
         let all: Vec<&crate::harness::EngineDiv> = divs.iter().map(|d| d.0).collect();
         let mut phases: BTreeMap<&str, Vec<&crate::harness::EngineDiv>> = BTreeMap::new();
         for (d, p) in &divs {
@@ -207,21 +219,45 @@ pub fn analyse(a: &Analysis<'_>, episodes: &[EpisodeResult]) -> Result<(Report, 
             one_step_base_ang_vel: col(&|d| d.one_step.base_ang_vel, &all),
             k_step_link_pos: col(&|d| d.k_step.max_link(), &full),
             k_step_base_pos: col(&|d| d.k_step.base_pos, &full),
-            per_joint_k_step: model.joints.iter().enumerate().map(|(j, jt)| NamedStats { name: jt.name.clone(), stats: col(&|d| d.k_step.q.get(j).copied().unwrap_or(f64::NAN), &full) }).collect(),
-            per_body_k_step: model.links.iter().enumerate().map(|(l, lk)| NamedStats { name: lk.name.clone(), stats: col(&|d| d.k_step.link_pos.get(l).copied().unwrap_or(f64::NAN), &full) }).collect(),
+            per_joint_k_step: model
+                .joints
+                .iter()
+                .enumerate()
+                .map(|(j, jt)| NamedStats {
+                    name: jt.name.clone(),
+                    stats: col(&|d| d.k_step.q.get(j).copied().unwrap_or(f64::NAN), &full),
+                })
+                .collect(),
+            per_body_k_step: model
+                .links
+                .iter()
+                .enumerate()
+                .map(|(l, lk)| NamedStats {
+                    name: lk.name.clone(),
+                    stats: col(&|d| d.k_step.link_pos.get(l).copied().unwrap_or(f64::NAN), &full),
+                })
+                .collect(),
             per_phase: phases
                 .into_iter()
-                .map(|(p, v)| PhaseStats { phase: p.to_string(), one_step_joint_vel: col(&|d| d.one_step.max_dq(), &v), k_step_link_pos: col(&|d| d.k_step.max_link(), &v) })
+                .map(|(p, v)| PhaseStats {
+                    phase: p.to_string(),
+                    one_step_joint_vel: col(&|d| d.one_step.max_dq(), &v),
+                    k_step_link_pos: col(&|d| d.k_step.max_link(), &v),
+                })
                 .collect(),
         });
     }
 
     // Outcomes as distributions over seeds.
-    let lead_track: Vec<f64> = episodes.iter().flat_map(|e| e.outcomes.iter().filter(|o| o.engine == lead).map(|o| o.joint_tracking_rms)).collect();
+    let lead_track: Vec<f64> = episodes
+        .iter()
+        .flat_map(|e| e.outcomes.iter().filter(|o| o.engine == lead).map(|o| o.joint_tracking_rms))
+        .collect();
     let mut outcomes = Vec::new();
     if episodes.iter().any(|e| !e.outcomes.is_empty()) {
         for en in &names {
-            let os: Vec<&crate::harness::Outcome> = episodes.iter().flat_map(|e| e.outcomes.iter().filter(|o| &o.engine == en)).collect();
+            let os: Vec<&crate::harness::Outcome> =
+                episodes.iter().flat_map(|e| e.outcomes.iter().filter(|o| &o.engine == en)).collect();
             let track: Vec<f64> = os.iter().map(|o| o.joint_tracking_rms).collect();
             outcomes.push(OutcomeDistribution {
                 engine: en.clone(),
@@ -272,7 +308,15 @@ pub fn analyse(a: &Analysis<'_>, episodes: &[EpisodeResult]) -> Result<(Report, 
         Class::TranslationProblem { .. } => 1,
         Class::ExpectedDifference { .. } => 2,
     };
-    entries.sort_by(|x, y| rank(&x.triage).cmp(&rank(&y.triage)).then(y.worst.ratio().total_cmp(&x.worst.ratio())).then(x.kind.cmp(&y.kind)).then(x.engine.cmp(&y.engine)).then(x.quantity.cmp(&y.quantity)).then(x.phase.cmp(&y.phase)));
+    entries.sort_by(|x, y| {
+        rank(&x.triage)
+            .cmp(&rank(&y.triage))
+            .then(y.worst.ratio().total_cmp(&x.worst.ratio()))
+            .then(x.kind.cmp(&y.kind))
+            .then(x.engine.cmp(&y.engine))
+            .then(x.quantity.cmp(&y.quantity))
+            .then(x.phase.cmp(&y.phase))
+    });
     let mut repros = Vec::new();
     for (i, e) in entries.iter_mut().enumerate() {
         e.id = format!("D{:02}", i + 1);
@@ -280,7 +324,12 @@ pub fn analyse(a: &Analysis<'_>, episodes: &[EpisodeResult]) -> Result<(Report, 
             e.minimization_note = Some(format!("not minimized: only the first {} entries are", a.minimize_limit));
             continue;
         }
-        let Some(ep) = episodes.iter().find(|x| x.scenario.seed == e.worst_episode_seed && x.findings.iter().any(|f| f.window == e.worst.window && f.group_key() == e.worst.group_key())) else { continue };
+        let Some(ep) = episodes.iter().find(|x| {
+            x.scenario.seed == e.worst_episode_seed
+                && x.findings.iter().any(|f| f.window == e.worst.window && f.group_key() == e.worst.group_key())
+        }) else {
+            continue;
+        };
         match triage::minimize(model, a.factories, a.controller, a.cfg, &ep.scenario, &e.worst) {
             Ok(m) => {
                 let file = format!("repro_{}.json", e.id);
@@ -339,7 +388,11 @@ pub fn g3(x: f64) -> String {
 }
 
 fn stats_cell(s: &Stats) -> String {
-    if s.n == 0 { "–".into() } else { format!("{} [{} … {}]", g3(s.median), g3(s.min), g3(s.max)) }
+    if s.n == 0 {
+        "–".into()
+    } else {
+        format!("{} [{} … {}]", g3(s.median), g3(s.min), g3(s.max))
+    }
 }
 
 impl Report {
@@ -347,7 +400,11 @@ impl Report {
     pub fn markdown(&self) -> String {
         let mut s = String::new();
         s += &format!("# Engine divergence report: {} driven by `{}`\n\n", self.robot, self.controller);
-        s += &format!("Schema {}; model hash `{}`.\n\n", self.schema_version, &self.model_hash[..16.min(self.model_hash.len())]);
+        s += &format!(
+            "Schema {}; model hash `{}`.\n\n",
+            self.schema_version,
+            &self.model_hash[..16.min(self.model_hash.len())]
+        );
         s += "## Engines\n\n| engine | version |\n|---|---|\n";
         for e in &self.engines {
             s += &format!("| {}{} | {} |\n", e.name, if e.name == self.lead { " (lead)" } else { "" }, e.version);
@@ -365,13 +422,25 @@ impl Report {
         for d in &self.divergence {
             s += &format!(
                 "| {} | {} | {} | {} | {} | {} | {} |\n",
-                d.engine, d.windows, stats_cell(&d.one_step_base_lin_vel), stats_cell(&d.one_step_joint_vel), stats_cell(&d.one_step_base_ang_vel), stats_cell(&d.k_step_link_pos), stats_cell(&d.k_step_base_pos)
+                d.engine,
+                d.windows,
+                stats_cell(&d.one_step_base_lin_vel),
+                stats_cell(&d.one_step_joint_vel),
+                stats_cell(&d.one_step_base_ang_vel),
+                stats_cell(&d.k_step_link_pos),
+                stats_cell(&d.k_step_base_pos)
             );
         }
         for d in &self.divergence {
             s += &format!("\n### {} per contact phase\n\n| phase | windows | 1-step joint vel (rad/s) | k-step link pos (m) |\n|---|---|---|---|\n", d.engine);
             for p in &d.per_phase {
-                s += &format!("| {} | {} | {} | {} |\n", p.phase, p.one_step_joint_vel.n, stats_cell(&p.one_step_joint_vel), stats_cell(&p.k_step_link_pos));
+                s += &format!(
+                    "| {} | {} | {} | {} |\n",
+                    p.phase,
+                    p.one_step_joint_vel.n,
+                    stats_cell(&p.one_step_joint_vel),
+                    stats_cell(&p.k_step_link_pos)
+                );
             }
             let top = |v: &[NamedStats]| {
                 let mut v: Vec<&NamedStats> = v.iter().filter(|x| x.stats.n > 0).collect();
@@ -386,7 +455,13 @@ impl Report {
             for o in &self.outcomes {
                 s += &format!(
                     "| {} | {} | {} | {} | {} | {} | {} | {} |\n",
-                    o.engine, o.episodes, o.falls, o.engine_errors, stats_cell(&o.fall_time), stats_cell(&o.joint_tracking_rms), stats_cell(&o.velocity_tracking_rms),
+                    o.engine,
+                    o.episodes,
+                    o.falls,
+                    o.engine_errors,
+                    stats_cell(&o.fall_time),
+                    stats_cell(&o.joint_tracking_rms),
+                    stats_cell(&o.velocity_tracking_rms),
                     o.joint_tracking_vs_lead_p.map(|p| format!("{p:.2}")).unwrap_or_else(|| "–".into())
                 );
             }
@@ -397,11 +472,25 @@ impl Report {
         } else {
             s += "| id | triage | kind | engine | quantity | phase | count | worst / bound | minimized (scale, steps, bodies in contact) | reproducer |\n|---|---|---|---|---|---|---|---|---|---|\n";
             for e in &self.entries {
-                let m = e.minimized.as_ref().map(|m| format!("{}, {}, {}", m.perturbation_scale, m.steps, m.contact_bodies)).unwrap_or_else(|| e.minimization_note.clone().unwrap_or_else(|| "–".into()));
+                let m = e
+                    .minimized
+                    .as_ref()
+                    .map(|m| format!("{}, {}, {}", m.perturbation_scale, m.steps, m.contact_bodies))
+                    .unwrap_or_else(|| e.minimization_note.clone().unwrap_or_else(|| "–".into()));
                 let r = e.minimized.as_ref().map(|m| format!("`{}`", m.reproducer)).unwrap_or_else(|| "–".into());
                 s += &format!(
                     "| {} | {} | {} | {} | {} | {} | {} | {} / {} | {} | {} |\n",
-                    e.id, e.triage.label(), e.kind, e.engine, e.quantity, e.phase, e.count, g3(e.worst.value), g3(e.worst.bound), m, r
+                    e.id,
+                    e.triage.label(),
+                    e.kind,
+                    e.engine,
+                    e.quantity,
+                    e.phase,
+                    e.count,
+                    g3(e.worst.value),
+                    g3(e.worst.bound),
+                    m,
+                    r
                 );
             }
             s += "\n";
@@ -416,7 +505,13 @@ impl Report {
             }
         }
         s += "\n## Plots\n\n- `one_step.svg`: per window (x), max one-step joint-velocity divergence (y, linear from 0).\n- `k_step.svg`: per window, k-step link-position divergence.\n- `per_joint.svg`: per joint (x, slot order), max k-step joint-angle divergence.\n\nLines, in engine order after the lead: ";
-        s += &self.divergence.iter().zip(PALETTE_NAMES).map(|(d, c)| format!("{} {c}", d.engine)).collect::<Vec<_>>().join(", ");
+        s += &self
+            .divergence
+            .iter()
+            .zip(PALETTE_NAMES)
+            .map(|(d, c)| format!("{} {c}", d.engine))
+            .collect::<Vec<_>>()
+            .join(", ");
         s += ".\n";
         s
     }
@@ -435,17 +530,27 @@ fn line_plot(path: &Path, series: &[Vec<(f64, f64)>]) -> Result<(), DiffError> {
     let ymax = series.iter().flatten().map(|p| p.1).filter(|y| y.is_finite()).fold(0.0, f64::max).max(1e-12) * 1.05;
     let root = SVGBackend::new(path, (800, 400)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| DiffError::Plot(e.to_string()))?;
-    let mut chart = ChartBuilder::on(&root).margin(10).build_cartesian_2d(0f64..xmax, 0f64..ymax).map_err(|e| DiffError::Plot(e.to_string()))?;
+    let mut chart = ChartBuilder::on(&root)
+        .margin(10)
+        .build_cartesian_2d(0f64..xmax, 0f64..ymax)
+        .map_err(|e| DiffError::Plot(e.to_string()))?;
     for (i, s) in series.iter().enumerate() {
         let pts: Vec<(f64, f64)> = s.iter().copied().filter(|p| p.1.is_finite()).collect();
-        chart.draw_series(LineSeries::new(pts, palette(i).stroke_width(2))).map_err(|e| DiffError::Plot(e.to_string()))?;
+        chart
+            .draw_series(LineSeries::new(pts, palette(i).stroke_width(2)))
+            .map_err(|e| DiffError::Plot(e.to_string()))?;
     }
     root.present().map_err(|e| DiffError::Plot(e.to_string()))?;
     Ok(())
 }
 
 /// Writes `report.md`, `report.json`, the plots and the reproducers into `dir`.
-pub fn write_outputs(dir: &Path, report: &Report, repros: &[(String, Reproducer)], episodes: &[EpisodeResult]) -> Result<(), DiffError> {
+pub fn write_outputs(
+    dir: &Path,
+    report: &Report,
+    repros: &[(String, Reproducer)],
+    episodes: &[EpisodeResult],
+) -> Result<(), DiffError> {
     std::fs::create_dir_all(dir).map_err(io_err(dir))?;
     let w = |name: &str, text: String| {
         let p = dir.join(name);
@@ -461,12 +566,22 @@ pub fn write_outputs(dir: &Path, report: &Report, repros: &[(String, Reproducer)
     let series = |f: &dyn Fn(&crate::harness::EngineDiv) -> f64| -> Vec<Vec<(f64, f64)>> {
         engines
             .iter()
-            .map(|en| windows.iter().enumerate().filter_map(|(i, w)| w.divs.iter().find(|d| &d.engine == en).map(|d| (i as f64, f(d)))).collect())
+            .map(|en| {
+                windows
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(i, w)| w.divs.iter().find(|d| &d.engine == en).map(|d| (i as f64, f(d))))
+                    .collect()
+            })
             .collect()
     };
     line_plot(&dir.join("one_step.svg"), &series(&|d| d.one_step.max_dq()))?;
     line_plot(&dir.join("k_step.svg"), &series(&|d| d.k_step.max_link()))?;
-    let per_joint: Vec<Vec<(f64, f64)>> = report.divergence.iter().map(|d| d.per_joint_k_step.iter().enumerate().map(|(j, s)| (j as f64, s.stats.max)).collect()).collect();
+    let per_joint: Vec<Vec<(f64, f64)>> = report
+        .divergence
+        .iter()
+        .map(|d| d.per_joint_k_step.iter().enumerate().map(|(j, s)| (j as f64, s.stats.max)).collect())
+        .collect();
     line_plot(&dir.join("per_joint.svg"), &per_joint)?;
     Ok(())
 }

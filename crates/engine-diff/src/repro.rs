@@ -17,7 +17,11 @@ pub fn to_bits(v: &[f64]) -> Vec<String> {
 
 pub fn from_bits(v: &[String]) -> Result<Vec<f64>, DiffError> {
     v.iter()
-        .map(|s| u64::from_str_radix(s, 16).map(f64::from_bits).map_err(|_| DiffError::Input(format!("bad f64 bit pattern {s:?}"))))
+        .map(|s| {
+            u64::from_str_radix(s, 16)
+                .map(f64::from_bits)
+                .map_err(|_| DiffError::Input(format!("bad f64 bit pattern {s:?}")))
+        })
         .collect()
 }
 
@@ -75,7 +79,14 @@ impl WindowBits {
             targets: w
                 .targets
                 .iter()
-                .map(|(o, t)| TargetBits { offset: *o, q_des: to_bits(&t.q_des), dq_des: to_bits(&t.dq_des), kp: to_bits(&t.kp), kd: to_bits(&t.kd), tau_ff: to_bits(&t.tau_ff) })
+                .map(|(o, t)| TargetBits {
+                    offset: *o,
+                    q_des: to_bits(&t.q_des),
+                    dq_des: to_bits(&t.dq_des),
+                    kp: to_bits(&t.kp),
+                    kd: to_bits(&t.kd),
+                    tau_ff: to_bits(&t.tau_ff),
+                })
                 .collect(),
             pushes: w.pushes.iter().map(|(o, dv)| (*o, to_bits(dv))).collect(),
         }
@@ -83,7 +94,13 @@ impl WindowBits {
     pub fn input(&self, nj: usize) -> Result<WindowInput, DiffError> {
         let mut targets = Vec::new();
         for t in &self.targets {
-            let p = PdTarget { q_des: from_bits(&t.q_des)?, dq_des: from_bits(&t.dq_des)?, kp: from_bits(&t.kp)?, kd: from_bits(&t.kd)?, tau_ff: from_bits(&t.tau_ff)? };
+            let p = PdTarget {
+                q_des: from_bits(&t.q_des)?,
+                dq_des: from_bits(&t.dq_des)?,
+                kp: from_bits(&t.kp)?,
+                kd: from_bits(&t.kd)?,
+                tau_ff: from_bits(&t.tau_ff)?,
+            };
             if [&p.q_des, &p.dq_des, &p.kp, &p.kd, &p.tau_ff].iter().any(|v| v.len() != nj) {
                 return Err(DiffError::Input(format!("target at offset {} does not have {nj} joints", t.offset)));
             }
@@ -152,7 +169,15 @@ fn factories_for(names: &[EngineInfo]) -> Result<Vec<Arc<dyn EngineFactory>>, Di
         .collect()
 }
 
-fn run(model: &RobotModel, factories: &[Arc<dyn EngineFactory>], common: &CommonSettings, scenario: &Scenario, w: &WindowInput, steps: usize, f: &Finding) -> Result<(Vec<State>, f64), DiffError> {
+fn run(
+    model: &RobotModel,
+    factories: &[Arc<dyn EngineFactory>],
+    common: &CommonSettings,
+    scenario: &Scenario,
+    w: &WindowInput,
+    steps: usize,
+    f: &Finding,
+) -> Result<(Vec<State>, f64), DiffError> {
     let m = harness::scenario_model(model, scenario);
     let mut engines = harness::build_engines(factories, &m, common)?;
     let r = harness::replay_window(&mut engines, &m, w, steps, common.timestep, false)?;
@@ -163,10 +188,19 @@ fn run(model: &RobotModel, factories: &[Arc<dyn EngineFactory>], common: &Common
 
 impl Reproducer {
     /// Builds a reproducer from a minimized finding, recording what the replay must give.
-    pub fn new(model: &RobotModel, factories: &[Arc<dyn EngineFactory>], common: &CommonSettings, controller: &str, m: &Minimized) -> Result<Self, DiffError> {
+    pub fn new(
+        model: &RobotModel,
+        factories: &[Arc<dyn EngineFactory>],
+        common: &CommonSettings,
+        controller: &str,
+        m: &Minimized,
+    ) -> Result<Self, DiffError> {
         let sm = harness::scenario_model(model, &m.scenario);
         let engines = harness::build_engines(factories, &sm, common)?;
-        let infos = engines.iter().map(|e| EngineInfo { name: e.name().to_string(), version: e.version(), settings: e.settings() }).collect();
+        let infos = engines
+            .iter()
+            .map(|e| EngineInfo { name: e.name().to_string(), version: e.version(), settings: e.settings() })
+            .collect();
         drop(engines);
         let (states, value) = run(model, factories, common, &m.scenario, &m.window, m.steps, &m.finding)?;
         Ok(Reproducer {
@@ -182,7 +216,11 @@ impl Reproducer {
             finding: m.finding.clone(),
             window: WindowBits::of(&m.window),
             steps: m.steps,
-            expected: Expected { states: states.iter().map(StateBits::of).collect(), value_bits: format!("{:016x}", value.to_bits()), value },
+            expected: Expected {
+                states: states.iter().map(StateBits::of).collect(),
+                value_bits: format!("{:016x}", value.to_bits()),
+                value,
+            },
         })
     }
 
@@ -190,7 +228,10 @@ impl Reproducer {
     /// the finding's value).
     pub fn replay(&self, model: &RobotModel) -> Result<ReplayOutcome, DiffError> {
         if self.schema_version != SCHEMA_VERSION {
-            return Err(DiffError::Input(format!("reproducer schema {} (this build reads {SCHEMA_VERSION})", self.schema_version)));
+            return Err(DiffError::Input(format!(
+                "reproducer schema {} (this build reads {SCHEMA_VERSION})",
+                self.schema_version
+            )));
         }
         self.scenario.validate()?;
         let mut mismatches = Vec::new();
@@ -210,9 +251,13 @@ impl Reproducer {
         }
         for (i, (s, exp)) in states.iter().zip(&self.expected.states).enumerate() {
             let got = StateBits::of(s);
-            let n = got.qpos.iter().zip(&exp.qpos).chain(got.qvel.iter().zip(&exp.qvel)).filter(|(a, b)| a != b).count();
+            let n =
+                got.qpos.iter().zip(&exp.qpos).chain(got.qvel.iter().zip(&exp.qvel)).filter(|(a, b)| a != b).count();
             if n > 0 || got.qpos.len() != exp.qpos.len() || got.qvel.len() != exp.qvel.len() {
-                mismatches.push(format!("{}: {n} state entries differ", self.engines.get(i).map(|e| e.name.as_str()).unwrap_or("?")));
+                mismatches.push(format!(
+                    "{}: {n} state entries differ",
+                    self.engines.get(i).map(|e| e.name.as_str()).unwrap_or("?")
+                ));
             }
         }
         if states.len() != self.expected.states.len() {
@@ -220,7 +265,10 @@ impl Reproducer {
         }
         let vb = format!("{:016x}", value.to_bits());
         if vb != self.expected.value_bits {
-            mismatches.push(format!("finding value {value:e} (bits {vb}) differs from the recorded {:e}", self.expected.value));
+            mismatches.push(format!(
+                "finding value {value:e} (bits {vb}) differs from the recorded {:e}",
+                self.expected.value
+            ));
         }
         Ok(ReplayOutcome { identical: mismatches.is_empty(), mismatches, value })
     }

@@ -86,10 +86,18 @@ impl Scenario {
         if !(fin(self.seconds) && self.seconds > 0.0 && self.seconds <= 600.0) {
             return bad("seconds must be in (0, 600]");
         }
-        if !(fin(self.obs_noise) && (0.0..=0.5).contains(&self.obs_noise) && fin(self.action_noise) && (0.0..=0.5).contains(&self.action_noise)) {
+        if !(fin(self.obs_noise)
+            && (0.0..=0.5).contains(&self.obs_noise)
+            && fin(self.action_noise)
+            && (0.0..=0.5).contains(&self.action_noise))
+        {
             return bad("noise amplitudes must be in [0, 0.5]");
         }
-        if !(fin(self.init_q_offset) && (0.0..=0.5).contains(&self.init_q_offset) && fin(self.init_height) && (-0.005..=0.5).contains(&self.init_height)) {
+        if !(fin(self.init_q_offset)
+            && (0.0..=0.5).contains(&self.init_q_offset)
+            && fin(self.init_height)
+            && (-0.005..=0.5).contains(&self.init_height))
+        {
             return bad("initial offsets out of range (q ≤ 0.5 rad, height −0.005..0.5 m)");
         }
         if let Some(f) = self.ground_friction {
@@ -123,8 +131,15 @@ impl Scenario {
         let pushes: f64 = self.pushes.iter().map(|p| norm3(p.dv)).sum::<f64>() / 0.5;
         let cmd: f64 = self.commands.iter().map(|c| norm3(c.command)).fold(0.0, f64::max) / 0.5;
         let fr = self.ground_friction.map(|f| (f - model_friction).abs() / 0.2).unwrap_or(0.0);
-        self.obs_noise / 0.01 + self.action_noise / 0.05 + pushes + self.init_q_offset / 0.05 + self.init_height.abs() / 0.02
-            + fr + f64::from(self.timing_jitter) + cmd + self.excitation / 0.2
+        self.obs_noise / 0.01
+            + self.action_noise / 0.05
+            + pushes
+            + self.init_q_offset / 0.05
+            + self.init_height.abs() / 0.02
+            + fr
+            + f64::from(self.timing_jitter)
+            + cmd
+            + self.excitation / 0.2
     }
 
     /// Every perturbation scaled by `a` in [0, 1] (minimization towards the unperturbed run). Times are kept.
@@ -154,7 +169,10 @@ impl Scenario {
             1 => self.action_noise = (self.action_noise * rng.gen_range(0.5..2.0) + rng.gen_range(0.0..0.01)).min(0.2),
             2 => {
                 if self.pushes.len() < 4 && rng.gen_bool(0.6) {
-                    self.pushes.push(Push { t: rng.gen_range(0.0..t_max), dv: [rng.gen_range(-0.6..0.6), rng.gen_range(-0.6..0.6), rng.gen_range(-0.2..0.2)] });
+                    self.pushes.push(Push {
+                        t: rng.gen_range(0.0..t_max),
+                        dv: [rng.gen_range(-0.6..0.6), rng.gen_range(-0.6..0.6), rng.gen_range(-0.2..0.2)],
+                    });
                 } else if !self.pushes.is_empty() {
                     let i = rng.gen_range(0..self.pushes.len());
                     if rng.gen_bool(0.3) {
@@ -168,11 +186,17 @@ impl Scenario {
             }
             3 => {
                 if self.commands.len() < 8 && rng.gen_bool(0.5) {
-                    self.commands.push(CommandSegment { t: rng.gen_range(0.0..t_max), command: [rng.gen_range(-1.0..1.0), rng.gen_range(-0.5..0.5), rng.gen_range(-1.0..1.0)] });
+                    self.commands.push(CommandSegment {
+                        t: rng.gen_range(0.0..t_max),
+                        command: [rng.gen_range(-1.0..1.0), rng.gen_range(-0.5..0.5), rng.gen_range(-1.0..1.0)],
+                    });
                     self.commands.sort_by(|a, b| a.t.total_cmp(&b.t));
                 } else if !self.commands.is_empty() {
                     let i = rng.gen_range(0..self.commands.len());
-                    self.commands[i].command.iter_mut().for_each(|x| *x = (*x + rng.gen_range(-0.3..0.3)).clamp(-1.5, 1.5));
+                    self.commands[i]
+                        .command
+                        .iter_mut()
+                        .for_each(|x| *x = (*x + rng.gen_range(-0.3..0.3)).clamp(-1.5, 1.5));
                 }
             }
             4 => self.init_q_offset = (self.init_q_offset + rng.gen_range(-0.02..0.04)).clamp(0.0, 0.2),
@@ -213,10 +237,17 @@ impl FuzzPerturbation {
         Scenario {
             seed: u64::from(self.seed),
             seconds,
-            commands: vec![CommandSegment { t: 0.0, command: [s(self.command.0, 1.0), s(self.command.1, 0.5), s(self.command.2, 1.0)] }],
+            commands: vec![CommandSegment {
+                t: 0.0,
+                command: [s(self.command.0, 1.0), s(self.command.1, 0.5), s(self.command.2, 1.0)],
+            }],
             obs_noise: u(self.obs_noise, 0.02),
             action_noise: u(self.action_noise, 0.1),
-            pushes: self.push.map(|(t, x, y, z)| Push { t: u(t, seconds), dv: [s(x, 1.0), s(y, 1.0), s(z, 0.3)] }).into_iter().collect(),
+            pushes: self
+                .push
+                .map(|(t, x, y, z)| Push { t: u(t, seconds), dv: [s(x, 1.0), s(y, 1.0), s(z, 0.3)] })
+                .into_iter()
+                .collect(),
             init_q_offset: u(self.init_q_offset, 0.1),
             init_height: u(self.init_height, 0.02),
             ground_friction: self.friction.map(|f| 0.1 + u(f, 1.4)),

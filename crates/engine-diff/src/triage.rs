@@ -1,7 +1,9 @@
 //! Triage of findings: (a) translation problem (the model-equivalence check fails in that state), (b)
 //! expected modelling difference (an allow-list entry with rationale and citation), (c) candidate engine
 //! bug; and minimization (smallest perturbation, fewest bodies in contact, shortest window).
-use crate::harness::{self, Bounds, ControllerFactory, Div, EngineFactory, Finding, HarnessConfig, WindowInput, WindowRecord};
+use crate::harness::{
+    self, Bounds, ControllerFactory, Div, EngineFactory, Finding, HarnessConfig, WindowInput, WindowRecord,
+};
 use crate::scenario::Scenario;
 use crate::DiffError;
 use diff_physics::{CommonSettings, State};
@@ -60,7 +62,9 @@ impl AllowList {
             if e.engines.is_empty() || e.kinds.is_empty() {
                 return bad("engines and kinds must not be empty");
             }
-            if let Some(k) = e.kinds.iter().find(|k| !["one_step_bound", "k_step_bound", "invariant"].contains(&k.as_str())) {
+            if let Some(k) =
+                e.kinds.iter().find(|k| !["one_step_bound", "k_step_bound", "invariant"].contains(&k.as_str()))
+            {
                 return bad(&format!("unknown kind {k:?}"));
             }
             if !(e.max_ratio.is_finite() && e.max_ratio > 0.0) {
@@ -115,7 +119,12 @@ impl Class {
 /// Model equivalence at a state, for the named engines: per-link masses, link-frame FK positions and the
 /// COM against `robot-model`'s reference (the checks of `diff_physics::oracle::model_equivalence`, here at
 /// the finding's state rather than random ones). Tolerances as there: 1e-9 kg, 1e-9 m. `None`: all equal.
-pub fn model_equivalence_at(model: &RobotModel, factories: &[&Arc<dyn EngineFactory>], state: &State, common: &CommonSettings) -> Result<Option<String>, DiffError> {
+pub fn model_equivalence_at(
+    model: &RobotModel,
+    factories: &[&Arc<dyn EngineFactory>],
+    state: &State,
+    common: &CommonSettings,
+) -> Result<Option<String>, DiffError> {
     let coords = state.coords();
     let fk = model.fk(&coords)?;
     let com = model.com(&coords)?;
@@ -145,13 +154,23 @@ pub fn model_equivalence_at(model: &RobotModel, factories: &[&Arc<dyn EngineFact
 }
 
 /// Classifies a finding whose window starts at `state`.
-pub fn classify(model: &RobotModel, factories: &[Arc<dyn EngineFactory>], common: &CommonSettings, allow: &AllowList, f: &Finding, state: &State) -> Result<Class, DiffError> {
-    let involved: Vec<&Arc<dyn EngineFactory>> = factories.iter().filter(|x| x.name() == f.engine || x.name() == f.lead).collect();
+pub fn classify(
+    model: &RobotModel,
+    factories: &[Arc<dyn EngineFactory>],
+    common: &CommonSettings,
+    allow: &AllowList,
+    f: &Finding,
+    state: &State,
+) -> Result<Class, DiffError> {
+    let involved: Vec<&Arc<dyn EngineFactory>> =
+        factories.iter().filter(|x| x.name() == f.engine || x.name() == f.lead).collect();
     if let Some(detail) = model_equivalence_at(model, &involved, state, common)? {
         return Ok(Class::TranslationProblem { detail });
     }
     Ok(match allow.matching(f) {
-        Some(e) => Class::ExpectedDifference { id: e.id.clone(), rationale: e.rationale.clone(), citation: e.citation.clone() },
+        Some(e) => {
+            Class::ExpectedDifference { id: e.id.clone(), rationale: e.rationale.clone(), citation: e.citation.clone() }
+        }
         None => Class::CandidateEngineBug,
     })
 }
@@ -171,7 +190,12 @@ pub struct Minimized {
 /// Value of a finding's quantity after a replay of `steps` steps (same definitions as the episode).
 pub fn finding_value(kind: &str, quantity: &str, engine_index: usize, run: &harness::WindowRun) -> f64 {
     match kind {
-        "invariant" => run.invariants.get(engine_index).and_then(|v| v.iter().find(|(q, _, _)| q == quantity)).map(|x| x.1).unwrap_or(0.0),
+        "invariant" => run
+            .invariants
+            .get(engine_index)
+            .and_then(|v| v.iter().find(|(q, _, _)| q == quantity))
+            .map(|x| x.1)
+            .unwrap_or(0.0),
         _ => {
             let (Some(l), Some(o)) = (run.after_k.first(), run.after_k.get(engine_index)) else { return 0.0 };
             let d = Div::between(&l.0, &l.1, &o.0, &o.1);

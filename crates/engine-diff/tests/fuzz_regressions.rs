@@ -12,14 +12,23 @@ fn engine_divergence_inputs_raise_no_candidate_bug() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../corpus");
     let mut oracle = DivergenceOracle::h1_2().expect("built-in oracle");
     let (mut regressions, mut seeds) = (0, 0);
-    for (dir, count) in [(root.join("regressions/engine_divergence"), &mut regressions), (root.join("fuzz/engine_divergence"), &mut seeds)] {
-        let mut paths: Vec<_> = std::fs::read_dir(&dir).expect("corpus folder").map(|e| e.expect("entry").path()).collect();
+    for (dir, count) in [
+        (root.join("regressions/engine_divergence"), &mut regressions),
+        (root.join("fuzz/engine_divergence"), &mut seeds),
+    ] {
+        let mut paths: Vec<_> =
+            std::fs::read_dir(&dir).expect("corpus folder").map(|e| e.expect("entry").path()).collect();
         paths.sort();
         for path in paths.iter().filter(|p| p.is_file() && p.extension().is_none_or(|e| e != "md")) {
             let bytes = std::fs::read(path).expect("read");
             let p = FuzzPerturbation::arbitrary_take_rest(Unstructured::new(&bytes)).expect("any bytes decode");
             let bad = oracle.check(&p).unwrap_or_else(|e| panic!("{}: engine failed: {e}", path.display()));
-            assert!(bad.is_empty(), "{}: candidate engine bug {bad:#?}\n{:?}", path.display(), p.scenario(engine_diff::fuzz::ORACLE_SECONDS));
+            assert!(
+                bad.is_empty(),
+                "{}: candidate engine bug {bad:#?}\n{:?}",
+                path.display(),
+                p.scenario(engine_diff::fuzz::ORACLE_SECONDS)
+            );
             *count += 1;
         }
     }

@@ -28,7 +28,12 @@ fn an_engine_compared_with_itself_diverges_by_exactly_zero() {
         for w in &r.windows {
             for d in &w.divs {
                 for div in [&d.one_step, &d.k_step] {
-                    let all = div.q.iter().chain(&div.dq).chain(&div.link_pos).chain([&div.base_pos, &div.base_rot, &div.base_lin_vel, &div.base_ang_vel]);
+                    let all = div.q.iter().chain(&div.dq).chain(&div.link_pos).chain([
+                        &div.base_pos,
+                        &div.base_rot,
+                        &div.base_lin_vel,
+                        &div.base_ang_vel,
+                    ]);
                     assert!(all.into_iter().all(|x| *x == 0.0), "{} window {}: {div:?}", kind.name(), w.index);
                 }
             }
@@ -112,7 +117,13 @@ fn a_known_joint_offset_is_measured_on_that_joint() {
     let m = model();
     let f: Vec<Arc<dyn EngineFactory>> = vec![Arc::new(BuiltinEngine(EngineKind::Mujoco)), Arc::new(OffsetFactory)];
     let ctrl = excitation_factory(&m);
-    let s = Scenario { obs_noise: 0.0, action_noise: 0.0, timing_jitter: 0, pushes: vec![], ..Scenario::excitation(3, 0.02) };
+    let s = Scenario {
+        obs_noise: 0.0,
+        action_noise: 0.0,
+        timing_jitter: 0,
+        pushes: vec![],
+        ..Scenario::excitation(3, 0.02)
+    };
     let r = harness::run_episode(&m, &f, ctrl.as_ref(), &s, &cfg(10)).expect("episode");
     let d = &r.windows[0].divs[0].one_step;
     // The reported offset, plus the one-step effect of the PD reacting to it: Δτ = kp·OFF over one step moves
@@ -128,7 +139,8 @@ fn a_known_joint_offset_is_measured_on_that_joint() {
 #[test]
 fn reproducers_replay_bit_for_bit_and_catch_tampering() {
     let m = model();
-    let f: Vec<Arc<dyn EngineFactory>> = vec![Arc::new(BuiltinEngine(EngineKind::Mujoco)), Arc::new(BuiltinEngine(EngineKind::RapierImpulse))];
+    let f: Vec<Arc<dyn EngineFactory>> =
+        vec![Arc::new(BuiltinEngine(EngineKind::Mujoco)), Arc::new(BuiltinEngine(EngineKind::RapierImpulse))];
     let ctrl = excitation_factory(&m);
     let s = Scenario::excitation(11, 0.06);
     let c = cfg(10);
@@ -177,5 +189,7 @@ citation = []
     assert!(AllowList::parse(no_cite).is_err());
     assert!(AllowList::parse(&no_cite.replace("[]", "[\"http://insecure\"]")).is_err());
     assert!(AllowList::parse(&no_cite.replace("[]", "[\"https://example.org\"]")).is_ok());
-    assert!(AllowList::parse(&no_cite.replace("invariant", "anything").replace("[]", "[\"https://example.org\"]")).is_err());
+    assert!(
+        AllowList::parse(&no_cite.replace("invariant", "anything").replace("[]", "[\"https://example.org\"]")).is_err()
+    );
 }

@@ -22,7 +22,15 @@ fn report_for_a_fixed_seed() {
         })
         .collect();
     let allow = AllowList::builtin().expect("allow-list");
-    let a = Analysis { model: &m, factories: &f, controller: ctrl.as_ref(), controller_name: "excitation", cfg: &cfg, allow: &allow, minimize_limit: 2 };
+    let a = Analysis {
+        model: &m,
+        factories: &f,
+        controller: ctrl.as_ref(),
+        controller_name: "excitation",
+        cfg: &cfg,
+        allow: &allow,
+        minimize_limit: 2,
+    };
     let (report, repros) = analyse(&a, &episodes).expect("analysis");
     // Every entry is triaged, and every minimized entry has a reproducer that replays identically.
     for (name, r) in &repros {

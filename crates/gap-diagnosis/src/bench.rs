@@ -6,13 +6,13 @@ use crate::diagnose::{diagnose, DiagnoseOptions, PlantKind, Report};
 use crate::effects::{EffectKind, Scope};
 use crate::excite;
 use crate::log::{Measurement, RobotLog};
-use crate::plant::{imu_reading, joint_groups, EngineChoice, Effects, Rig, DT, GROUPS};
+use crate::plant::{imu_reading, joint_groups, Effects, EngineChoice, Rig, DT, GROUPS};
 use crate::GapError;
+use policy_runtime::{Controller, PolicyController, PolicySpec, RobotObservation};
 use rand::{Rng, SeedableRng};
 use rand_distr_free::normal;
 use robot_model::RobotModel;
 use serde::{Deserialize, Serialize};
-use policy_runtime::{Controller, PolicyController, PolicySpec, RobotObservation};
 use sha2::{Digest, Sha256};
 
 /// Standard deviations of the sensor noise of the reference plant.
@@ -98,7 +98,11 @@ pub fn generate_log(model: &RobotModel, cfg: &RealConfig) -> Result<RobotLog, Ga
 /// Runs the reference plant driven by the excitation plan (`policy` None) or by a policy closed around the
 /// plant's measurements (noisy joints, torso IMU converted to the pelvis frame as the deploy scripts do), at the
 /// config's command rate with its timing jitter.
-pub fn generate_log_with(model: &RobotModel, cfg: &RealConfig, policy: Option<&PolicyInput>) -> Result<RobotLog, GapError> {
+pub fn generate_log_with(
+    model: &RobotModel,
+    cfg: &RealConfig,
+    policy: Option<&PolicyInput>,
+) -> Result<RobotLog, GapError> {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(cfg.seed);
     let fx = &cfg.effects;
     let real_model = fx.apply_to_model(model);
@@ -111,7 +115,8 @@ pub fn generate_log_with(model: &RobotModel, cfg: &RealConfig, policy: Option<&P
     let mut controller = match policy {
         Some(p) => {
             p.spec.check_robot(model).map_err(|e| GapError::Input(format!("policy {}: {e}", p.spec.name)))?;
-            let mut c = PolicyController::from_spec(p.spec.clone()).map_err(|e| GapError::Input(format!("policy {}: {e}", p.spec.name)))?;
+            let mut c = PolicyController::from_spec(p.spec.clone())
+                .map_err(|e| GapError::Input(format!("policy {}: {e}", p.spec.name)))?;
             c.reset();
             Some((c, p.command))
         }
@@ -149,7 +154,8 @@ pub fn generate_log_with(model: &RobotModel, cfg: &RealConfig, policy: Option<&P
                     Some(m) => (m.q.clone(), m.dq.clone(), m.quat, m.gyro),
                     None => (q0.clone(), vec![0.0; nj], [1.0, 0.0, 0.0, 0.0], [0.0; 3]),
                 };
-                let obs = RobotObservation::from_torso_imu(tc, quat, gyro, q, dq, *vel).map_err(|e| GapError::Input(format!("policy observation: {e}")))?;
+                let obs = RobotObservation::from_torso_imu(tc, quat, gyro, q, dq, *vel)
+                    .map_err(|e| GapError::Input(format!("policy observation: {e}")))?;
                 let target = c.act(&obs).map_err(|e| GapError::Input(format!("policy step: {e}")))?;
                 for &j in &c.spec().policy_joints {
                     cmd.q[j] = target.q_des[j].clamp(model.joints[j].lower, model.joints[j].upper);
@@ -173,8 +179,11 @@ pub fn generate_log_with(model: &RobotModel, cfg: &RealConfig, policy: Option<&P
         tau.copy_from_slice(rig.step(&cmd, fx)?);
         let (q, dq) = rig.joints();
         let (quat, gyro) = imu_reading(model, &q, &dq, fx)?;
-        let nq = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(quat[0], quat[1], quat[2], quat[3]))
-            * nalgebra::UnitQuaternion::from_scaled_axis(nalgebra::Vector3::new(normal(&mut rng), normal(&mut rng), normal(&mut rng)) * n.quat);
+        let nq =
+            nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(quat[0], quat[1], quat[2], quat[3]))
+                * nalgebra::UnitQuaternion::from_scaled_axis(
+                    nalgebra::Vector3::new(normal(&mut rng), normal(&mut rng), normal(&mut rng)) * n.quat,
+                );
         log.states.push(Measurement {
             t: t + DT,
             q: (0..nj).map(|j| q[j] + fx.encoder_offset[j] + n.q * normal(&mut rng)).collect(),
@@ -195,7 +204,8 @@ pub fn generate_log_with(model: &RobotModel, cfg: &RealConfig, policy: Option<&P
             _ => nalgebra::Vector3::zeros(),
         };
         let quat = truth[i].0;
-        let r = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(quat[0], quat[1], quat[2], quat[3]));
+        let r =
+            nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(quat[0], quat[1], quat[2], quat[3]));
         let f = r.inverse() * (a + nalgebra::Vector3::new(0.0, 0.0, robot_model::GRAVITY_EARTH));
         log.states[i].acc = [0, 1, 2].map(|k| f[k] + truth[i].2[k]);
     }
@@ -376,7 +386,9 @@ pub fn score(labels: &Labels, report: &Report) -> TrialScore {
         if let Some(r) = r {
             let null = i.kind.range().2;
             let fit = match i.kind.scope() {
-                Scope::Imu => r.params.iter().map(|p| p.value).max_by(|a, b| a.abs().total_cmp(&b.abs())).unwrap_or(null),
+                Scope::Imu => {
+                    r.params.iter().map(|p| p.value).max_by(|a, b| a.abs().total_cmp(&b.abs())).unwrap_or(null)
+                }
                 _ => r.params.iter().find(|p| p.unit == i.unit).map_or(null, |p| p.value),
             };
             let null = if i.kind == EffectKind::Latency { 0.0 } else { null };
@@ -435,7 +447,9 @@ pub fn trial_policy(i: usize, opts: &BenchOptions) -> Option<PolicyInput> {
         return None;
     }
     let spec = opts.policies[(i / 2) % opts.policies.len()].clone();
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed ^ 0x005e_ed0f_7011_c1e5 ^ (i as u64).wrapping_mul(0x2545_f491_4f6c_dd1d));
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(
+        opts.seed ^ 0x005e_ed0f_7011_c1e5 ^ (i as u64).wrapping_mul(0x2545_f491_4f6c_dd1d),
+    );
     let command = [rng.gen_range(-0.4..0.8), rng.gen_range(-0.3..0.3), rng.gen_range(-0.5..0.5)];
     Some(PolicyInput { spec, command })
 }
@@ -493,7 +507,11 @@ pub fn run_trial(
     let (fx, labels) = draw_trial(model, i, opts.seed);
     let (sealed, text) = seal(&labels, &trial_salt(opts.seed, i))?;
     drop(labels);
-    let cfg = RealConfig { effects: fx, seed: opts.seed.wrapping_mul(31).wrapping_add(i as u64), ..RealConfig::new(model, opts.duration, 0) };
+    let cfg = RealConfig {
+        effects: fx,
+        seed: opts.seed.wrapping_mul(31).wrapping_add(i as u64),
+        ..RealConfig::new(model, opts.duration, 0)
+    };
     let input = trial_policy(i, opts);
     let log = generate_log_with(model, &cfg, input.as_ref())?;
     let log = on_log(i, &log)?;
@@ -502,7 +520,8 @@ pub fn run_trial(
     let mut s = score(&labels, &report);
     if let Some(p) = &input {
         s.input = InputKind::Policy;
-        s.policy = Some(format!("{} (vx {:.2}, vy {:.2}, wz {:.2})", p.spec.name, p.command[0], p.command[1], p.command[2]));
+        s.policy =
+            Some(format!("{} (vx {:.2}, vy {:.2}, wz {:.2})", p.spec.name, p.command[0], p.command[1], p.command[2]));
     }
     Ok((sealed, s, report))
 }
@@ -528,7 +547,13 @@ pub struct BenchSummary {
 }
 
 pub fn summarize(scores: &[TrialScore]) -> BenchSummary {
-    let frac = |xs: Vec<bool>| if xs.is_empty() { f64::NAN } else { xs.iter().filter(|x| **x).count() as f64 / xs.len() as f64 };
+    let frac = |xs: Vec<bool>| {
+        if xs.is_empty() {
+            f64::NAN
+        } else {
+            xs.iter().filter(|x| **x).count() as f64 / xs.len() as f64
+        }
+    };
     let singles: Vec<&TrialScore> = scores.iter().filter(|s| s.injected.len() == 1).collect();
     let pairs: Vec<&TrialScore> = scores.iter().filter(|s| s.injected.len() == 2).collect();
     let controls: Vec<&TrialScore> = scores.iter().filter(|s| s.injected.is_empty()).collect();
@@ -544,14 +569,24 @@ pub fn summarize(scores: &[TrialScore]) -> BenchSummary {
         top1_single: frac(singles.iter().map(|s| s.top1).collect()),
         top3_single: frac(singles.iter().map(|s| s.top3).collect()),
         both_pairs: frac(pairs.iter().map(|s| s.all_found).collect()),
-        top3_pairs: frac(pairs.iter().map(|s| s.injected.iter().all(|i| s.ranked.iter().take(3).any(|r| *r == i.kind))).collect()),
+        top3_pairs: frac(
+            pairs.iter().map(|s| s.injected.iter().all(|i| s.ranked.iter().take(3).any(|r| *r == i.kind))).collect(),
+        ),
         joint_accuracy: if jt == 0 { f64::NAN } else { jc as f64 / jt as f64 },
         median_param_error: pe.get(pe.len() / 2).copied().unwrap_or(f64::NAN),
         false_confident_controls: controls.iter().map(|s| s.false_confident).sum(),
         abstention_effects: frac(effects.iter().map(|s| s.abstained).collect()),
         abstention_controls: frac(controls.iter().map(|s| s.abstained).collect()),
-        mean_held_out_reduction: if effects.is_empty() { f64::NAN } else { effects.iter().map(|s| s.held_out_reduction).sum::<f64>() / effects.len() as f64 },
-        mean_diagnose_s: if scores.is_empty() { f64::NAN } else { scores.iter().map(|s| s.diagnose_s).sum::<f64>() / scores.len() as f64 },
+        mean_held_out_reduction: if effects.is_empty() {
+            f64::NAN
+        } else {
+            effects.iter().map(|s| s.held_out_reduction).sum::<f64>() / effects.len() as f64
+        },
+        mean_diagnose_s: if scores.is_empty() {
+            f64::NAN
+        } else {
+            scores.iter().map(|s| s.diagnose_s).sum::<f64>() / scores.len() as f64
+        },
     }
 }
 
@@ -587,7 +622,11 @@ fn table_rows(s: &BenchSummary) -> Vec<(String, String, String)> {
     let pct = |x: f64| if x.is_nan() { "n/a".to_string() } else { format!("{:.0} %", 100.0 * x) };
     let row = |m: &str, v: String, t: &str| (m.to_string(), v, t.to_string());
     vec![
-        row("trials (single / pair / control)", format!("{} ({} / {} / {})", s.trials, s.singles, s.pairs, s.controls), ""),
+        row(
+            "trials (single / pair / control)",
+            format!("{} ({} / {} / {})", s.trials, s.singles, s.pairs, s.controls),
+            "",
+        ),
         row("top-1 effect, single effects", pct(s.top1_single), "≥ 90 %"),
         row("top-3 effect, single effects", pct(s.top3_single), ""),
         row("both effects in the top 2, pairs", pct(s.both_pairs), "≥ 70 %"),
@@ -595,7 +634,11 @@ fn table_rows(s: &BenchSummary) -> Vec<(String, String, String)> {
         row("joint/group attribution", pct(s.joint_accuracy), ""),
         row("median relative parameter error", format!("{:.2}", s.median_param_error), ""),
         row("confident attributions on no-effect controls", s.false_confident_controls.to_string(), "0"),
-        row("abstention rate, effect trials / controls", format!("{} / {}", pct(s.abstention_effects), pct(s.abstention_controls)), ""),
+        row(
+            "abstention rate, effect trials / controls",
+            format!("{} / {}", pct(s.abstention_effects), pct(s.abstention_controls)),
+            "",
+        ),
         row("mean held-out gap reduction (best combination)", pct(s.mean_held_out_reduction), ""),
         row("mean diagnosis time per log", format!("{:.1} s", s.mean_diagnose_s), ""),
     ]
@@ -632,9 +675,12 @@ pub fn inject_floating(model: &RobotModel, kind: EffectKind, fx: &mut Effects, r
     let value = match kind {
         EffectKind::ContactFriction => rng.gen_range(0.25..0.45),
         EffectKind::ContactStiffness => rng.gen_range(0.035..0.05),
-        EffectKind::Armature | EffectKind::Damping | EffectKind::Friction | EffectKind::Latency | EffectKind::GainScale | EffectKind::LinkMass => {
-            rig_magnitude(kind, rng)
-        }
+        EffectKind::Armature
+        | EffectKind::Damping
+        | EffectKind::Friction
+        | EffectKind::Latency
+        | EffectKind::GainScale
+        | EffectKind::LinkMass => rig_magnitude(kind, rng),
         // Not in `injectable_floating`; drawn as on the rig should a caller ask for them.
         other => return inject(model, other, fx, rng),
     };
@@ -658,7 +704,9 @@ pub fn inject_floating(model: &RobotModel, kind: EffectKind, fx: &mut Effects, r
 pub fn draw_floating_trial(model: &RobotModel, i: usize, seed: u64, attempt: usize) -> (Effects, Labels) {
     let base = seed ^ 0xf1_0a71_0000_0000 ^ 0x9e37_79b9_7f4a_7c15u64.wrapping_mul(i as u64 + 1);
     let mut kind_rng = rand_chacha::ChaCha8Rng::seed_from_u64(base);
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(base.wrapping_add(0x2545_f491_4f6c_dd1d_u64.wrapping_mul(attempt as u64 + 1)));
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(
+        base.wrapping_add(0x2545_f491_4f6c_dd1d_u64.wrapping_mul(attempt as u64 + 1)),
+    );
     let chosen = trial_kinds(i, &injectable_floating(), &mut kind_rng);
     let mut fx = Effects::none(model.nj());
     let injected = chosen.into_iter().map(|k| inject_floating(model, k, &mut fx, &mut rng)).collect();
@@ -673,7 +721,9 @@ pub fn floating_trial_policy(i: usize, opts: &BenchOptions) -> Option<PolicyInpu
         return None;
     }
     let spec = opts.policies[i % opts.policies.len()].clone();
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed ^ 0x0f10_a7ed_c0de_0001 ^ (i as u64).wrapping_mul(0x2545_f491_4f6c_dd1d));
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(
+        opts.seed ^ 0x0f10_a7ed_c0de_0001 ^ (i as u64).wrapping_mul(0x2545_f491_4f6c_dd1d),
+    );
     let command = [rng.gen_range(0.0..0.6), rng.gen_range(-0.2..0.2), rng.gen_range(-0.3..0.3)];
     Some(PolicyInput { spec, command })
 }
@@ -691,18 +741,39 @@ pub fn fell_at(log: &crate::floating::FloatingLog) -> Option<usize> {
 /// Generates the reference log of a floating trial: `policy` closed every 20 ms around what the reference robot
 /// reports (noisy joints and torso IMU, as on the robot), MuJoCo RK4 with ground, sensor noise, 0–2 ms command
 /// jitter.
-pub fn generate_walking_log(model: &RobotModel, fx: Effects, duration: f64, seed: u64, policy: &PolicyInput) -> Result<crate::floating::FloatingLog, GapError> {
+pub fn generate_walking_log(
+    model: &RobotModel,
+    fx: Effects,
+    duration: f64,
+    seed: u64,
+    policy: &PolicyInput,
+) -> Result<crate::floating::FloatingLog, GapError> {
     policy.spec.check_robot(model).map_err(|e| GapError::Input(format!("policy {}: {e}", policy.spec.name)))?;
-    let mut ctl = PolicyController::from_spec(policy.spec.clone()).map_err(|e| GapError::Input(format!("policy {}: {e}", policy.spec.name)))?;
+    let mut ctl = PolicyController::from_spec(policy.spec.clone())
+        .map_err(|e| GapError::Input(format!("policy {}: {e}", policy.spec.name)))?;
     ctl.reset();
-    let cfg = crate::floating::FloatingRealConfig { effects: fx, ..crate::floating::FloatingRealConfig::new(model, duration, seed) };
+    let cfg = crate::floating::FloatingRealConfig {
+        effects: fx,
+        ..crate::floating::FloatingRealConfig::new(model, duration, seed)
+    };
     let vel = policy.command;
     // The policy sees what the robot reports (noisy joints, the torso IMU turned into the pelvis frame through the
     // waist, as the deploy scripts do); before the first report, the standing pose at rest.
-    let mut act = |t: f64, s: &diff_physics::State, m: Option<&crate::log::Measurement>| -> Result<crate::log::Command, GapError> {
+    let mut act = |t: f64,
+                   s: &diff_physics::State,
+                   m: Option<&crate::log::Measurement>|
+     -> Result<crate::log::Command, GapError> {
         let obs = match m {
-            Some(m) => RobotObservation::from_torso_imu(t, m.quat, m.gyro, m.q.clone(), m.dq.clone(), vel).map_err(|e| GapError::Input(format!("policy observation: {e}")))?,
-            None => RobotObservation { time: t, base_quat: s.base_quat, base_ang_vel: s.base_ang_vel, q: s.q.clone(), dq: s.dq.clone(), command: vel },
+            Some(m) => RobotObservation::from_torso_imu(t, m.quat, m.gyro, m.q.clone(), m.dq.clone(), vel)
+                .map_err(|e| GapError::Input(format!("policy observation: {e}")))?,
+            None => RobotObservation {
+                time: t,
+                base_quat: s.base_quat,
+                base_ang_vel: s.base_ang_vel,
+                q: s.q.clone(),
+                dq: s.dq.clone(),
+                command: vel,
+            },
         };
         let p = ctl.act(&obs).map_err(|e| GapError::Input(format!("policy step: {e}")))?;
         Ok(crate::log::Command { t, q: p.q_des, dq: p.dq_des, kp: p.kp, kd: p.kd, tau: p.tau_ff })
@@ -730,7 +801,8 @@ pub fn run_floating_trial_drawn(
     draw: &mut dyn FnMut(usize) -> (Effects, Labels),
     on_log: &mut dyn FnMut(usize, &RobotLog, &Seal) -> Result<RobotLog, GapError>,
 ) -> Result<(Seal, TrialScore, Report), GapError> {
-    let input = floating_trial_policy(i, opts).ok_or_else(|| GapError::Input("the floating-base benchmark needs at least one walking policy".into()))?;
+    let input = floating_trial_policy(i, opts)
+        .ok_or_else(|| GapError::Input("the floating-base benchmark needs at least one walking policy".into()))?;
     let seed = opts.seed.wrapping_mul(31).wrapping_add(i as u64);
     let mut attempt = 0;
     let (labels, log) = loop {
@@ -746,7 +818,11 @@ pub fn run_floating_trial_drawn(
                     input.command[0],
                     input.command[1],
                     input.command[2],
-                    if labels.injected.is_empty() { "without any effect".to_string() } else { format!("in each of {MAX_DRAWS} effect draws") }
+                    if labels.injected.is_empty() {
+                        "without any effect".to_string()
+                    } else {
+                        format!("in each of {MAX_DRAWS} effect draws")
+                    }
                 )))
             }
             Some(_) => attempt += 1,
@@ -759,7 +835,10 @@ pub fn run_floating_trial_drawn(
     let labels = open(&sealed, &text)?;
     let mut s = score(&labels, &report);
     s.input = InputKind::Policy;
-    s.policy = Some(format!("{} (vx {:.2}, vy {:.2}, wz {:.2})", input.spec.name, input.command[0], input.command[1], input.command[2]));
+    s.policy = Some(format!(
+        "{} (vx {:.2}, vy {:.2}, wz {:.2})",
+        input.spec.name, input.command[0], input.command[1], input.command[2]
+    ));
     s.plant = Some(report.plant);
     s.redraws = Some(attempt);
     Ok((sealed, s, report))

@@ -4,7 +4,7 @@
 use crate::effects::{EffectKind, Scope};
 use crate::floating::{self, Feet, FloatingPlant};
 use crate::log::{Measurement, RobotLog};
-use crate::plant::{imu_reading, joint_groups, predict_window, EngineChoice, Effects, Rig, DT, GROUPS};
+use crate::plant::{imu_reading, joint_groups, predict_window, Effects, EngineChoice, Rig, DT, GROUPS};
 use crate::rig_check::{self, RigCheck};
 use crate::GapError;
 use rand::{Rng, SeedableRng};
@@ -263,7 +263,16 @@ impl Plant {
 
     /// The window's predicted measurements ([`crate::plant::predict_window`] or [`floating::predict_window`]).
     #[allow(clippy::too_many_arguments)]
-    fn predict(&mut self, model: &RobotModel, feet: Option<&Feet>, log: &RobotLog, fx: &Effects, start: usize, len: usize, with_imu: bool) -> Result<Vec<Measurement>, GapError> {
+    fn predict(
+        &mut self,
+        model: &RobotModel,
+        feet: Option<&Feet>,
+        log: &RobotLog,
+        fx: &Effects,
+        start: usize,
+        len: usize,
+        with_imu: bool,
+    ) -> Result<Vec<Measurement>, GapError> {
         match (self, feet) {
             (Plant::Rig(rig), _) => predict_window(rig, model, log, fx, start, len, with_imu),
             (Plant::Floating(p), Some(feet)) => floating::predict_window(p, model, feet, log, fx, start, len, with_imu),
@@ -299,7 +308,8 @@ impl Ctx<'_> {
     fn eval_many(&self, cfgs: &[Effects], windows: &[usize]) -> Result<Vec<Scores>, GapError> {
         let chunks = (rayon::current_num_threads() * 2).max(1);
         let per = windows.len().div_ceil(chunks).max(1);
-        let jobs: Vec<(usize, &[usize])> = (0..cfgs.len()).flat_map(|c| windows.chunks(per).map(move |w| (c, w))).collect();
+        let jobs: Vec<(usize, &[usize])> =
+            (0..cfgs.len()).flat_map(|c| windows.chunks(per).map(move |w| (c, w))).collect();
         let results: Vec<Result<(usize, Scores), GapError>> = jobs
             .par_iter()
             .map(|(c, ws)| {
@@ -333,7 +343,14 @@ impl Ctx<'_> {
     }
 
     /// Normalised squared residual of one window per column; `series` receives the q residual time series.
-    fn window_scores(&self, rig: &mut Plant, model: &RobotModel, fx: &Effects, w: usize, series: Option<&mut Vec<Vec<f64>>>) -> Result<Vec<f64>, GapError> {
+    fn window_scores(
+        &self,
+        rig: &mut Plant,
+        model: &RobotModel,
+        fx: &Effects,
+        w: usize,
+        series: Option<&mut Vec<Vec<f64>>>,
+    ) -> Result<Vec<f64>, GapError> {
         let nj = self.nj();
         let start = self.starts[w];
         let floating = self.plant == PlantKind::Floating;
@@ -480,7 +497,13 @@ fn contacts(model: &RobotModel, log: &RobotLog) -> Vec<(bool, bool)> {
 /// Floating base: the phase of the window starting at `start` from the kinematic contact estimate
 /// ([`floating::contact_state`]): "impact" when a touchdown starts within the window (a sample after the start is
 /// not settled), else "stance" (both feet), "swing" (one) or "flight".
-fn floating_phase(model: &RobotModel, feet: &Feet, log: &RobotLog, start: usize, len: usize) -> Result<&'static str, GapError> {
+fn floating_phase(
+    model: &RobotModel,
+    feet: &Feet,
+    log: &RobotLog,
+    start: usize,
+    len: usize,
+) -> Result<&'static str, GapError> {
     let null = Effects::none(model.nj());
     let (stance, _) = floating::contact_state(model, feet, log, start, &null)?;
     for k in (IMU_STRIDE..=len).step_by(IMU_STRIDE) {
@@ -527,7 +550,13 @@ fn bands(x: &[f64], dt: f64) -> [f64; 3] {
             im += v * a.sin();
         }
         let e = 2.0 * (re * re + im * im) / n as f64;
-        let b = if f < 10.0 + 1e-9 { 0 } else if f <= 50.0 { 1 } else { 2 };
+        let b = if f < 10.0 + 1e-9 {
+            0
+        } else if f <= 50.0 {
+            1
+        } else {
+            2
+        };
         out[b] += e;
     }
     out
@@ -566,7 +595,8 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
     let t0 = log.commands.first().map_or(0.0, |c| c.t);
     // Windows only where the robot was under command: every state of the window (and its start) has a command at
     // most COMMAND_STALE_S old (a robot whose commands stopped falls back to damping, which the plant does not model).
-    let age: Vec<f64> = log.states.iter().map(|s| log.command_at(s.t).map_or(f64::INFINITY, |c| s.t - log.commands[c].t)).collect();
+    let age: Vec<f64> =
+        log.states.iter().map(|s| log.command_at(s.t).map_or(f64::INFINITY, |c| s.t - log.commands[c].t)).collect();
     // ... and where the states kept their rate: the robot publishes at a fixed rate, so a window whose state log
     // times stray from a regular grid by more than TIMING_TOL_S (range of `t_k - k * dt` over the window) saw the
     // robot's (or simulator's) loop or the transport stall; the log times there are not the measurement times (a
@@ -581,11 +611,15 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
         let (lo, hi) = w.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)));
         hi - lo <= TIMING_TOL_S
     };
-    let candidates: Vec<usize> = (0..log.states.len().saturating_sub(len + 1)).filter(|&i| log.states[i].t >= t0 + 0.05).collect();
+    let candidates: Vec<usize> =
+        (0..log.states.len().saturating_sub(len + 1)).filter(|&i| log.states[i].t >= t0 + 0.05).collect();
     let eligible: Vec<usize> = candidates.iter().copied().filter(|&i| fresh_run[i] > len && regular(i)).collect();
     let skipped_fraction = 1.0 - eligible.len() as f64 / candidates.len().max(1) as f64;
     if eligible.len() < 4 {
-        return Err(GapError::Log(format!("the log is too short for {} s windows after the first command", opts.window_s)));
+        return Err(GapError::Log(format!(
+            "the log is too short for {} s windows after the first command",
+            opts.window_s
+        )));
     }
     let count = opts.max_windows.unwrap_or(plant.default_max_windows()).min(eligible.len() / len.max(1)).max(4);
     let starts: Vec<usize> = (0..count).map(|k| eligible[k * eligible.len() / count]).collect();
@@ -732,7 +766,8 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
         if plant == PlantKind::Rig && !kind.identifiable_suspended() {
             let any_contact = cont.iter().any(|(l, r)| *l || *r);
             let note = if any_contact {
-                "foot contact is estimated in this log, but the suspended-rig plant has no ground model to fit it on".to_string()
+                "foot contact is estimated in this log, but the suspended-rig plant has no ground model to fit it on"
+                    .to_string()
             } else {
                 "not identifiable: no foot contact in this log".to_string()
             };
@@ -765,11 +800,24 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
             if d.lo > unit_floor && d.value > 0.0 && kind.scope() == Scope::Imu {
                 kind.copy(&fx, &mut pruned);
                 for (k, axis) in ["imu_x", "imu_y", "imu_z"].into_iter().enumerate() {
-                    params.push(FittedParam { unit: axis.into(), value: kind.get(&fx, k), sd: sds[0], held_out_reduction: d.value });
+                    params.push(FittedParam {
+                        unit: axis.into(),
+                        value: kind.get(&fx, k),
+                        sd: sds[0],
+                        held_out_reduction: d.value,
+                    });
                 }
-            } else if d.lo > unit_floor && d.value > 0.0 && (value - kind.range().2).abs() >= RESOLUTION_FRAC * (kind.range().1 - kind.range().0) {
+            } else if d.lo > unit_floor
+                && d.value > 0.0
+                && (value - kind.range().2).abs() >= RESOLUTION_FRAC * (kind.range().1 - kind.range().0)
+            {
                 set_unit(kind, &mut pruned, &ctx, u, value);
-                params.push(FittedParam { unit: unit_name(&ctx, kind, u), value: report_value(kind, value), sd: report_value(kind, sds[u]), held_out_reduction: d.value });
+                params.push(FittedParam {
+                    unit: unit_name(&ctx, kind, u),
+                    value: report_value(kind, value),
+                    sd: report_value(kind, sds[u]),
+                    held_out_reduction: d.value,
+                });
             }
         }
         // With several units kept, credit each by the whole-gap reduction it gives alone (a joint's effect also
@@ -806,7 +854,10 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
         } else if params.is_empty() {
             Some("no joint/group reduced the held-out residual beyond its floor".to_string())
         } else {
-            Some(format!("held-out reduction {:.3} (lower bound {:.3}) does not clear the noise floor {:.3}", red.value, red.lo, floor))
+            Some(format!(
+                "held-out reduction {:.3} (lower bound {:.3}) does not clear the noise floor {:.3}",
+                red.value, red.lo, floor
+            ))
         };
         // Every effect that cut some unit's own residual stays a candidate of the conditional selection below.
         if !params.is_empty() {
@@ -827,7 +878,9 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
             note,
         });
     }
-    results.sort_by(|a, b| (b.named, b.reduction.value).partial_cmp(&(a.named, a.reduction.value)).unwrap_or(std::cmp::Ordering::Equal));
+    results.sort_by(|a, b| {
+        (b.named, b.reduction.value).partial_cmp(&(a.named, a.reduction.value)).unwrap_or(std::cmp::Ordering::Equal)
+    });
     let ranked: Vec<EffectKind> = results.iter().filter(|r| r.named).map(|r| r.kind).collect();
 
     // ---- Best combination: conditional forward selection. It starts from the best named effect; each step then
@@ -844,7 +897,8 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
         let first = ranked[0];
         let mut combo = get(first).unwrap_or_else(|| null.clone());
         let mut members = vec![first];
-        let mut cur: Vec<f64> = test_scores.iter().find(|(k, _)| *k == first).map(|(_, s)| s.clone()).unwrap_or_default();
+        let mut cur: Vec<f64> =
+            test_scores.iter().find(|(k, _)| *k == first).map(|(_, s)| s.clone()).unwrap_or_default();
         // Conditional results of the effects added after the first: (kind, gain, floor, metric after, refit params).
         let mut added: Vec<Conditional> = Vec::new();
         while members.len() < MAX_COMBINATION {
@@ -883,7 +937,12 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
                         let v = unit_value(kind, &fx, &ctx, u);
                         if (v - v0).abs() >= RESOLUTION_FRAC * (hi - lo) {
                             set_unit(kind, &mut t, &ctx, u, v);
-                            params.push(FittedParam { unit: unit_name(&ctx, kind, u), value: report_value(kind, v), sd: report_value(kind, sd), held_out_reduction: 0.0 });
+                            params.push(FittedParam {
+                                unit: unit_name(&ctx, kind, u),
+                                value: report_value(kind, v),
+                                sd: report_value(kind, sd),
+                                held_out_reduction: 0.0,
+                            });
                         }
                     }
                     if !params.is_empty() {
@@ -901,7 +960,11 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
                     }
                 }
             }
-            let Some((i, _)) = tots.iter().enumerate().min_by(|a, b| a.1.iter().sum::<f64>().total_cmp(&b.1.iter().sum::<f64>())) else { break };
+            let Some((i, _)) =
+                tots.iter().enumerate().min_by(|a, b| a.1.iter().sum::<f64>().total_cmp(&b.1.iter().sum::<f64>()))
+            else {
+                break;
+            };
             let gain = bootstrap_ratio(&cur, &tots[i], opts.bootstrap, &mut rng);
             let floor = noise_floor(&cur);
             if gain.lo <= floor {
@@ -929,10 +992,13 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
                 if let Some(p) = params {
                     r.params = p;
                 }
-                r.note = Some(format!("named given {}: reduction of the remaining held-out residual", given.join(" + ")));
+                r.note =
+                    Some(format!("named given {}: reduction of the remaining held-out residual", given.join(" + ")));
             }
         }
-        results.sort_by(|a, b| (b.named, b.reduction.value).partial_cmp(&(a.named, a.reduction.value)).unwrap_or(std::cmp::Ordering::Equal));
+        results.sort_by(|a, b| {
+            (b.named, b.reduction.value).partial_cmp(&(a.named, a.reduction.value)).unwrap_or(std::cmp::Ordering::Equal)
+        });
         let named: Vec<EffectKind> = results.iter().filter(|r| r.named).map(|r| r.kind).collect();
         let rest: Vec<EffectKind> = named.iter().copied().filter(|k| !members.contains(k)).collect();
         ranked = members.iter().copied().chain(rest).collect();
@@ -942,7 +1008,8 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
             reduction: bootstrap_ratio(&base_test_tot, &cur, opts.bootstrap, &mut rng),
         });
     }
-    let abstentions: Vec<(EffectKind, String)> = results.iter().filter(|r| !r.named).map(|r| (r.kind, r.note.clone().unwrap_or_default())).collect();
+    let abstentions: Vec<(EffectKind, String)> =
+        results.iter().filter(|r| !r.named).map(|r| (r.kind, r.note.clone().unwrap_or_default())).collect();
     Ok(Report {
         schema_version: SCHEMA_VERSION.into(),
         outcome: Outcome::Diagnosed,
@@ -973,7 +1040,13 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
 
 /// The report of a log that fails the rig-assumption check: no window replayed, no effect fitted, every effect
 /// abstained with the check's message.
-fn rig_violated(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions, rig: RigCheck, t_start: std::time::Instant) -> Report {
+fn rig_violated(
+    model: &RobotModel,
+    log: &RobotLog,
+    opts: &DiagnoseOptions,
+    rig: RigCheck,
+    t_start: std::time::Instant,
+) -> Report {
     let zero = Estimate { value: 0.0, lo: 0.0, hi: 0.0 };
     let why = format!("not diagnosed: {}", rig.message);
     let kinds: Vec<EffectKind> = opts.kinds.clone().unwrap_or_else(|| EffectKind::ALL.to_vec());
@@ -1109,7 +1182,13 @@ fn report_value(kind: EffectKind, v: f64) -> f64 {
 /// Fits one effect on the training windows; returns the configuration (every unit at its fitted value) and the
 /// per-unit bootstrap standard deviation.
 /// `base` holds effects already accepted (their units stay as they are) and `base_train` its training scores.
-fn fit_kind(ctx: &Ctx<'_>, kind: EffectKind, base: &Effects, base_train: &Scores, rng: &mut impl Rng) -> Result<(Effects, Vec<f64>), GapError> {
+fn fit_kind(
+    ctx: &Ctx<'_>,
+    kind: EffectKind,
+    base: &Effects,
+    base_train: &Scores,
+    rng: &mut impl Rng,
+) -> Result<(Effects, Vec<f64>), GapError> {
     if kind.scope() == Scope::Imu {
         return fit_imu(ctx, kind);
     }
@@ -1119,7 +1198,8 @@ fn fit_kind(ctx: &Ctx<'_>, kind: EffectKind, base: &Effects, base_train: &Scores
     // Joint-scope effects are fitted on one joint per limb at a time (the k-th joint of every group together):
     // neighbouring joints of a chain would otherwise trade the effect between them.
     let sets: Vec<Vec<bool>> = if kind.scope() == Scope::Joint {
-        let pos: Vec<usize> = (0..ctx.nj()).map(|j| (0..j).filter(|&i| ctx.groups[i] == ctx.groups[j]).count()).collect();
+        let pos: Vec<usize> =
+            (0..ctx.nj()).map(|j| (0..j).filter(|&i| ctx.groups[i] == ctx.groups[j]).count()).collect();
         let maxp = pos.iter().copied().max().unwrap_or(0);
         (0..=maxp).map(|k| pos.iter().map(|&p| p == k).collect()).collect()
     } else {
@@ -1137,11 +1217,19 @@ fn fit_kind(ctx: &Ctx<'_>, kind: EffectKind, base: &Effects, base_train: &Scores
 
 /// Grid search then lockstep golden-section refinement of the units in `mask` (the others stay at no effect);
 /// returns every unit's value and bootstrap standard deviation.
-fn fit_units(ctx: &Ctx<'_>, kind: EffectKind, base: &Effects, base_train: &Scores, rng: &mut impl Rng, mask: &[bool]) -> Result<(Vec<f64>, Vec<f64>), GapError> {
+fn fit_units(
+    ctx: &Ctx<'_>,
+    kind: EffectKind,
+    base: &Effects,
+    base_train: &Scores,
+    rng: &mut impl Rng,
+    mask: &[bool],
+) -> Result<(Vec<f64>, Vec<f64>), GapError> {
     let null = base.clone();
     let units = units_of(ctx, kind);
     let (lo, hi, v0) = kind.range();
-    let unit_score = |s: &Scores, u: usize| -> f64 { s.iter().map(|w| units[u].iter().map(|&c| w[c]).sum::<f64>()).sum() };
+    let unit_score =
+        |s: &Scores, u: usize| -> f64 { s.iter().map(|w| units[u].iter().map(|&c| w[c]).sum::<f64>()).sum() };
     let with_values = |vals: &[f64]| -> Effects {
         let mut fx = null.clone();
         for (u, &v) in vals.iter().enumerate() {
@@ -1162,7 +1250,8 @@ fn fit_units(ctx: &Ctx<'_>, kind: EffectKind, base: &Effects, base_train: &Score
         g.dedup_by(|a, b| (*a - *b).abs() < 1e-12);
         g
     };
-    let cfgs: Vec<Effects> = grid.iter().filter(|&&v| (v - v0).abs() > 1e-12).map(|&v| with_values(&vec![v; units.len()])).collect();
+    let cfgs: Vec<Effects> =
+        grid.iter().filter(|&&v| (v - v0).abs() > 1e-12).map(|&v| with_values(&vec![v; units.len()])).collect();
     let grid_nz: Vec<f64> = grid.iter().copied().filter(|&v| (v - v0).abs() > 1e-12).collect();
     let scores = ctx.eval_many(&cfgs, &ctx.train)?;
     let mut best = vec![(v0, f64::INFINITY); units.len()];
@@ -1245,7 +1334,8 @@ fn fit_units(ctx: &Ctx<'_>, kind: EffectKind, base: &Effects, base_train: &Score
                 (0..3).for_each(|k| acc[k] += p[k]);
             }
             let curv = acc[0] - 2.0 * acc[1] + acc[2];
-            let shift = if curv > 0.0 { (h * (acc[0] - acc[2]) / (2.0 * curv)).clamp(-3.0 * h, 3.0 * h) } else { 3.0 * h };
+            let shift =
+                if curv > 0.0 { (h * (acc[0] - acc[2]) / (2.0 * curv)).clamp(-3.0 * h, 3.0 * h) } else { 3.0 * h };
             vs.push(vals[u] + shift);
         }
         let m = mean(&vs);

@@ -109,7 +109,14 @@ impl EffectKind {
 
     /// Needs a new engine (model-level effect; the contact parameters are built into the engine's ground).
     pub fn model_level(self) -> bool {
-        matches!(self, EffectKind::Armature | EffectKind::LinkMass | EffectKind::LinkCom | EffectKind::ContactFriction | EffectKind::ContactStiffness)
+        matches!(
+            self,
+            EffectKind::Armature
+                | EffectKind::LinkMass
+                | EffectKind::LinkCom
+                | EffectKind::ContactFriction
+                | EffectKind::ContactStiffness
+        )
     }
 
     /// Fitting range `(lo, hi)` and the no-effect value.

@@ -15,7 +15,10 @@
 //! * horizontal position and heading are free on flat ground: x = y = 0, heading as the IMU reports it.
 use crate::diagnose::{SIGMA_DQ, SIGMA_GYRO, SIGMA_Q, SIGMA_QUAT, SIGMA_TAU_FRAC};
 use crate::log::{Command, Measurement, RobotLog};
-use crate::plant::{actuator_torques, idle_command, imu_reading_floating, imu_site_relative, joint_groups, replay_window, sensed, true_joint_angles, EngineChoice, Effects, DT};
+use crate::plant::{
+    actuator_torques, idle_command, imu_reading_floating, imu_site_relative, joint_groups, replay_window, sensed,
+    true_joint_angles, Effects, EngineChoice, DT,
+};
 use crate::GapError;
 use diff_physics::mujoco::{MujocoEngine, MujocoSettings};
 use diff_physics::{CommonSettings, Engine, State};
@@ -95,16 +98,21 @@ impl Feet {
         let mut links = [0usize; 2];
         let mut points = [Vec::new(), Vec::new()];
         for side in 0..2 {
-            let j = (0..model.nj())
-                .rev()
-                .find(|&j| groups[j] == side)
-                .ok_or_else(|| GapError::Input(format!("model {} has no {} leg", model.name, ["left", "right"][side])))?;
+            let j = (0..model.nj()).rev().find(|&j| groups[j] == side).ok_or_else(|| {
+                GapError::Input(format!("model {} has no {} leg", model.name, ["left", "right"][side]))
+            })?;
             let link = model.joints[j].child_link;
             for c in &model.links[link].collisions {
                 let local: Vec<Point3<f64>> = match c.shape {
-                    Shape::Box { half_extents: h } => {
-                        (0..8).map(|k| Point3::new(if k & 1 == 0 { -h[0] } else { h[0] }, if k & 2 == 0 { -h[1] } else { h[1] }, if k & 4 == 0 { -h[2] } else { h[2] })).collect()
-                    }
+                    Shape::Box { half_extents: h } => (0..8)
+                        .map(|k| {
+                            Point3::new(
+                                if k & 1 == 0 { -h[0] } else { h[0] },
+                                if k & 2 == 0 { -h[1] } else { h[1] },
+                                if k & 4 == 0 { -h[2] } else { h[2] },
+                            )
+                        })
+                        .collect(),
                     Shape::Sphere { radius } => vec![Point3::new(0.0, 0.0, -radius)],
                     Shape::Capsule { radius, half_length } => vec![Point3::new(0.0, 0.0, -half_length - radius)],
                     Shape::Cylinder { half_length, .. } => vec![Point3::new(0.0, 0.0, -half_length)],
@@ -126,8 +134,11 @@ fn unit_quat(q: [f64; 4]) -> UnitQuaternion<f64> {
 
 /// Foot contact points relative to the pelvis origin, in the pelvis frame, at joint angles `q`.
 fn foot_points_rel(model: &RobotModel, feet: &Feet, q: &[f64]) -> Result<[Vec<Vector3<f64>>; 2], GapError> {
-    let fk = model.fk(&GenCoords { base_pos: [0.0; 3], base_quat: [1.0, 0.0, 0.0, 0.0], q: q.to_vec() }).map_err(|e| GapError::Engine(e.to_string()))?;
-    Ok([0, 1].map(|s| feet.points[s].iter().map(|p| (fk.link_poses[feet.links[s]] * Point3::from(*p)).coords).collect()))
+    let fk = model
+        .fk(&GenCoords { base_pos: [0.0; 3], base_quat: [1.0, 0.0, 0.0, 0.0], q: q.to_vec() })
+        .map_err(|e| GapError::Engine(e.to_string()))?;
+    Ok([0, 1]
+        .map(|s| feet.points[s].iter().map(|p| (fk.link_poses[feet.links[s]] * Point3::from(*p)).coords).collect()))
 }
 
 /// What one sample says about the base and the feet.
@@ -141,7 +152,12 @@ struct SampleKinematics {
     height: [f64; 2],
 }
 
-fn sample_kinematics(model: &RobotModel, feet: &Feet, m: &Measurement, fx: &Effects) -> Result<SampleKinematics, GapError> {
+fn sample_kinematics(
+    model: &RobotModel,
+    feet: &Feet,
+    m: &Measurement,
+    fx: &Effects,
+) -> Result<SampleKinematics, GapError> {
     const EPS: f64 = 1e-6;
     let norm = m.quat.iter().map(|x| x * x).sum::<f64>().sqrt();
     if !(norm.is_finite() && norm > 1e-6) {
@@ -157,7 +173,9 @@ fn sample_kinematics(model: &RobotModel, feet: &Feet, m: &Measurement, fx: &Effe
     let w_world = r_imu * (Vector3::from(m.gyro) - Vector3::from(fx.imu_gyro_bias));
     let w_body = rb.inverse() * w_world - w_rel;
     // Height: the lowest collision point is on the ground.
-    let low = model.lowest_point_z(&GenCoords { base_pos: [0.0; 3], base_quat: [rb.w, rb.i, rb.j, rb.k], q: q.clone() }).map_err(|e| GapError::Engine(e.to_string()))?;
+    let low = model
+        .lowest_point_z(&GenCoords { base_pos: [0.0; 3], base_quat: [rb.w, rb.i, rb.j, rb.k], q: q.clone() })
+        .map_err(|e| GapError::Engine(e.to_string()))?;
     let z = -low;
     let p0 = foot_points_rel(model, feet, &q)?;
     let p1 = foot_points_rel(model, feet, &q.iter().zip(&m.dq).map(|(a, b)| a + b * EPS).collect::<Vec<_>>())?;
@@ -192,7 +210,12 @@ fn combine(k: &SampleKinematics, weight: [f64; 2]) -> BaseEstimate {
     }
     let rb = k.rb;
     BaseEstimate {
-        base: BaseState { pos: [0.0, 0.0, k.z], quat: [rb.w, rb.i, rb.j, rb.k], lin_vel: v.into(), ang_vel: k.w_body.into() },
+        base: BaseState {
+            pos: [0.0, 0.0, k.z],
+            quat: [rb.w, rb.i, rb.j, rb.k],
+            lin_vel: v.into(),
+            ang_vel: k.w_body.into(),
+        },
         stance: weight.map(|w| w > 0.0),
         sole_height: k.height,
         settled: true,
@@ -219,7 +242,13 @@ pub const SETTLE_S: f64 = 0.15;
 /// Estimates the pelvis state at state sample `i` of `log`: as [`estimate_base`], with each foot's stance weight
 /// the smallest of its weights now and at [`STANCE_HISTORY_S`] before (when no foot keeps a weight, the weights
 /// of sample `i` alone), and [`BaseEstimate::settled`] from the contact history over [`SETTLE_S`].
-pub fn estimate_base_at(model: &RobotModel, feet: &Feet, log: &RobotLog, i: usize, fx: &Effects) -> Result<BaseEstimate, GapError> {
+pub fn estimate_base_at(
+    model: &RobotModel,
+    feet: &Feet,
+    log: &RobotLog,
+    i: usize,
+    fx: &Effects,
+) -> Result<BaseEstimate, GapError> {
     let (k, w, settled) = contact_history(model, feet, log, i, fx)?;
     let m = &log.states[i];
     let mut est = BaseEstimate { settled, ..combine(&k, w) };
@@ -238,8 +267,17 @@ pub fn estimate_base_at(model: &RobotModel, feet: &Feet, log: &RobotLog, i: usiz
 
 /// Sample `i`'s kinematics, the feet's stance weights with their [`STANCE_HISTORY_S`] history, and whether the
 /// sample is settled.
-fn contact_history(model: &RobotModel, feet: &Feet, log: &RobotLog, i: usize, fx: &Effects) -> Result<(SampleKinematics, [f64; 2], bool), GapError> {
-    let m = log.states.get(i).ok_or_else(|| GapError::Input(format!("state {i} beyond the log's {} states", log.states.len())))?;
+fn contact_history(
+    model: &RobotModel,
+    feet: &Feet,
+    log: &RobotLog,
+    i: usize,
+    fx: &Effects,
+) -> Result<(SampleKinematics, [f64; 2], bool), GapError> {
+    let m = log
+        .states
+        .get(i)
+        .ok_or_else(|| GapError::Input(format!("state {i} beyond the log's {} states", log.states.len())))?;
     let k = sample_kinematics(model, feet, m, fx)?;
     let now = stance_weights(k.height);
     let mut w = now;
@@ -265,7 +303,14 @@ fn contact_history(model: &RobotModel, feet: &Feet, log: &RobotLog, i: usize, fx
 }
 
 /// The first settled sample in `from..until` ([`BaseEstimate::settled`]), where a window should start.
-pub fn settled_start(model: &RobotModel, feet: &Feet, log: &RobotLog, fx: &Effects, from: usize, until: usize) -> Result<Option<usize>, GapError> {
+pub fn settled_start(
+    model: &RobotModel,
+    feet: &Feet,
+    log: &RobotLog,
+    fx: &Effects,
+    from: usize,
+    until: usize,
+) -> Result<Option<usize>, GapError> {
     for i in from..until.min(log.states.len()) {
         if contact_history(model, feet, log, i, fx)?.2 {
             return Ok(Some(i));
@@ -276,7 +321,13 @@ pub fn settled_start(model: &RobotModel, feet: &Feet, log: &RobotLog, fx: &Effec
 
 /// The kinematic contact state at sample `i` (cheaper than [`estimate_base_at`]: no velocity): the feet in
 /// stance (with their [`STANCE_HISTORY_S`] history) and whether the sample is [`BaseEstimate::settled`].
-pub fn contact_state(model: &RobotModel, feet: &Feet, log: &RobotLog, i: usize, fx: &Effects) -> Result<([bool; 2], bool), GapError> {
+pub fn contact_state(
+    model: &RobotModel,
+    feet: &Feet,
+    log: &RobotLog,
+    i: usize,
+    fx: &Effects,
+) -> Result<([bool; 2], bool), GapError> {
     let (_, w, settled) = contact_history(model, feet, log, i, fx)?;
     Ok((w.map(|w| w > 0.0), settled))
 }
@@ -300,7 +351,10 @@ impl FloatingPlant {
         let mut settings = MujocoSettings { integrator: choice.integrator.clone(), ..MujocoSettings::default() };
         if let Some(tc) = fx.contact_timeconst {
             if !(tc.is_finite() && tc >= 2.0 * DT) {
-                return Err(GapError::Input(format!("contact time constant {tc} s must be at least two timesteps ({} s)", 2.0 * DT)));
+                return Err(GapError::Input(format!(
+                    "contact time constant {tc} s must be at least two timesteps ({} s)",
+                    2.0 * DT
+                )));
             }
             settings.solref[0] = tc;
         }
@@ -349,7 +403,8 @@ impl FloatingPlant {
         for k in 0..100 {
             self.step(&hold, &fx)?;
             if k >= 50 {
-                let low = model.lowest_point_z(&self.engine.state().coords()).map_err(|e| GapError::Engine(e.to_string()))?;
+                let low =
+                    model.lowest_point_z(&self.engine.state().coords()).map_err(|e| GapError::Engine(e.to_string()))?;
                 depth -= low;
                 count += 1.0;
             }
@@ -359,7 +414,14 @@ impl FloatingPlant {
 
     /// Sets the base state and the (true) joint angles and speeds.
     pub fn reset(&mut self, base: &BaseState, q: &[f64], dq: &[f64]) -> Result<(), GapError> {
-        let s = State { base_pos: base.pos, base_quat: base.quat, q: q.to_vec(), base_lin_vel: base.lin_vel, base_ang_vel: base.ang_vel, dq: dq.to_vec() };
+        let s = State {
+            base_pos: base.pos,
+            base_quat: base.quat,
+            q: q.to_vec(),
+            base_lin_vel: base.lin_vel,
+            base_ang_vel: base.ang_vel,
+            dq: dq.to_vec(),
+        };
         self.engine.reset(&s).map_err(|e| GapError::Engine(e.to_string()))
     }
 
@@ -377,9 +439,20 @@ impl FloatingPlant {
     }
 
     /// What the sensors report at the current state: joints (with the encoder offset), last motor torque, IMU.
-    fn measure(&self, model: &RobotModel, fx: &Effects, t: f64, tau: &[f64], with_imu: bool) -> Result<Measurement, GapError> {
+    fn measure(
+        &self,
+        model: &RobotModel,
+        fx: &Effects,
+        t: f64,
+        tau: &[f64],
+        with_imu: bool,
+    ) -> Result<Measurement, GapError> {
         let s = self.engine.state();
-        let imu = if with_imu { Some(imu_reading_floating(model, s.base_quat, s.base_ang_vel, &s.q, &s.dq, fx)?) } else { None };
+        let imu = if with_imu {
+            Some(imu_reading_floating(model, s.base_quat, s.base_ang_vel, &s.q, &s.dq, fx)?)
+        } else {
+            None
+        };
         Ok(sensed(t, &s.q, s.dq, tau, imu, fx))
     }
 }
@@ -416,11 +489,23 @@ pub fn predict_window_from(
     base: &BaseState,
     with_imu: bool,
 ) -> Result<Vec<Measurement>, GapError> {
-    let s0 = log.states.get(start).ok_or_else(|| GapError::Input(format!("window start {start} beyond the log's {} states", log.states.len())))?;
+    let s0 = log
+        .states
+        .get(start)
+        .ok_or_else(|| GapError::Input(format!("window start {start} beyond the log's {} states", log.states.len())))?;
     let q0 = true_joint_angles(s0, fx);
     plant.reset(base, &q0, &s0.dq)?;
     let idle = idle_command(model, &q0);
-    replay_window(plant, log, fx, start, len, &idle, |p, cmd| Ok(p.step(cmd, fx)?.to_vec()), |p, t, tau| p.measure(model, fx, t, tau, with_imu))
+    replay_window(
+        plant,
+        log,
+        fx,
+        start,
+        len,
+        &idle,
+        |p, cmd| Ok(p.step(cmd, fx)?.to_vec()),
+        |p, t, tau| p.measure(model, fx, t, tau, with_imu),
+    )
 }
 
 /// Residual of one window (logged minus predicted), as RMS over samples and joints / axes.
@@ -465,7 +550,14 @@ pub fn window_residual(model: &RobotModel, log: &RobotLog, start: usize, pred: &
     }
     let n = f64::max(n, 1.0);
     let nq = n * nj.max(1) as f64;
-    WindowResidual { q: (q / nq).sqrt(), dq: (dq / nq).sqrt(), tau: (tau / nq).sqrt(), quat: (qa / n).sqrt(), gyro: (gy / (3.0 * n)).sqrt(), score: score / n }
+    WindowResidual {
+        q: (q / nq).sqrt(),
+        dq: (dq / nq).sqrt(),
+        tau: (tau / nq).sqrt(),
+        quat: (qa / n).sqrt(),
+        gyro: (gy / (3.0 * n)).sqrt(),
+        score: score / n,
+    }
 }
 
 /// The reference ("real") floating-base plant that generates test and benchmark logs.
@@ -549,7 +641,10 @@ pub fn generate_floating_log(
         let tau = plant.step(&cmd, fx)?.to_vec();
         let s = plant.state();
         let (quat, gyro) = imu_reading_floating(model, s.base_quat, s.base_ang_vel, &s.q, &s.dq, fx)?;
-        let nq = unit_quat(quat) * UnitQuaternion::from_scaled_axis(Vector3::new(normal(&mut rng), normal(&mut rng), normal(&mut rng)) * n.quat);
+        let nq = unit_quat(quat)
+            * UnitQuaternion::from_scaled_axis(
+                Vector3::new(normal(&mut rng), normal(&mut rng), normal(&mut rng)) * n.quat,
+            );
         log.states.push(Measurement {
             t: t + DT,
             q: (0..nj).map(|j| s.q[j] + fx.encoder_offset[j] + n.q * normal(&mut rng)).collect(),

@@ -48,7 +48,8 @@ pub struct RobotLog {
 }
 
 /// The CSV form: the two files `ulab log export` writes for a recording, one row per message.
-pub const CSV_COLUMNS_DOC: &str = "rt_lowcmd.csv: `log_time_ns` and, per motor slot S, `motor_cmd[S].mode|q|dq|tau|kp|kd`; \
+pub const CSV_COLUMNS_DOC: &str =
+    "rt_lowcmd.csv: `log_time_ns` and, per motor slot S, `motor_cmd[S].mode|q|dq|tau|kp|kd`; \
 rt_lowstate.csv: `log_time_ns`, per slot `motor_state[S].q|dq|tau_est`, `imu_state.quaternion[0..4]` (w, x, y, z), \
 `imu_state.gyroscope[0..3]`, `imu_state.accelerometer[0..3]`. Other columns are ignored.";
 
@@ -78,7 +79,8 @@ impl RobotLog {
         }
         for c in &self.commands {
             let v = [&c.q, &c.dq, &c.kp, &c.kd, &c.tau];
-            if v.iter().any(|x| x.len() != nj) || v.iter().any(|x| x.iter().any(|y| !y.is_finite())) || !c.t.is_finite() {
+            if v.iter().any(|x| x.len() != nj) || v.iter().any(|x| x.iter().any(|y| !y.is_finite())) || !c.t.is_finite()
+            {
                 return Err(GapError::Log(format!("command at t = {} has wrong sizes or non-finite values", c.t)));
             }
         }
@@ -114,10 +116,12 @@ impl RobotLog {
         for (lt, is_cmd, data) in raw {
             let t = (lt - t0) as f64 * 1e-9;
             if is_cmd {
-                let d = lowlevel_codec::decode::<LowCmd_>(&data).map_err(|e| GapError::Log(format!("a LowCmd at t = {t:.3} s: {e}")))?;
+                let d = lowlevel_codec::decode::<LowCmd_>(&data)
+                    .map_err(|e| GapError::Log(format!("a LowCmd at t = {t:.3} s: {e}")))?;
                 log.commands.push(command_from_msg(t, &d.value, model)?);
             } else {
-                let d = lowlevel_codec::decode::<LowState_>(&data).map_err(|e| GapError::Log(format!("a LowState at t = {t:.3} s: {e}")))?;
+                let d = lowlevel_codec::decode::<LowState_>(&data)
+                    .map_err(|e| GapError::Log(format!("a LowState at t = {t:.3} s: {e}")))?;
                 log.states.push(measurement_from_msg(t, &d.value, model)?);
             }
         }
@@ -130,7 +134,9 @@ impl RobotLog {
     /// Writes the MCAP form `ulab record` writes.
     pub fn write_mcap<W: Write + std::io::Seek>(&self, out: W, model: &RobotModel) -> Result<(), GapError> {
         let io = |e: mcap::McapError| GapError::Io(e.to_string());
-        let opts = mcap::WriteOptions::new().library(concat!("ulab gap ", env!("CARGO_PKG_VERSION"))).chunk_size(Some(256 * 1024));
+        let opts = mcap::WriteOptions::new()
+            .library(concat!("ulab gap ", env!("CARGO_PKG_VERSION")))
+            .chunk_size(Some(256 * 1024));
         let mut w = opts.create(out).map_err(io)?;
         let mut ids = [0u16; 2];
         for (k, (topic, kind)) in
@@ -145,7 +151,8 @@ impl RobotLog {
         let (mut i, mut j, mut seq) = (0usize, 0usize, [0u32; 2]);
         let t_ns = |t: f64| (t.max(0.0) * 1e9).round() as u64 + 1_000_000_000;
         while i < self.commands.len() || j < self.states.len() {
-            let take_cmd = j >= self.states.len() || (i < self.commands.len() && self.commands[i].t <= self.states[j].t);
+            let take_cmd =
+                j >= self.states.len() || (i < self.commands.len() && self.commands[i].t <= self.states[j].t);
             let (ch, t, bytes) = if take_cmd {
                 let c = &self.commands[i];
                 i += 1;
@@ -159,7 +166,12 @@ impl RobotLog {
                 lowlevel_codec::seal(&mut m);
                 (1, s.t, lowlevel_codec::encode(&m, enc))
             };
-            let hdr = mcap::records::MessageHeader { channel_id: ids[ch], sequence: seq[ch], log_time: t_ns(t), publish_time: t_ns(t) };
+            let hdr = mcap::records::MessageHeader {
+                channel_id: ids[ch],
+                sequence: seq[ch],
+                log_time: t_ns(t),
+                publish_time: t_ns(t),
+            };
             seq[ch] = seq[ch].wrapping_add(1);
             w.write_to_known_channel(&hdr, &bytes).map_err(io)?;
         }
@@ -174,21 +186,35 @@ impl RobotLog {
         let mut log = RobotLog::default();
         let cmd_rows = csv_rows(lowcmd_csv, "rt_lowcmd.csv")?;
         let st_rows = csv_rows(lowstate_csv, "rt_lowstate.csv")?;
-        let t0 = cmd_rows.1.iter().chain(&st_rows.1).filter_map(|r| r.first().and_then(|x| x.parse::<u64>().ok())).min().unwrap_or(0);
+        let t0 = cmd_rows
+            .1
+            .iter()
+            .chain(&st_rows.1)
+            .filter_map(|r| r.first().and_then(|x| x.parse::<u64>().ok()))
+            .min()
+            .unwrap_or(0);
         let (hdr, rows) = cmd_rows;
         let col = |hdr: &[String], name: &str| -> Result<usize, GapError> {
             hdr.iter().position(|h| h == name).ok_or_else(|| GapError::Log(format!("CSV column {name} missing")))
         };
         let num = |row: &[String], k: usize, what: &str| -> Result<f64, GapError> {
-            row.get(k).and_then(|x| x.parse::<f64>().ok()).ok_or_else(|| GapError::Log(format!("CSV: {what} is not a number")))
+            row.get(k)
+                .and_then(|x| x.parse::<f64>().ok())
+                .ok_or_else(|| GapError::Log(format!("CSV: {what} is not a number")))
         };
         let time = |row: &[String], k: usize| -> Result<f64, GapError> {
-            let ns = row.get(k).and_then(|x| x.parse::<u64>().ok()).ok_or_else(|| GapError::Log("CSV: bad log_time_ns".into()))?;
+            let ns = row
+                .get(k)
+                .and_then(|x| x.parse::<u64>().ok())
+                .ok_or_else(|| GapError::Log("CSV: bad log_time_ns".into()))?;
             Ok(ns.saturating_sub(t0) as f64 * 1e-9)
         };
         let tcol = col(&hdr, "log_time_ns")?;
-        let field = |hdr: &[String], arr: &str, j: usize, f: &str| col(hdr, &element_column(arr, model.joints[j].slot, f));
-        let idx = |hdr: &[String], arr: &str, f: &str| -> Result<Vec<usize>, GapError> { (0..nj).map(|j| field(hdr, arr, j, f)).collect() };
+        let field =
+            |hdr: &[String], arr: &str, j: usize, f: &str| col(hdr, &element_column(arr, model.joints[j].slot, f));
+        let idx = |hdr: &[String], arr: &str, f: &str| -> Result<Vec<usize>, GapError> {
+            (0..nj).map(|j| field(hdr, arr, j, f)).collect()
+        };
         let (iq, idq, ikp, ikd, itau, imode) = (
             idx(&hdr, "motor_cmd", "q")?,
             idx(&hdr, "motor_cmd", "dq")?,
@@ -198,7 +224,14 @@ impl RobotLog {
             idx(&hdr, "motor_cmd", "mode")?,
         );
         for r in &rows {
-            let mut c = Command { t: time(r, tcol)?, q: vec![0.0; nj], dq: vec![0.0; nj], kp: vec![0.0; nj], kd: vec![0.0; nj], tau: vec![0.0; nj] };
+            let mut c = Command {
+                t: time(r, tcol)?,
+                q: vec![0.0; nj],
+                dq: vec![0.0; nj],
+                kp: vec![0.0; nj],
+                kd: vec![0.0; nj],
+                tau: vec![0.0; nj],
+            };
             for j in 0..nj {
                 c.q[j] = num(r, iq[j], "q")?;
                 if num(r, imode[j], "mode")? != 0.0 {
@@ -212,11 +245,22 @@ impl RobotLog {
         }
         let (hdr, rows) = st_rows;
         let tcol = col(&hdr, "log_time_ns")?;
-        let imu = |f: &str, n: usize| -> Result<Vec<usize>, GapError> { (0..n).map(|i| col(&hdr, &array_column(&format!("imu_state.{f}"), i))).collect() };
+        let imu = |f: &str, n: usize| -> Result<Vec<usize>, GapError> {
+            (0..n).map(|i| col(&hdr, &array_column(&format!("imu_state.{f}"), i))).collect()
+        };
         let (iquat, igyro, iacc) = (imu("quaternion", 4)?, imu("gyroscope", 3)?, imu("accelerometer", 3)?);
-        let (iq, idq, itau) = (idx(&hdr, "motor_state", "q")?, idx(&hdr, "motor_state", "dq")?, idx(&hdr, "motor_state", "tau_est")?);
+        let (iq, idq, itau) =
+            (idx(&hdr, "motor_state", "q")?, idx(&hdr, "motor_state", "dq")?, idx(&hdr, "motor_state", "tau_est")?);
         for r in &rows {
-            let mut m = Measurement { t: time(r, tcol)?, q: vec![0.0; nj], dq: vec![0.0; nj], tau: vec![0.0; nj], quat: [0.0; 4], gyro: [0.0; 3], acc: [0.0; 3] };
+            let mut m = Measurement {
+                t: time(r, tcol)?,
+                q: vec![0.0; nj],
+                dq: vec![0.0; nj],
+                tau: vec![0.0; nj],
+                quat: [0.0; 4],
+                gyro: [0.0; 3],
+                acc: [0.0; 3],
+            };
             for j in 0..nj {
                 m.q[j] = num(r, iq[j], "q")?;
                 m.dq[j] = num(r, idq[j], "dq")?;
@@ -241,7 +285,12 @@ impl RobotLog {
 /// Header and rows of a CSV without quoted commas (the numeric exports `ulab log export` writes).
 fn csv_rows(text: &str, name: &str) -> Result<(Vec<String>, Vec<Vec<String>>), GapError> {
     let mut lines = text.lines().filter(|l| !l.trim().is_empty());
-    let hdr: Vec<String> = lines.next().ok_or_else(|| GapError::Log(format!("{name} is empty")))?.split(',').map(|s| s.trim().to_string()).collect();
+    let hdr: Vec<String> = lines
+        .next()
+        .ok_or_else(|| GapError::Log(format!("{name} is empty")))?
+        .split(',')
+        .map(|s| s.trim().to_string())
+        .collect();
     let rows: Vec<Vec<String>> = lines.map(|l| l.split(',').map(|s| s.trim().to_string()).collect()).collect();
     Ok((hdr, rows))
 }
@@ -249,14 +298,18 @@ fn csv_rows(text: &str, name: &str) -> Result<(Vec<String>, Vec<Vec<String>>), G
 fn slot_of(model: &RobotModel, j: usize, len: usize) -> Result<usize, GapError> {
     let s = model.joints[j].slot;
     if s >= len {
-        return Err(GapError::Log(format!("joint {} has slot {s}, beyond the message's {len} motors", model.joints[j].name)));
+        return Err(GapError::Log(format!(
+            "joint {} has slot {s}, beyond the message's {len} motors",
+            model.joints[j].name
+        )));
     }
     Ok(s)
 }
 
 fn command_from_msg(t: f64, m: &LowCmd_, model: &RobotModel) -> Result<Command, GapError> {
     let nj = model.nj();
-    let mut c = Command { t, q: vec![0.0; nj], dq: vec![0.0; nj], kp: vec![0.0; nj], kd: vec![0.0; nj], tau: vec![0.0; nj] };
+    let mut c =
+        Command { t, q: vec![0.0; nj], dq: vec![0.0; nj], kp: vec![0.0; nj], kd: vec![0.0; nj], tau: vec![0.0; nj] };
     for j in 0..nj {
         let mc = &m.motor_cmd[slot_of(model, j, m.motor_cmd.len())?];
         c.q[j] = f64::from(mc.q);

@@ -225,13 +225,27 @@ impl Rig {
 /// `torque_scale` is not 1). The result is the motor torque, written to `motor` (what `tau_est` reports); the
 /// returned joint torque is that minus the extra viscous damping and Coulomb friction with stiction. `q`, `dq` are
 /// the true joint state; command latency is applied by the caller when it picks the command.
-pub fn actuator_torques(cmd: &Command, fx: &Effects, q: &[f64], dq: &[f64], torque_limit: &[f64], speed_limit: &[f64], motor: &mut [f64]) -> Vec<f64> {
+pub fn actuator_torques(
+    cmd: &Command,
+    fx: &Effects,
+    q: &[f64],
+    dq: &[f64],
+    torque_limit: &[f64],
+    speed_limit: &[f64],
+    motor: &mut [f64],
+) -> Vec<f64> {
     for j in 0..motor.len() {
         let qm = q[j] + fx.encoder_offset[j];
         let g = fx.gain_scale[j];
         let mut e = cmd.q[j] - qm;
         let half = 0.5 * fx.backlash[j];
-        e = if e > half { e - half } else if e < -half { e + half } else { 0.0 };
+        e = if e > half {
+            e - half
+        } else if e < -half {
+            e + half
+        } else {
+            0.0
+        };
         let raw = cmd.tau[j] + g * cmd.kp[j] * e + g * cmd.kd[j] * (cmd.dq[j] - dq[j]);
         let mut lim = torque_limit[j];
         if fx.torque_scale[j] != 1.0 {
@@ -253,7 +267,11 @@ pub fn actuator_torques(cmd: &Command, fx: &Effects, q: &[f64], dq: &[f64], torq
 /// pelvis for joint speeds `dq`, in the pelvis frame (finite difference of the kinematics). The one place of the
 /// torso-IMU-to-pelvis kinematics: the IMU model below and the floating-base estimate
 /// ([`crate::floating::estimate_base`]) both use it.
-pub fn imu_site_relative(model: &RobotModel, q: &[f64], dq: &[f64]) -> Result<(UnitQuaternion<f64>, Vector3<f64>), GapError> {
+pub fn imu_site_relative(
+    model: &RobotModel,
+    q: &[f64],
+    dq: &[f64],
+) -> Result<(UnitQuaternion<f64>, Vector3<f64>), GapError> {
     const EPS: f64 = 1e-6;
     let [w, x, y, z] = model.imu.quat;
     let site = nalgebra::Isometry3::from_parts(
@@ -280,7 +298,14 @@ pub fn imu_reading(model: &RobotModel, q: &[f64], dq: &[f64], fx: &Effects) -> R
 
 /// IMU reading for a free pelvis: orientation `base_quat` (`[w, x, y, z]`, pelvis-to-world) and angular velocity
 /// `base_ang_vel` (pelvis frame), as [`imu_reading`] otherwise.
-pub fn imu_reading_floating(model: &RobotModel, base_quat: [f64; 4], base_ang_vel: [f64; 3], q: &[f64], dq: &[f64], fx: &Effects) -> Result<([f64; 4], [f64; 3]), GapError> {
+pub fn imu_reading_floating(
+    model: &RobotModel,
+    base_quat: [f64; 4],
+    base_ang_vel: [f64; 3],
+    q: &[f64],
+    dq: &[f64],
+    fx: &Effects,
+) -> Result<([f64; 4], [f64; 3]), GapError> {
     let (rel, w_rel) = imu_site_relative(model, q, dq)?;
     let [w, x, y, z] = base_quat;
     let rb = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(w, x, y, z));
@@ -302,9 +327,24 @@ pub(crate) fn true_joint_angles(s: &Measurement, fx: &Effects) -> Vec<f64> {
 
 /// What the sensors report at time `t` for true joint state `(q, dq)`: encoder angles (offset added), speeds, the
 /// last motor torque and the IMU reading (identity and zero when not simulated).
-pub(crate) fn sensed(t: f64, q: &[f64], dq: Vec<f64>, tau: &[f64], imu: Option<([f64; 4], [f64; 3])>, fx: &Effects) -> Measurement {
+pub(crate) fn sensed(
+    t: f64,
+    q: &[f64],
+    dq: Vec<f64>,
+    tau: &[f64],
+    imu: Option<([f64; 4], [f64; 3])>,
+    fx: &Effects,
+) -> Measurement {
     let (quat, gyro) = imu.unwrap_or(([1.0, 0.0, 0.0, 0.0], [0.0; 3]));
-    Measurement { t, q: q.iter().zip(&fx.encoder_offset).map(|(q, o)| q + o).collect(), dq, tau: tau.to_vec(), quat, gyro, acc: [0.0; 3] }
+    Measurement {
+        t,
+        q: q.iter().zip(&fx.encoder_offset).map(|(q, o)| q + o).collect(),
+        dq,
+        tau: tau.to_vec(),
+        quat,
+        gyro,
+        acc: [0.0; 3],
+    }
 }
 
 /// Replays `log`'s commands from the measured state at state index `start` for `len` state samples; returns the
@@ -321,11 +361,20 @@ pub fn predict_window(
     let s0 = &log.states[start];
     let q0 = true_joint_angles(s0, fx);
     rig.reset(&q0, &s0.dq)?;
-    replay_window(rig, log, fx, start, len, &idle_command(model, &q0), |rig, cmd| rig.step(cmd, fx).map(<[f64]>::to_vec), |rig, t, tau| {
-        let (q, dq) = rig.joints();
-        let imu = if with_imu { Some(imu_reading(model, &q, &dq, fx)?) } else { None };
-        Ok(sensed(t, &q, dq, tau, imu, fx))
-    })
+    replay_window(
+        rig,
+        log,
+        fx,
+        start,
+        len,
+        &idle_command(model, &q0),
+        |rig, cmd| rig.step(cmd, fx).map(<[f64]>::to_vec),
+        |rig, t, tau| {
+            let (q, dq) = rig.joints();
+            let imu = if with_imu { Some(imu_reading(model, &q, &dq, fx)?) } else { None };
+            Ok(sensed(t, &q, dq, tau, imu, fx))
+        },
+    )
 }
 
 /// The replay loop every plant shares: from state sample `start`, steps `plant` (`step` returns the motor torque)
@@ -342,7 +391,10 @@ pub(crate) fn replay_window<P>(
     mut step: impl FnMut(&mut P, &Command) -> Result<Vec<f64>, GapError>,
     mut measure: impl FnMut(&mut P, f64, &[f64]) -> Result<Measurement, GapError>,
 ) -> Result<Vec<Measurement>, GapError> {
-    let s0 = log.states.get(start).ok_or_else(|| GapError::Input(format!("window start {start} beyond the log's {} states", log.states.len())))?;
+    let s0 = log
+        .states
+        .get(start)
+        .ok_or_else(|| GapError::Input(format!("window start {start} beyond the log's {} states", log.states.len())))?;
     let mut out = Vec::with_capacity(len);
     let mut t = s0.t;
     let mut last_tau = s0.tau.clone();

@@ -20,7 +20,11 @@ fn share_table(title: &str, v: &[Share], top: usize) -> String {
 pub fn markdown(r: &Report) -> String {
     let mut s = format!("# Sim-to-real gap diagnosis ({})\n\n", r.robot);
     let floating = r.plant == crate::diagnose::PlantKind::Floating;
-    let plant = if floating { "on flat ground (floating base, plant `floating`)" } else { "on the suspension rig (plant `rig`)" };
+    let plant = if floating {
+        "on flat ground (floating base, plant `floating`)"
+    } else {
+        "on the suspension rig (plant `rig`)"
+    };
     s += &format!(
         "Simulator: `{}` {plant}. Log: {:.1} s; {} training and {} held-out windows of {:.3} s. \
          Gap metric = mean normalised squared residual per window (q / 2 mrad, dq / 0.1 rad/s, tau / 1 % of the limit, IMU), \
@@ -165,7 +169,9 @@ fn bar_chart(path: &Path, title: &str, items: &[(String, f64)], floor: Option<f6
         }))
         .map_err(|e| io(e.to_string()))?;
     if let Some(f) = floor {
-        chart.draw_series(std::iter::once(PathElement::new(vec![(f, 0), (f, n)], RED))).map_err(|e| io(e.to_string()))?;
+        chart
+            .draw_series(std::iter::once(PathElement::new(vec![(f, 0), (f, n)], RED)))
+            .map_err(|e| io(e.to_string()))?;
     }
     root.present().map_err(|e| io(e.to_string()))?;
     Ok(())
@@ -174,13 +180,20 @@ fn bar_chart(path: &Path, title: &str, items: &[(String, f64)], floor: Option<f6
 /// Writes `report.md`, `report.json`, `by_joint.svg` and `effects.svg` into `dir`.
 pub fn write_all(r: &Report, dir: &Path) -> Result<(), GapError> {
     std::fs::create_dir_all(dir).map_err(|e| GapError::Io(format!("{}: {e}", dir.display())))?;
-    let w = |name: &str, text: String| std::fs::write(dir.join(name), text).map_err(|e| GapError::Io(format!("{name}: {e}")));
+    let w = |name: &str, text: String| {
+        std::fs::write(dir.join(name), text).map_err(|e| GapError::Io(format!("{name}: {e}")))
+    };
     w("report.md", markdown(r))?;
     w("report.json", serde_json::to_string_pretty(r).map_err(|e| GapError::Io(e.to_string()))?)?;
     let joints: Vec<(String, f64)> = r.by_joint.iter().map(|s| (s.name.clone(), s.residual)).collect();
     bar_chart(&dir.join("by_joint.svg"), "Baseline residual by joint (mean normalised)", &joints, None)?;
     let eff: Vec<(String, f64)> = r.effects.iter().map(|e| (e.kind.name().to_string(), e.reduction.value)).collect();
     let floor = r.effects.iter().map(|e| e.noise_floor).fold(0.0, f64::max);
-    bar_chart(&dir.join("effects.svg"), "Held-out relative reduction per effect (red: noise floor)", &eff, Some(floor))?;
+    bar_chart(
+        &dir.join("effects.svg"),
+        "Held-out relative reduction per effect (red: noise floor)",
+        &eff,
+        Some(floor),
+    )?;
     Ok(())
 }

@@ -157,7 +157,11 @@ impl LegChains {
 pub fn foot_load(model: &RobotModel, legs: &LegChains, s: &Measurement) -> Result<f64, GapError> {
     let nj = model.nj();
     if s.tau.len() != nj || s.q.len() != nj || s.dq.len() != nj {
-        return Err(GapError::Log(format!("a state has {} joint angles and {} torques for a {nj}-joint model", s.q.len(), s.tau.len())));
+        return Err(GapError::Log(format!(
+            "a state has {} joint angles and {} torques for a {nj}-joint model",
+            s.q.len(),
+            s.tau.len()
+        )));
     }
     let c = GenCoords { base_pos: RIG_BASE_POS, base_quat: [1.0, 0.0, 0.0, 0.0], q: s.q.clone() };
     let mut v = vec![0.0; model.nv()];
@@ -207,7 +211,11 @@ pub fn check(model: &RobotModel, log: &RobotLog) -> Result<RigCheck, GapError> {
         let v = r.as_ref().coords;
         acc += if v.dot(&rel[0].as_ref().coords) < 0.0 { -v } else { v };
     }
-    let m = if acc.norm() > 0.0 { UnitQuaternion::from_quaternion(Quaternion::from(acc)) } else { UnitQuaternion::identity() };
+    let m = if acc.norm() > 0.0 {
+        UnitQuaternion::from_quaternion(Quaternion::from(acc))
+    } else {
+        UnitQuaternion::identity()
+    };
     let rot_dev: Vec<Vector3<f64>> = rel.iter().map(|r| (m.inverse() * r).scaled_axis()).collect();
     // Gyro: measured = M⁻¹ · predicted + bias.
     let gyro_res: Vec<Vector3<f64>> =
@@ -265,7 +273,12 @@ pub fn check(model: &RobotModel, log: &RobotLog) -> Result<RigCheck, GapError> {
         (true, Ok(feet)) => {
             let weight = model.total_mass() * g;
             let legs = LegChains::of(model, &feet);
-            let loads = log.states.iter().step_by(FOOT_LOAD_STRIDE).map(|s| foot_load(model, &legs, s).map(|f| f / weight)).collect::<Result<Vec<_>, _>>()?;
+            let loads = log
+                .states
+                .iter()
+                .step_by(FOOT_LOAD_STRIDE)
+                .map(|s| foot_load(model, &legs, s).map(|f| f / weight))
+                .collect::<Result<Vec<_>, _>>()?;
             Some(median(loads))
         }
         _ => None,
@@ -273,8 +286,13 @@ pub fn check(model: &RobotModel, log: &RobotLog) -> Result<RigCheck, GapError> {
     let loaded = foot_load_fraction.is_some_and(|f| f > MAX_FOOT_LOAD_FRACTION);
     let suspended = frac <= MAX_VIOLATING_FRACTION && !beyond_const && !loaded;
     let deg = |r: f64| r.to_degrees();
-    let (p95r, maxr, p95g, maxg, p95a) =
-        (percentile(&rn, 0.95), rn.iter().copied().fold(0.0, f64::max), percentile(&gn, 0.95), gn.iter().copied().fold(0.0, f64::max), percentile(&an, 0.95));
+    let (p95r, maxr, p95g, maxg, p95a) = (
+        percentile(&rn, 0.95),
+        rn.iter().copied().fold(0.0, f64::max),
+        percentile(&gn, 0.95),
+        gn.iter().copied().fold(0.0, f64::max),
+        percentile(&an, 0.95),
+    );
     let message = if suspended {
         format!(
             "consistent with a suspended robot: torso IMU follows the joints within {:.1} deg / {:.2} rad/s on {:.1} % of samples (allowed {:.0} %){}",

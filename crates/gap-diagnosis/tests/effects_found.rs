@@ -49,17 +49,28 @@ fn run(fx: Effects, seed: u64) -> Report {
 fn check(kind: EffectKind, unit: &str, value: f64, report_unit: &str, report_value: f64) {
     let m = model();
     let r = run(inject(&m, kind, unit, value), 11);
-    let summary: Vec<String> = r.effects.iter().map(|e| format!("{}:{}:{:.3}", e.kind.name(), e.named, e.reduction.value)).collect();
+    let summary: Vec<String> =
+        r.effects.iter().map(|e| format!("{}:{}:{:.3}", e.kind.name(), e.named, e.reduction.value)).collect();
     assert_eq!(r.ranked.first(), Some(&kind), "ranking {:?}; effects {summary:?}", r.ranked);
     let e = r.effects.iter().find(|e| e.kind == kind).expect("effect result");
-    let top = e.params.iter().max_by(|a, b| a.held_out_reduction.total_cmp(&b.held_out_reduction)).expect("a fitted unit");
+    let top =
+        e.params.iter().max_by(|a, b| a.held_out_reduction.total_cmp(&b.held_out_reduction)).expect("a fitted unit");
     if kind.scope() == Scope::Imu {
         let p = e.params.iter().find(|p| p.unit == report_unit).expect("axis");
-        assert!((p.value - report_value).abs() < 0.2 * report_value.abs(), "{} fitted {} vs {report_value}", kind.name(), p.value);
+        assert!(
+            (p.value - report_value).abs() < 0.2 * report_value.abs(),
+            "{} fitted {} vs {report_value}",
+            kind.name(),
+            p.value
+        );
     } else {
         assert_eq!(top.unit, report_unit, "{} attributed to {} ({:?})", kind.name(), top.unit, e.params);
-        assert!((top.value - report_value).abs() <= 0.25 * (report_value - kind.range().2).abs() + 1e-9,
-            "{} fitted {} vs true {report_value}", kind.name(), top.value);
+        assert!(
+            (top.value - report_value).abs() <= 0.25 * (report_value - kind.range().2).abs() + 1e-9,
+            "{} fitted {} vs true {report_value}",
+            kind.name(),
+            top.value
+        );
     }
     assert!(e.reduction.lo > e.noise_floor);
 }

@@ -10,11 +10,11 @@ use common::{lstm_policy, model, shared_set};
 use gap_diagnosis::bench::generate_walking_log;
 use gap_diagnosis::diagnose::{EFFECT_FLOOR_FRAC, SIGMA_DQ, SIGMA_Q};
 use gap_diagnosis::floating::{
-    estimate_base, estimate_base_at, predict_window, predict_window_from, settled_start, window_residual, BaseState, Feet, FloatingLog,
-    FloatingPlant, WindowResidual,
+    estimate_base, estimate_base_at, predict_window, predict_window_from, settled_start, window_residual, BaseState,
+    Feet, FloatingLog, FloatingPlant, WindowResidual,
 };
 use gap_diagnosis::log::Measurement;
-use gap_diagnosis::plant::{joint_groups, EngineChoice, Effects, DT};
+use gap_diagnosis::plant::{joint_groups, Effects, EngineChoice, DT};
 use robot_model::RobotModel;
 use std::sync::OnceLock;
 
@@ -53,7 +53,10 @@ fn settled_starts(log: &FloatingLog) -> Vec<usize> {
     let m = model();
     let feet = Feet::of(&m).expect("feet");
     let fx = Effects::none(m.nj());
-    nominal_starts(log).into_iter().filter_map(|s| settled_start(&m, &feet, &log.log, &fx, s, s + WINDOW_STATES).expect("estimate")).collect()
+    nominal_starts(log)
+        .into_iter()
+        .filter_map(|s| settled_start(&m, &feet, &log.log, &fx, s, s + WINDOW_STATES).expect("estimate"))
+        .collect()
 }
 
 fn mean(x: impl Iterator<Item = f64>) -> f64 {
@@ -70,9 +73,11 @@ fn residuals(log: &FloatingLog, starts: &[usize]) -> (Vec<WindowResidual>, Vec<W
     let mut plant = FloatingPlant::new(&m, &diagnosing(), &fx).expect("plant");
     let (mut tr, mut es) = (Vec::new(), Vec::new());
     for &s in starts {
-        let p = predict_window_from(&mut plant, &m, &log.log, &fx, s, WINDOW_STATES, &log.truth[s], true).expect("true-base window");
+        let p = predict_window_from(&mut plant, &m, &log.log, &fx, s, WINDOW_STATES, &log.truth[s], true)
+            .expect("true-base window");
         tr.push(window_residual(&m, &log.log, s, &p));
-        let p = predict_window(&mut plant, &m, &feet, &log.log, &fx, s, WINDOW_STATES, true).expect("estimated-base window");
+        let p = predict_window(&mut plant, &m, &feet, &log.log, &fx, s, WINDOW_STATES, true)
+            .expect("estimated-base window");
         es.push(window_residual(&m, &log.log, s, &p));
     }
     (tr, es)
@@ -141,7 +146,11 @@ fn check_windows(name: &str, log: &FloatingLog) {
     print_residuals(&format!("{name}, estimated base, settled starts"), &es);
     print_residuals(&format!("{name}, estimated base, nominal starts"), &es_nominal);
     // Most of a gait is away from touchdown transients, so most windows can start settled.
-    assert!(settled[4] > 0.5 && starts.len() * 2 > nominal_starts(log).len(), "{name}: too few settled samples ({:.2})", settled[4]);
+    assert!(
+        settled[4] > 0.5 && starts.len() * 2 > nominal_starts(log).len(),
+        "{name}: too few settled samples ({:.2})",
+        settled[4]
+    );
     // Settled samples: height (kinematic, rigid ground) within the soft-contact penetration scale (5 mm), velocity
     // within 10 % of the 0.5 m/s walking speed, orientation within a few IMU noise levels (5e-4 rad per axis),
     // angular velocity well below the 0.1 rad/s a policy responds to.
@@ -173,14 +182,20 @@ fn imu_to_pelvis_agrees_with_the_waist_formula() {
         let r = nalgebra::UnitQuaternion::from_scaled_axis(axis);
         let quat = [r.w, r.i, r.j, r.k];
         let gyro = [0.5 * x.sin(), -0.3 * x.cos(), 0.2 * (2.0 * x).sin()];
-        let meas = Measurement { t: 0.0, q: q.clone(), dq: dq.clone(), tau: vec![0.0; m.nj()], quat, gyro, acc: [0.0; 3] };
+        let meas =
+            Measurement { t: 0.0, q: q.clone(), dq: dq.clone(), tau: vec![0.0; m.nj()], quat, gyro, acc: [0.0; 3] };
         let est = estimate_base(&m, &feet, &meas, &fx).expect("estimate").base;
         let want = policy_runtime::pelvis_imu_from_torso(quat, gyro, q[waist], dq[waist]);
         let ang = diff_physics::engine::quat_angle(est.quat, want.quat);
         assert!(ang < 1e-9, "pose {k}: orientation differs by {ang} rad");
         for a in 0..3 {
             // The estimate differentiates the kinematics numerically (step 1e-6 rad): 1e-5 rad/s is far below gyro noise.
-            assert!((est.ang_vel[a] - want.ang_vel[a]).abs() < 1e-5, "pose {k} axis {a}: {:?} vs {:?}", est.ang_vel, want.ang_vel);
+            assert!(
+                (est.ang_vel[a] - want.ang_vel[a]).abs() < 1e-5,
+                "pose {k} axis {a}: {:?} vs {:?}",
+                est.ang_vel,
+                want.ang_vel
+            );
         }
     }
 }
@@ -285,7 +300,12 @@ fn held_out_fit(log: &FloatingLog, grid: &[f64], set: &dyn Fn(&mut Effects, f64)
             })
             .collect()
     };
-    let best = grid.iter().copied().map(|v| (v, mean(scores(v, &train).into_iter()))).min_by(|a, b| a.1.total_cmp(&b.1)).expect("grid");
+    let best = grid
+        .iter()
+        .copied()
+        .map(|v| (v, mean(scores(v, &train).into_iter())))
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .expect("grid");
     let base = scores(grid[0], &test);
     let after = mean(scores(best.0, &test).into_iter());
     Fit { value: best.0, reduction: 1.0 - after / mean(base.iter().copied()), floor: noise_floor(&base) }
@@ -317,8 +337,17 @@ fn identifiability(name: &str, injected: f64, grid: &[f64], set: &dyn Fn(&mut Ef
         100.0 * control.reduction,
         100.0 * control.floor
     );
-    assert!(fit.reduction > fit.floor, "{name}: held-out reduction {:.3} does not clear the floor {:.3}", fit.reduction, fit.floor);
-    assert!(control.reduction <= control.floor, "{name}: fitted on the no-effect log, it cuts the held-out residual by {:.3}", control.reduction);
+    assert!(
+        fit.reduction > fit.floor,
+        "{name}: held-out reduction {:.3} does not clear the floor {:.3}",
+        fit.reduction,
+        fit.floor
+    );
+    assert!(
+        control.reduction <= control.floor,
+        "{name}: fitted on the no-effect log, it cuts the held-out residual by {:.3}",
+        control.reduction
+    );
     Some(fit)
 }
 
@@ -331,7 +360,9 @@ fn within_one_step(fit: f64, injected: f64, step: f64) -> bool {
 fn identifiability_leg_damping() {
     let m = model();
     let leg = left_leg(&m);
-    if let Some(f) = identifiability("left-leg damping (N·m·s/rad)", 3.0, &[0.0, 1.0, 2.0, 3.0, 4.0], &|fx, v| leg.iter().for_each(|&j| fx.damping[j] = v)) {
+    if let Some(f) = identifiability("left-leg damping (N·m·s/rad)", 3.0, &[0.0, 1.0, 2.0, 3.0, 4.0], &|fx, v| {
+        leg.iter().for_each(|&j| fx.damping[j] = v)
+    }) {
         assert!(within_one_step(f.value, 3.0, 1.0), "fitted {}", f.value);
     }
 }
@@ -340,7 +371,9 @@ fn identifiability_leg_damping() {
 fn identifiability_leg_mass() {
     let m = model();
     let leg = left_leg(&m);
-    if let Some(f) = identifiability("left-leg link mass (x)", 1.5, &[1.0, 1.25, 1.5, 1.75], &|fx, v| leg.iter().for_each(|&j| fx.mass_scale[j] = v)) {
+    if let Some(f) = identifiability("left-leg link mass (x)", 1.5, &[1.0, 1.25, 1.5, 1.75], &|fx, v| {
+        leg.iter().for_each(|&j| fx.mass_scale[j] = v)
+    }) {
         assert!(within_one_step(f.value, 1.5, 0.25), "fitted {}", f.value);
     }
 }
@@ -348,14 +381,18 @@ fn identifiability_leg_mass() {
 #[test]
 fn identifiability_contact_friction() {
     // Less grip than modelled makes the stance foot slip; the fit must at least say "less grip".
-    if let Some(f) = identifiability("contact friction (coefficient)", 0.3, &[1.0, 0.3, 0.5, 0.7], &|fx, v| fx.contact_friction = Some(v)) {
+    if let Some(f) = identifiability("contact friction (coefficient)", 0.3, &[1.0, 0.3, 0.5, 0.7], &|fx, v| {
+        fx.contact_friction = Some(v)
+    }) {
         assert!(f.value < 1.0, "fitted {}", f.value);
     }
 }
 
 #[test]
 fn identifiability_contact_stiffness() {
-    if let Some(f) = identifiability("contact time constant (s)", 0.04, &[0.02, 0.01, 0.03, 0.04, 0.05], &|fx, v| fx.contact_timeconst = Some(v)) {
+    if let Some(f) = identifiability("contact time constant (s)", 0.04, &[0.02, 0.01, 0.03, 0.04, 0.05], &|fx, v| {
+        fx.contact_timeconst = Some(v)
+    }) {
         assert!(within_one_step(f.value, 0.04, 0.01), "fitted {}", f.value);
     }
 }

@@ -3,8 +3,8 @@
 //! the diagnosis choosing the floating plant by itself, and a large leg damping scored top-1 against the label that
 //! was injected. The walking trial needs `$ULAB_SHARED` for the policy weights (skips without it).
 use gap_diagnosis::bench::{
-    draw_floating_trial, fell_at, injectable_floating, open, run_floating_trial_drawn, seal, trial_plan, trial_salt, BenchOptions, Injected,
-    InputKind, Labels, Seal,
+    draw_floating_trial, fell_at, injectable_floating, open, run_floating_trial_drawn, seal, trial_plan, trial_salt,
+    BenchOptions, Injected, InputKind, Labels, Seal,
 };
 use gap_diagnosis::diagnose::PlantKind;
 use gap_diagnosis::effects::Scope;
@@ -57,7 +57,10 @@ fn draws_cover_the_ground_kinds_on_the_legs() {
         let (_, again) = draw_floating_trial(&m, i, 1, 0);
         assert_eq!(again, labels, "the draw is deterministic");
         let (_, redrawn) = draw_floating_trial(&m, i, 1, 1);
-        assert_eq!(redrawn.injected.iter().map(|x| x.kind).collect::<Vec<_>>(), labels.injected.iter().map(|x| x.kind).collect::<Vec<_>>());
+        assert_eq!(
+            redrawn.injected.iter().map(|x| x.kind).collect::<Vec<_>>(),
+            labels.injected.iter().map(|x| x.kind).collect::<Vec<_>>()
+        );
         if !labels.injected.is_empty() {
             assert_ne!(redrawn, labels, "a redraw must change the magnitudes");
         }
@@ -93,8 +96,12 @@ fn leg_damping_trial_is_sealed_diagnosed_on_the_floating_plant_and_scored_top1()
         return;
     }
     let m = model();
-    let spec = PolicySpec::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../../robots/h1_2/policies/unitree_rl_gym_lstm.toml")).expect("LSTM policy spec");
-    let opts = BenchOptions { trials: 1, seed: 1, duration: 4.0, diagnose: DiagnoseOptions::default(), policies: vec![spec] };
+    let spec = PolicySpec::load(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("../../robots/h1_2/policies/unitree_rl_gym_lstm.toml"),
+    )
+    .expect("LSTM policy spec");
+    let opts =
+        BenchOptions { trials: 1, seed: 1, duration: 4.0, diagnose: DiagnoseOptions::default(), policies: vec![spec] };
     let groups = joint_groups(&m);
     let injected = vec![Injected { kind: EffectKind::Damping, unit: "left_leg".into(), value: 3.0 }];
     // The first draw takes the PD gains off both legs, so the robot collapses and the runner must redraw; the
@@ -105,7 +112,8 @@ fn leg_damping_trial_is_sealed_diagnosed_on_the_floating_plant_and_scored_top1()
         let mut fx = Effects::none(m.nj());
         if attempt == 0 {
             (0..m.nj()).filter(|&j| groups[j] <= 1).for_each(|j| fx.gain_scale[j] = 0.0);
-            let limp = (0..2).map(|g| Injected { kind: EffectKind::GainScale, unit: GROUPS[g].into(), value: 0.0 }).collect();
+            let limp =
+                (0..2).map(|g| Injected { kind: EffectKind::GainScale, unit: GROUPS[g].into(), value: 0.0 }).collect();
             return (fx, Labels { trial: 0, injected: limp });
         }
         (0..m.nj()).filter(|&j| groups[j] == 0).for_each(|j| fx.damping[j] = 3.0);
@@ -118,7 +126,13 @@ fn leg_damping_trial_is_sealed_diagnosed_on_the_floating_plant_and_scored_top1()
         Ok::<_, gap_diagnosis::GapError>(log.clone())
     };
     let (sealed, score, report) = run_floating_trial_drawn(&m, 0, &opts, &mut draw, &mut on_log).expect("trial");
-    eprintln!("{} -> ranked {:?}, units {:?}, param errors {:?}", score.policy.clone().unwrap_or_default(), score.ranked, score.attributed_units, score.param_errors);
+    eprintln!(
+        "{} -> ranked {:?}, units {:?}, param errors {:?}",
+        score.policy.clone().unwrap_or_default(),
+        score.ranked,
+        score.attributed_units,
+        score.param_errors
+    );
 
     assert_eq!(attempts, vec![0, 1], "one redraw after the fall");
     assert_eq!(sealed_before.len(), 1, "on_log runs once, before the diagnosis");

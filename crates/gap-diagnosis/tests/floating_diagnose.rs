@@ -54,7 +54,11 @@ fn run(fx: Effects, seed: u64) -> Report {
             e.note.clone().unwrap_or_default()
         );
     }
-    eprintln!("  ranked {:?}; phases {:?}", r.ranked, r.by_phase.iter().map(|s| (&s.name, s.windows)).collect::<Vec<_>>());
+    eprintln!(
+        "  ranked {:?}; phases {:?}",
+        r.ranked,
+        r.by_phase.iter().map(|s| (&s.name, s.windows)).collect::<Vec<_>>()
+    );
     assert_eq!(r.plant, PlantKind::Floating, "a walking log fails the rig check: {}", r.rig_check.message);
     r
 }
@@ -144,8 +148,12 @@ fn windows_with_the_robot_down_are_dropped() {
     let fell = fell_at(&log).expect("half gains on the legs make the robot fall");
     let t_fall = log.log.states[fell].t;
     assert!((1.0..3.0).contains(&t_fall), "the robot must fall mid-log, fell at {t_fall} s");
-    let r = diagnose(&m, &log.log, &DiagnoseOptions { block_s: 0.5, ..Default::default() }).expect("diagnose the part before the fall");
-    eprintln!("fell at {t_fall:.2} s; {} + {} windows, {} unsettled, {} down", r.windows_train, r.windows_held_out, r.windows_unsettled, r.windows_down);
+    let r = diagnose(&m, &log.log, &DiagnoseOptions { block_s: 0.5, ..Default::default() })
+        .expect("diagnose the part before the fall");
+    eprintln!(
+        "fell at {t_fall:.2} s; {} + {} windows, {} unsettled, {} down",
+        r.windows_train, r.windows_held_out, r.windows_unsettled, r.windows_down
+    );
     assert_eq!(r.plant, PlantKind::Floating);
     // 50 nominal windows of 0.1 s; the robot is down from about 1.8 s on, so more than half are dropped for it.
     let total = r.windows_train + r.windows_held_out + r.windows_unsettled + r.windows_down;
@@ -158,6 +166,7 @@ fn windows_with_the_robot_down_are_dropped() {
         commands: log.log.commands.iter().filter(|c| c.t >= after).cloned().collect(),
         states: log.log.states.iter().filter(|s| s.t >= after).cloned().collect(),
     };
-    let err = diagnose(&m, &down_only, &DiagnoseOptions { block_s: 0.5, ..Default::default() }).expect_err("a log of a fallen robot");
+    let err = diagnose(&m, &down_only, &DiagnoseOptions { block_s: 0.5, ..Default::default() })
+        .expect_err("a log of a fallen robot");
     assert!(err.to_string().contains("the robot is down"), "{err}");
 }

@@ -42,8 +42,15 @@ fn policy_driven_log_moves_the_legs_and_the_diagnosis_finds_leg_damping() {
     let legs: Vec<usize> = (0..m.nj()).filter(|&j| groups[j] <= 1).collect();
     let arms: Vec<usize> = (0..m.nj()).filter(|&j| groups[j] >= 3).collect();
     let differs = |j: usize| log.commands.iter().zip(&plan.commands).any(|(a, b)| (a.q[j] - b.q[j]).abs() > 1e-3);
-    assert!(legs.iter().all(|&j| differs(j) || m.joints[j].motor_name.contains("ankle_roll")), "legs not driven by the policy");
-    assert!(arms.iter().all(|&j| log.commands.iter().zip(&plan.commands).all(|(a, b)| (a.q[j] - b.q[j]).abs() < 1e-12)));
+    assert!(
+        legs.iter().all(|&j| differs(j) || m.joints[j].motor_name.contains("ankle_roll")),
+        "legs not driven by the policy"
+    );
+    assert!(arms.iter().all(|&j| log
+        .commands
+        .iter()
+        .zip(&plan.commands)
+        .all(|(a, b)| (a.q[j] - b.q[j]).abs() < 1e-12)));
     for c in &log.commands {
         for &j in &legs {
             assert!(c.q[j] >= m.joints[j].lower && c.q[j] <= m.joints[j].upper);

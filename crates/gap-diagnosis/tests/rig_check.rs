@@ -19,11 +19,19 @@ fn model() -> RobotModel {
 /// the given world acceleration of the IMU point.
 fn floating_imu(model: &RobotModel, s: &State) -> (UnitQuaternion<f64>, Vector3<f64>, Vector3<f64>) {
     let [w, x, y, z] = model.imu.quat;
-    let site = Isometry3::from_parts(Translation3::from(Vector3::from(model.imu.pos)), UnitQuaternion::from_quaternion(Quaternion::new(w, x, y, z)));
+    let site = Isometry3::from_parts(
+        Translation3::from(Vector3::from(model.imu.pos)),
+        UnitQuaternion::from_quaternion(Quaternion::new(w, x, y, z)),
+    );
     let pose = |c: &GenCoords| model.fk(c).expect("fk").link_poses[model.imu.link] * site;
     let c0 = GenCoords { base_pos: s.base_pos, base_quat: s.base_quat, q: s.q.clone() };
     const EPS: f64 = 1e-6;
-    let base = UnitQuaternion::from_quaternion(Quaternion::new(s.base_quat[0], s.base_quat[1], s.base_quat[2], s.base_quat[3]));
+    let base = UnitQuaternion::from_quaternion(Quaternion::new(
+        s.base_quat[0],
+        s.base_quat[1],
+        s.base_quat[2],
+        s.base_quat[3],
+    ));
     let b1 = base * UnitQuaternion::from_scaled_axis(Vector3::from(s.base_ang_vel) * EPS);
     let c1 = GenCoords {
         base_pos: [0, 1, 2].map(|i| s.base_pos[i] + s.base_lin_vel[i] * EPS),
@@ -53,14 +61,25 @@ fn standing_log(model: &RobotModel, duration: f64, cmd: impl Fn(f64) -> Command)
         let c = log.commands.last().expect("a command");
         let s = engine.state();
         let tau: Vec<f64> = (0..model.nj())
-            .map(|j| (c.kp[j] * (c.q[j] - s.q[j]) + c.kd[j] * (c.dq[j] - s.dq[j]) + c.tau[j]).clamp(-model.joints[j].torque_limit, model.joints[j].torque_limit))
+            .map(|j| {
+                (c.kp[j] * (c.q[j] - s.q[j]) + c.kd[j] * (c.dq[j] - s.dq[j]) + c.tau[j])
+                    .clamp(-model.joints[j].torque_limit, model.joints[j].torque_limit)
+            })
             .collect();
         engine.step(&tau).expect("step");
         let s = engine.state();
         let (r, gyro, v) = floating_imu(model, &s);
         let acc = r.inverse() * ((v - v_prev) / dt - g);
         v_prev = v;
-        log.states.push(Measurement { t: t + dt, q: s.q.clone(), dq: s.dq.clone(), tau, quat: [r.w, r.i, r.j, r.k], gyro: gyro.into(), acc: acc.into() });
+        log.states.push(Measurement {
+            t: t + dt,
+            q: s.q.clone(),
+            dq: s.dq.clone(),
+            tau,
+            quat: [r.w, r.i, r.j, r.k],
+            gyro: gyro.into(),
+            acc: acc.into(),
+        });
     }
     log
 }
@@ -117,7 +136,8 @@ fn standing_robot_swinging_its_arms_is_not_a_rig_log() {
             .enumerate()
             .map(|(j, joint)| {
                 let a = if groups[j] >= 3 { 0.2 } else { 0.0 };
-                (joint.default_q + a * (2.0 * std::f64::consts::PI * (0.5 + 0.5 * t) * t).sin()).clamp(joint.lower + 0.1, joint.upper - 0.1)
+                (joint.default_q + a * (2.0 * std::f64::consts::PI * (0.5 + 0.5 * t) * t).sin())
+                    .clamp(joint.lower + 0.1, joint.upper - 0.1)
             })
             .collect();
         Command { t, q, dq: vec![0.0; m.nj()], kp: kp.clone(), kd: kd.clone(), tau: vec![0.0; m.nj()] }
@@ -129,7 +149,10 @@ fn standing_robot_swinging_its_arms_is_not_a_rig_log() {
     let c = rig_check::check(&m, &log).expect("check");
     eprintln!("{}", c.message);
     assert!(!c.suspended, "{c:?}");
-    assert!(c.violating_fraction > rig_check::MAX_VIOLATING_FRACTION, "the IMU test alone must catch a swaying robot: {c:?}");
+    assert!(
+        c.violating_fraction > rig_check::MAX_VIOLATING_FRACTION,
+        "the IMU test alone must catch a swaying robot: {c:?}"
+    );
 }
 
 #[test]
@@ -140,7 +163,14 @@ fn robot_standing_perfectly_still_is_caught_by_its_foot_load() {
     let m = model();
     let (kp, kd) = stand_gains(&m);
     let q: Vec<f64> = m.joints.iter().map(|j| j.default_q).collect();
-    let log = standing_log(&m, 2.0, |t| Command { t, q: q.clone(), dq: vec![0.0; m.nj()], kp: kp.clone(), kd: kd.clone(), tau: vec![0.0; m.nj()] });
+    let log = standing_log(&m, 2.0, |t| Command {
+        t,
+        q: q.clone(),
+        dq: vec![0.0; m.nj()],
+        kp: kp.clone(),
+        kd: kd.clone(),
+        tau: vec![0.0; m.nj()],
+    });
     let c = rig_check::check(&m, &log).expect("check");
     eprintln!("{}", c.message);
     assert!(c.violating_fraction <= rig_check::MAX_VIOLATING_FRACTION, "the IMU cannot see a still robot: {c:?}");
@@ -185,7 +215,11 @@ fn found_despite_max(kind: EffectKind, axis: usize, value: f64) {
     let c = rig_check::check(&m, &log).expect("check");
     eprintln!("{} at {value}: {}", kind.name(), c.message);
     assert!(c.suspended, "{} at {value} tripped the rig check: {c:?}", kind.name());
-    let opts = DiagnoseOptions { block_s: 0.5, kinds: Some(vec![EffectKind::ImuBias, EffectKind::ImuMisalignment, EffectKind::Damping]), ..Default::default() };
+    let opts = DiagnoseOptions {
+        block_s: 0.5,
+        kinds: Some(vec![EffectKind::ImuBias, EffectKind::ImuMisalignment, EffectKind::Damping]),
+        ..Default::default()
+    };
     let r = diagnose(&m, &log, &opts).expect("diagnose");
     assert_eq!(r.outcome, Outcome::Diagnosed);
     assert_eq!(r.ranked.first(), Some(&kind), "ranked {:?}", r.ranked);

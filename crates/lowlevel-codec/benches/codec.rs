@@ -170,7 +170,9 @@ fn main() {
         g.bench_function("crc32fast", |b| b.iter(|| crc32fast::hash(black_box(words))));
         // The carry-less-multiply kernel alone, on bytes already in MPEG-2 (swapped) order.
         let swapped: Vec<u8> = words.chunks_exact(4).flat_map(|w| [w[3], w[2], w[1], w[0]]).collect();
-        g.bench_function("crc_fast_mpeg2_kernel_only", |b| b.iter(|| crc_fast::checksum(crc_fast::CrcAlgorithm::Crc32Mpeg2, black_box(&swapped))));
+        g.bench_function("crc_fast_mpeg2_kernel_only", |b| {
+            b.iter(|| crc_fast::checksum(crc_fast::CrcAlgorithm::Crc32Mpeg2, black_box(&swapped)))
+        });
         g.bench_function("seal_hg_lowstate", |b| b.iter(|| crc::compute(black_box(&state))));
         g.finish();
     }
@@ -181,7 +183,9 @@ fn main() {
         g.bench_function("decode_lowstate", |b| b.iter(|| cdr::decode::<hg::LowState_>(black_box(&state_bytes))));
         g.bench_function("view_lowstate", |b| b.iter(|| view::<hg::LowState_>(black_box(&state_bytes)).is_ok()));
         g.bench_function("view_lowstate_controller_read", |b| b.iter(|| controller_read(black_box(&state_bytes))));
-        g.bench_function("view_lowstate_to_owned", |b| b.iter(|| view::<hg::LowState_>(black_box(&state_bytes)).map(|v| v.to_owned())));
+        g.bench_function("view_lowstate_to_owned", |b| {
+            b.iter(|| view::<hg::LowState_>(black_box(&state_bytes)).map(|v| v.to_owned()))
+        });
         g.bench_function("encode_lowstate", |b| b.iter(|| cdr::encode(black_box(&state), Encoding::UNITREE)));
         g.bench_function("decode_lowcmd", |b| b.iter(|| cdr::decode::<hg::LowCmd_>(black_box(&cmd_bytes))));
         g.bench_function("encode_lowcmd", |b| b.iter(|| cdr::encode(black_box(&cmd), Encoding::UNITREE)));
@@ -234,29 +238,56 @@ fn main() {
         black_box(cdr::encode(black_box(&cmd), Encoding::UNITREE));
     });
     let gbps = |ns: f64| words.len() as f64 / ns;
-    println!("\n## ratio summary (median ns per call; {} B CRC image, {} B LowState, {} B LowCmd)", words.len(), state_bytes.len(), cmd_bytes.len());
+    println!(
+        "\n## ratio summary (median ns per call; {} B CRC image, {} B LowState, {} B LowCmd)",
+        words.len(),
+        state_bytes.len(),
+        cmd_bytes.len()
+    );
     println!("| measure | ns | ratio | target |");
     println!("|---|---:|---:|---|");
     println!("| CRC fast (clmul via crc-fast, word swap), {:.2} GB/s | {crc_fast:.0} | {:.1}x faster than bit-serial | >= 20x |", gbps(crc_fast), crc_ref / crc_fast);
     println!("| CRC as seal/verify run it (kernel on the word-swapped image), {:.2} GB/s | {crc_sealed:.0} | {:.2}x crc32fast, {:.0}x bit-serial | >= 0.5x, >= 20x |", gbps(crc_sealed), crc_hw / crc_sealed, crc_ref / crc_sealed);
     println!("| CRC bit-serial reference, {:.2} GB/s | {crc_ref:.0} | 1 | |", gbps(crc_ref));
-    println!("| crc32fast (hardware yardstick), {:.2} GB/s | {crc_hw:.0} | ours = {:.2}x its speed | >= 0.5x |", gbps(crc_hw), crc_hw / crc_fast);
+    println!(
+        "| crc32fast (hardware yardstick), {:.2} GB/s | {crc_hw:.0} | ours = {:.2}x its speed | >= 0.5x |",
+        gbps(crc_hw),
+        crc_hw / crc_fast
+    );
     println!("| memcpy hg LowState | {memcpy_state:.0} | 1 | |");
     println!("| decode hg LowState | {dec_state:.0} | {:.1}x memcpy | <= 4x |", dec_state / memcpy_state);
-    println!("| view hg LowState (construct = full validation) | {view_state:.1} | {:.2}x memcpy | <= 4x |", view_state / memcpy_state);
+    println!(
+        "| view hg LowState (construct = full validation) | {view_state:.1} | {:.2}x memcpy | <= 4x |",
+        view_state / memcpy_state
+    );
     println!("| view hg LowState + controller read (tick, IMU quat/gyro/accel, q/dq/tau_est x 35) | {view_read_state:.0} | {:.1}x memcpy | |", view_read_state / memcpy_state);
     println!("| (reference: the same reads from an owned hg::LowState_, no decoding) | {owned_read_state:.0} | {:.1}x memcpy | |", owned_read_state / memcpy_state);
-    println!("| view hg LowState + to_owned | {view_owned_state:.0} | {:.1}x memcpy | |", view_owned_state / memcpy_state);
+    println!(
+        "| view hg LowState + to_owned | {view_owned_state:.0} | {:.1}x memcpy | |",
+        view_owned_state / memcpy_state
+    );
     println!("| encode hg LowState | {enc_state:.0} | {:.1}x memcpy | |", enc_state / memcpy_state);
     println!("| memcpy hg LowCmd | {memcpy_cmd:.0} | 1 | |");
     println!("| decode hg LowCmd | {dec_cmd:.0} | {:.1}x memcpy | |", dec_cmd / memcpy_cmd);
     println!("| encode hg LowCmd | {enc_cmd:.0} | {:.1}x memcpy | |", enc_cmd / memcpy_cmd);
     match python_reference() {
         Some([py_enc_s, py_dec_s, py_enc_c, py_dec_c]) => {
-            println!("| Python cyclonedds encode hg LowState | {py_enc_s:.0} | ours {:.0}x faster | |", py_enc_s / enc_state);
-            println!("| Python cyclonedds decode hg LowState | {py_dec_s:.0} | ours {:.0}x faster | |", py_dec_s / dec_state);
-            println!("| Python cyclonedds encode hg LowCmd | {py_enc_c:.0} | ours {:.0}x faster | |", py_enc_c / enc_cmd);
-            println!("| Python cyclonedds decode hg LowCmd | {py_dec_c:.0} | ours {:.0}x faster | |", py_dec_c / dec_cmd);
+            println!(
+                "| Python cyclonedds encode hg LowState | {py_enc_s:.0} | ours {:.0}x faster | |",
+                py_enc_s / enc_state
+            );
+            println!(
+                "| Python cyclonedds decode hg LowState | {py_dec_s:.0} | ours {:.0}x faster | |",
+                py_dec_s / dec_state
+            );
+            println!(
+                "| Python cyclonedds encode hg LowCmd | {py_enc_c:.0} | ours {:.0}x faster | |",
+                py_enc_c / enc_cmd
+            );
+            println!(
+                "| Python cyclonedds decode hg LowCmd | {py_dec_c:.0} | ours {:.0}x faster | |",
+                py_dec_c / dec_cmd
+            );
         }
         None => println!("| Python cyclonedds | n/a | venv not found (run scripts/setup.sh) | |"),
     }

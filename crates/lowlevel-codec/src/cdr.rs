@@ -130,9 +130,24 @@ impl Encoding {
             0x0001 => (Xcdr1, Little),
             0x0006 => (Xcdr2, Big),
             0x0007 => (Xcdr2, Little),
-            0x0002 | 0x0003 => return Err(DecodeError::UnsupportedRepresentation { id, name: "PL_CDR (XCDR1 parameter list, mutable types)" }),
-            0x0008 | 0x0009 => return Err(DecodeError::UnsupportedRepresentation { id, name: "D_CDR2 (XCDR2 delimited, appendable types)" }),
-            0x000a | 0x000b => return Err(DecodeError::UnsupportedRepresentation { id, name: "PL_CDR2 (XCDR2 parameter list, mutable types)" }),
+            0x0002 | 0x0003 => {
+                return Err(DecodeError::UnsupportedRepresentation {
+                    id,
+                    name: "PL_CDR (XCDR1 parameter list, mutable types)",
+                })
+            }
+            0x0008 | 0x0009 => {
+                return Err(DecodeError::UnsupportedRepresentation {
+                    id,
+                    name: "D_CDR2 (XCDR2 delimited, appendable types)",
+                })
+            }
+            0x000a | 0x000b => {
+                return Err(DecodeError::UnsupportedRepresentation {
+                    id,
+                    name: "PL_CDR2 (XCDR2 parameter list, mutable types)",
+                })
+            }
             0x0004 | 0x0005 => return Err(DecodeError::UnsupportedRepresentation { id, name: "XML" }),
             _ => return Err(DecodeError::UnknownRepresentation { id }),
         };
@@ -157,9 +172,13 @@ pub enum DecodeError {
     UnsupportedRepresentation { id: u16, name: &'static str },
     #[error("truncated in member `{member}` at payload offset {offset}: needs {needed} bytes, {available} left")]
     Truncated { member: &'static str, offset: usize, needed: usize, available: usize },
-    #[error("sequence `{member}` at payload offset {offset} claims {count} elements, but only {available} bytes remain")]
+    #[error(
+        "sequence `{member}` at payload offset {offset} claims {count} elements, but only {available} bytes remain"
+    )]
     BadSequenceLength { member: &'static str, offset: usize, count: u32, available: usize },
-    #[error("DHEADER of `{member}` at payload offset {offset} declares {declared} bytes, but its elements take {actual}")]
+    #[error(
+        "DHEADER of `{member}` at payload offset {offset} declares {declared} bytes, but its elements take {actual}"
+    )]
     BadDheader { member: &'static str, offset: usize, declared: u32, actual: usize },
     #[error("header declares {padding} padding bytes, more than the {payload} payload bytes")]
     BadPadding { padding: usize, payload: usize },
@@ -268,7 +287,9 @@ impl<const BIG: bool, const V2: bool> Writer<'_, BIG, V2> {
         let bits = value.to_bits();
         match P::SIZE {
             1 => self.out.push(bits as u8),
-            2 => self.out.extend_from_slice(&if BIG { (bits as u16).to_be_bytes() } else { (bits as u16).to_le_bytes() }),
+            2 => {
+                self.out.extend_from_slice(&if BIG { (bits as u16).to_be_bytes() } else { (bits as u16).to_le_bytes() })
+            }
             _ => self.out.extend_from_slice(&if BIG { bits.to_be_bytes() } else { bits.to_le_bytes() }),
         }
     }
@@ -404,7 +425,13 @@ impl<const BIG: bool, const V2: bool> Reader<'_, BIG, V2> {
         Ok(get::<u32, BIG>(bytes))
     }
 
-    fn check_dheader(&self, member: &'static str, offset: usize, declared: u32, start: usize) -> Result<(), DecodeError> {
+    fn check_dheader(
+        &self,
+        member: &'static str,
+        offset: usize,
+        declared: u32,
+        start: usize,
+    ) -> Result<(), DecodeError> {
         let actual = self.pos - start;
         if actual == declared as usize {
             Ok(())

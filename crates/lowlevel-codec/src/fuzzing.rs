@@ -29,9 +29,19 @@ pub fn decode_any(bytes: &[u8]) {
 pub fn view_agrees_with_decode<T: Viewable>(bytes: &[u8]) {
     match (cdr::decode::<T>(bytes), view::view::<T>(bytes)) {
         (Ok(decoded), Ok(v)) => {
-            assert_eq!((v.encoding(), v.options()), (decoded.encoding, decoded.options), "{}: header", T::DDS_TYPE_NAME);
+            assert_eq!(
+                (v.encoding(), v.options()),
+                (decoded.encoding, decoded.options),
+                "{}: header",
+                T::DDS_TYPE_NAME
+            );
             let owned = v.to_owned();
-            assert_eq!(cdr::encode(&owned, Encoding::UNITREE), cdr::encode(&decoded.value, Encoding::UNITREE), "{}: view value", T::DDS_TYPE_NAME);
+            assert_eq!(
+                cdr::encode(&owned, Encoding::UNITREE),
+                cdr::encode(&decoded.value, Encoding::UNITREE),
+                "{}: view value",
+                T::DDS_TYPE_NAME
+            );
         }
         (Err(a), Err(b)) => assert_eq!(a, b, "{}: view error differs from decode", T::DDS_TYPE_NAME),
         (Ok(_), Err(e)) => panic!("{}: decode accepts, view rejects: {e}", T::DDS_TYPE_NAME),
@@ -50,7 +60,12 @@ fn decode_one<T: IdlStruct>(bytes: &[u8]) {
             Err(e) => panic!("{}: canonical {encoding:?} form does not decode: {e}", T::DDS_TYPE_NAME),
         };
         assert_eq!(again.encoding, encoding);
-        assert_eq!(cdr::encode(&again.value, Encoding::UNITREE), reference, "{}: value changed through {encoding:?}", T::DDS_TYPE_NAME);
+        assert_eq!(
+            cdr::encode(&again.value, Encoding::UNITREE),
+            reference,
+            "{}: value changed through {encoding:?}",
+            T::DDS_TYPE_NAME
+        );
         assert_eq!(cdr::encode(&again.value, encoding), canonical, "{}: {encoding:?} not stable", T::DDS_TYPE_NAME);
     }
 }
@@ -67,7 +82,9 @@ pub fn roundtrip<T: IdlStruct>(value: &T) {
     for encoding in ENCODINGS {
         let bytes = cdr::encode(value, encoding);
         match cdr::decode::<T>(&bytes) {
-            Ok(d) => assert_eq!(cdr::encode(&d.value, Encoding::UNITREE), reference, "{}: {encoding:?}", T::DDS_TYPE_NAME),
+            Ok(d) => {
+                assert_eq!(cdr::encode(&d.value, Encoding::UNITREE), reference, "{}: {encoding:?}", T::DDS_TYPE_NAME)
+            }
             Err(e) => panic!("{}: own {encoding:?} encoding does not decode: {e}", T::DDS_TYPE_NAME),
         }
     }

@@ -53,7 +53,12 @@ pub fn value_to_json<T: IdlStruct>(value: &T) -> String {
 }
 
 /// Writes a whole document for `value` as decoded with `encoding`.
-pub fn document_to_json<T: IdlStruct>(kind: MessageType, value: &T, encoding: Encoding, crc_ok: Option<bool>) -> String {
+pub fn document_to_json<T: IdlStruct>(
+    kind: MessageType,
+    value: &T,
+    encoding: Encoding,
+    crc_ok: Option<bool>,
+) -> String {
     let crc = match crc_ok {
         Some(true) => "true",
         Some(false) => "false",
@@ -289,18 +294,22 @@ impl<'v> JsonReader<'v> {
             return Err(self.shape("an array", json));
         };
         match len {
-            Some(n) if n != items.len() => Err(JsonError::WrongLength { path: self.path_text(), expected: n, found: items.len() }),
+            Some(n) if n != items.len() => {
+                Err(JsonError::WrongLength { path: self.path_text(), expected: n, found: items.len() })
+            }
             _ => Ok(items),
         }
     }
 
     fn parse_primitive<P: Primitive>(&self, json: &Value) -> Result<P, JsonError> {
-        let out_of_range = |kind: &'static str| JsonError::OutOfRange { path: self.path_text(), value: json.to_string(), kind };
+        let out_of_range =
+            |kind: &'static str| JsonError::OutOfRange { path: self.path_text(), value: json.to_string(), kind };
         match P::KIND {
             PrimKind::F32 => {
                 let x = match json {
                     Value::Number(n) => n.to_string().parse::<f32>().map_err(|_| self.shape("a float", json))?,
-                    Value::String(s) => parse_special_float(s).ok_or_else(|| self.shape("a number, \"NaN\", \"Infinity\" or \"-Infinity\"", json))?,
+                    Value::String(s) => parse_special_float(s)
+                        .ok_or_else(|| self.shape("a number, \"NaN\", \"Infinity\" or \"-Infinity\"", json))?,
                     _ => return Err(self.shape("a number", json)),
                 };
                 Ok(P::from_bits(x.to_bits()))

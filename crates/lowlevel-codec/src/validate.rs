@@ -141,7 +141,9 @@ pub fn h1_2_lowcmd(cmd: &hg::LowCmd_) -> Vec<Finding> {
                 ("kd", m.kd.to_bits() != 0),
                 ("reserve", m.reserve != 0),
             ];
-            findings.extend(fields.iter().filter(|(_, nz)| *nz).map(|(member, _)| Finding::UnusedSlotNotZero { slot, member }));
+            findings.extend(
+                fields.iter().filter(|(_, nz)| *nz).map(|(member, _)| Finding::UnusedSlotNotZero { slot, member }),
+            );
             continue;
         };
         match m.mode {

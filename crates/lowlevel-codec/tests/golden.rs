@@ -19,7 +19,8 @@ fn corpus(dir: &str) -> PathBuf {
 /// Every `<case>.json` with a `<case>.cdr` beside it.
 fn cases(dir: &str) -> Vec<(String, Value, Vec<u8>)> {
     let mut out = Vec::new();
-    let mut entries: Vec<_> = std::fs::read_dir(corpus(dir)).expect("corpus dir").map(|e| e.expect("entry").path()).collect();
+    let mut entries: Vec<_> =
+        std::fs::read_dir(corpus(dir)).expect("corpus dir").map(|e| e.expect("entry").path()).collect();
     entries.sort();
     for path in entries {
         if path.extension().and_then(|e| e.to_str()) != Some("json") {
@@ -47,7 +48,8 @@ fn check_case<T: IdlStruct>(name: &str, doc: &Value, bytes: &[u8]) -> Result<(),
     if canonical(&decoded.value) != canonical(&expected) {
         return Err(format!("{name}: decoded value differs from the recorded one"));
     }
-    let representation = doc["representation"].as_str().and_then(Representation::from_name).ok_or(format!("{name}: representation"))?;
+    let representation =
+        doc["representation"].as_str().and_then(Representation::from_name).ok_or(format!("{name}: representation"))?;
     let endianness = doc["endianness"].as_str().and_then(Endianness::from_name).ok_or(format!("{name}: endianness"))?;
     let encoding = Encoding { representation, endianness };
     if decoded.encoding != encoding {
@@ -56,7 +58,11 @@ fn check_case<T: IdlStruct>(name: &str, doc: &Value, bytes: &[u8]) -> Result<(),
     let encoded = cdr::encode(&expected, encoding);
     if encoded != bytes {
         let at = encoded.iter().zip(bytes).position(|(a, b)| a != b).unwrap_or(encoded.len().min(bytes.len()));
-        return Err(format!("{name}: encode differs at byte {at} (ours {} bytes, golden {})", encoded.len(), bytes.len()));
+        return Err(format!(
+            "{name}: encode differs at byte {at} (ours {} bytes, golden {})",
+            encoded.len(),
+            bytes.len()
+        ));
     }
     let crc_ok = crc::check_any(&expected);
     let recorded = doc["crc_ok"].as_bool();
@@ -95,12 +101,19 @@ fn golden_corpus_from_cyclonedds_python() {
 fn every_type_and_encoding_is_covered() {
     let mut seen = std::collections::BTreeSet::new();
     for (_, doc, _) in cases("golden") {
-        seen.insert((doc["type"].as_str().unwrap_or("").to_owned(), doc["representation"].to_string(), doc["endianness"].to_string()));
+        seen.insert((
+            doc["type"].as_str().unwrap_or("").to_owned(),
+            doc["representation"].to_string(),
+            doc["endianness"].to_string(),
+        ));
     }
     for ty in MessageType::ALL {
         for repr in ["\"xcdr1\"", "\"xcdr2\""] {
             for end in ["\"little\"", "\"big\""] {
-                assert!(seen.contains(&(ty.name().to_owned(), repr.to_owned(), end.to_owned())), "no golden case for {ty} {repr} {end}");
+                assert!(
+                    seen.contains(&(ty.name().to_owned(), repr.to_owned(), end.to_owned())),
+                    "no golden case for {ty} {repr} {end}"
+                );
             }
         }
     }
@@ -115,13 +128,17 @@ fn live_captures_from_unitree_python_sdk() {
 /// Unitree's CRC as recorded in the manifest equals ours, case by case.
 #[test]
 fn crc_equals_unitree_sdk() {
-    let manifest: Value = serde_json::from_str(&std::fs::read_to_string(corpus("golden").join("manifest.json")).expect("manifest")).expect("json");
+    let manifest: Value =
+        serde_json::from_str(&std::fs::read_to_string(corpus("golden").join("manifest.json")).expect("manifest"))
+            .expect("json");
     let mut checked = 0;
     for case in manifest["cases"].as_array().expect("cases") {
         let Some(sdk_crc) = case["crc"].as_u64() else { continue };
         let name = case["case"].as_str().expect("case name");
         let ty = MessageType::from_name(case["type"].as_str().expect("type")).expect("known type");
-        let doc: Value = serde_json::from_str(&std::fs::read_to_string(corpus("golden").join(format!("{name}.json"))).expect("doc")).expect("json");
+        let doc: Value =
+            serde_json::from_str(&std::fs::read_to_string(corpus("golden").join(format!("{name}.json"))).expect("doc"))
+                .expect("json");
         let ours = with_message_type!(ty, T => {
             let value: T = json::value_from_json(&doc["value"]).expect("value");
             crc::compute_any(&value)

@@ -11,7 +11,10 @@ fn sample() -> Vec<u8> {
 fn empty_and_short_inputs() {
     assert_eq!(cdr::decode::<hg::LowCmd_>(&[]), Err(DecodeError::MissingHeader { len: 0 }));
     assert_eq!(cdr::decode::<hg::LowCmd_>(&[0, 1]), Err(DecodeError::MissingHeader { len: 2 }));
-    assert!(matches!(cdr::decode::<hg::LowCmd_>(&[0, 1, 0, 0]), Err(DecodeError::Truncated { member: "mode_pr", offset: 0, .. })));
+    assert!(matches!(
+        cdr::decode::<hg::LowCmd_>(&[0, 1, 0, 0]),
+        Err(DecodeError::Truncated { member: "mode_pr", offset: 0, .. })
+    ));
 }
 
 #[test]
@@ -50,13 +53,19 @@ fn unknown_and_unsupported_representations() {
     assert_eq!(cdr::decode::<hg::LowCmd_>(&bytes), Err(DecodeError::UnknownRepresentation { id: 0x0042 }));
     for id in [0x02u8, 0x03, 0x08, 0x09, 0x0a, 0x0b] {
         bytes[1] = id;
-        assert!(matches!(cdr::decode::<hg::LowCmd_>(&bytes), Err(DecodeError::UnsupportedRepresentation { .. })), "{id:#x}");
+        assert!(
+            matches!(cdr::decode::<hg::LowCmd_>(&bytes), Err(DecodeError::UnsupportedRepresentation { .. })),
+            "{id:#x}"
+        );
     }
 }
 
 #[test]
 fn xcdr2_sample_read_as_wrong_type_or_version() {
-    let x2 = cdr::encode(&hg::LowCmd_::default(), Encoding { representation: Representation::Xcdr2, endianness: Endianness::Little });
+    let x2 = cdr::encode(
+        &hg::LowCmd_::default(),
+        Encoding { representation: Representation::Xcdr2, endianness: Endianness::Little },
+    );
     // Relabel as XCDR1: the DHEADER is read as data, leaving 8 trailing bytes.
     let mut relabelled = x2.clone();
     relabelled[1] = 0x01;

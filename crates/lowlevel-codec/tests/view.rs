@@ -42,7 +42,9 @@ impl MatchesJson for f32 {
                 "Infinity" => *self == f32::INFINITY,
                 "-Infinity" => *self == f32::NEG_INFINITY,
                 // Our own JSON writer's form for other NaN payloads (property tests only).
-                other => other.strip_prefix("NaN:0x").and_then(|h| u32::from_str_radix(h, 16).ok()) == Some(self.to_bits()),
+                other => {
+                    other.strip_prefix("NaN:0x").and_then(|h| u32::from_str_radix(h, 16).ok()) == Some(self.to_bits())
+                }
             },
             _ => false,
         }
@@ -78,7 +80,13 @@ macro_rules! check_members {
 
 type Errors = Vec<String>;
 
-fn check_array<'a, V: StructView<'a>, const N: usize>(errs: &mut Errors, path: &str, array: StructArray<'a, V, N>, json: &Value, check: fn(&mut Errors, &str, V, &Value)) {
+fn check_array<'a, V: StructView<'a>, const N: usize>(
+    errs: &mut Errors,
+    path: &str,
+    array: StructArray<'a, V, N>,
+    json: &Value,
+    check: fn(&mut Errors, &str, V, &Value),
+) {
     let Some(recorded) = json.as_array().filter(|a| a.len() == N && array.len() == N && array.iter().len() == N) else {
         errs.push(format!("{path}: expected {N} elements, recorded {json}"));
         return;
@@ -117,7 +125,7 @@ fn hg_low_state(errs: &mut Errors, v: hv::LowStateView<'_>, j: &Value) {
 }
 
 fn hg_low_cmd(errs: &mut Errors, v: hv::LowCmdView<'_>, j: &Value) {
-    check_members!(errs, "", v, j, [mode_pr, mode_machine, reserve, crc], nested ["motor_cmd"]);
+    check_members!(errs, "", v, j, [mode_pr, mode_machine, reserve, crc], nested["motor_cmd"]);
     check_array(errs, "motor_cmd", v.motor_cmd(), &j["motor_cmd"], hg_motor_cmd);
 }
 
@@ -182,7 +190,12 @@ fn check_accessors(ty: MessageType, bytes: &[u8], value: &Value) -> Option<Resul
 
 /// The view of a valid sample: header as recorded, `to_owned` equal to `expected`, CRC
 /// verdict as recorded (`None` for types without a CRC).
-fn check_owned<T: Viewable>(bytes: &[u8], expected: &T, encoding: Encoding, crc_ok: Option<bool>) -> Result<(), String> {
+fn check_owned<T: Viewable>(
+    bytes: &[u8],
+    expected: &T,
+    encoding: Encoding,
+    crc_ok: Option<bool>,
+) -> Result<(), String> {
     let v = view::view::<T>(bytes).map_err(|e| format!("view failed: {e}"))?;
     if v.encoding() != encoding {
         return Err(format!("header says {:?}, expected {encoding:?}", v.encoding()));
@@ -191,7 +204,9 @@ fn check_owned<T: Viewable>(bytes: &[u8], expected: &T, encoding: Encoding, crc_
         return Err("to_owned differs from the recorded value".into());
     }
     let decoded = v.to_decoded();
-    if (decoded.encoding, decoded.options) != (encoding, 0) || cdr::encode(&decoded.value, Encoding::UNITREE) != cdr::encode(expected, Encoding::UNITREE) {
+    if (decoded.encoding, decoded.options) != (encoding, 0)
+        || cdr::encode(&decoded.value, Encoding::UNITREE) != cdr::encode(expected, Encoding::UNITREE)
+    {
         return Err("to_decoded differs".into());
     }
     if crc::check_any(&v.to_owned()) != crc_ok {
@@ -259,8 +274,15 @@ fn golden_corpus_views_equal_recorded_values() {
 #[test]
 fn layouts_match_the_golden_generator() {
     let len = |l: &Layout| l.payload_len();
-    for (repr, sizes) in [(Representation::Xcdr1, [1000, 2088, 808, 1176]), (Representation::Xcdr2, [1008, 2096, 816, 1184])] {
-        let got = [len(hg::LowCmd_::layout(repr)), len(hg::LowState_::layout(repr)), len(go::LowCmd_::layout(repr)), len(go::LowState_::layout(repr))];
+    for (repr, sizes) in
+        [(Representation::Xcdr1, [1000, 2088, 808, 1176]), (Representation::Xcdr2, [1008, 2096, 816, 1184])]
+    {
+        let got = [
+            len(hg::LowCmd_::layout(repr)),
+            len(hg::LowState_::layout(repr)),
+            len(go::LowCmd_::layout(repr)),
+            len(go::LowState_::layout(repr)),
+        ];
         assert_eq!(got, sizes, "{repr:?}");
     }
     // hg LowState leaves: version, mode_pr, mode_machine, tick, 5 of imu_state, then motor_state[0]
@@ -300,11 +322,15 @@ fn error_order_matches_decode() {
         ([bad.as_slice(), &[0]].concat(), |e| matches!(e, DecodeError::BadDheader { .. })),
         // Cut inside the array: truncation comes first.
         (bad[..at + 100].to_vec(), |e| matches!(e, DecodeError::Truncated { .. })),
-        (good[..at + 2].to_vec(), |e| matches!(e, DecodeError::Truncated { member: "motor_state", offset: 72, needed: 4, available: 2 })),
+        (good[..at + 2].to_vec(), |e| {
+            matches!(e, DecodeError::Truncated { member: "motor_state", offset: 72, needed: 4, available: 2 })
+        }),
         ([good.as_slice(), &[0, 0]].concat(), |e| matches!(e, DecodeError::TrailingBytes { offset: 2096, count: 2 })),
         (good[..3].to_vec(), |e| matches!(e, DecodeError::MissingHeader { len: 3 })),
         ([&[0u8, 7, 0, 3][..], &good[4..]].concat(), |e| matches!(e, DecodeError::Truncated { member: "crc", .. })),
-        ([&[0u8, 0x42, 0, 0][..], &good[4..]].concat(), |e| matches!(e, DecodeError::UnknownRepresentation { id: 0x42 })),
+        ([&[0u8, 0x42, 0, 0][..], &good[4..]].concat(), |e| {
+            matches!(e, DecodeError::UnknownRepresentation { id: 0x42 })
+        }),
         ([&[0u8, 0x0a, 0, 0][..], &good[4..]].concat(), |e| matches!(e, DecodeError::UnsupportedRepresentation { .. })),
         (vec![0, 7, 0, 3, 0], |e| matches!(e, DecodeError::BadPadding { padding: 3, payload: 1 })),
     ];
@@ -320,13 +346,21 @@ fn error_order_matches_decode() {
 enum Edit {
     /// Sets a byte; `near_start` aims at the header and the first 128 payload bytes, where
     /// every DHEADER of these types sits.
-    Set { near_start: bool, at: usize, byte: u8 },
+    Set {
+        near_start: bool,
+        at: usize,
+        byte: u8,
+    },
     Truncate(usize),
     Extend(Vec<u8>),
     /// Declares 0..3 bytes of padding in the header options.
     Padding(u8),
     /// Sets a byte of one of the type's DHEADERs (XCDR2; no-op in XCDR1).
-    Dheader { which: usize, byte: usize, value: u8 },
+    Dheader {
+        which: usize,
+        byte: usize,
+        value: u8,
+    },
 }
 
 impl Edit {
@@ -374,13 +408,17 @@ fn random_value<T: for<'a> Arbitrary<'a>>(seed: &[u8]) -> Option<T> {
 
 /// Random value of `T` in every encoding: the view's accessors (the four big types) and its
 /// `to_owned` equal what `decode` returns.
-fn accessors_equal_decode<T: Viewable + for<'a> Arbitrary<'a>>(ty: MessageType, seed: &[u8]) -> Result<(), TestCaseError> {
+fn accessors_equal_decode<T: Viewable + for<'a> Arbitrary<'a>>(
+    ty: MessageType,
+    seed: &[u8],
+) -> Result<(), TestCaseError> {
     let Some(value) = random_value::<T>(seed) else { return Ok(()) };
     for encoding in fuzzing::ENCODINGS {
         let bytes = cdr::encode(&value, encoding);
         let decoded = cdr::decode::<T>(&bytes).map_err(|e| TestCaseError::fail(format!("decode: {e}")))?;
         fuzzing::view_agrees_with_decode::<T>(&bytes);
-        let fields: Value = serde_json::from_str(&json::value_to_json(&decoded.value)).map_err(|e| TestCaseError::fail(e.to_string()))?;
+        let fields: Value = serde_json::from_str(&json::value_to_json(&decoded.value))
+            .map_err(|e| TestCaseError::fail(e.to_string()))?;
         if let Some(Err(e)) = check_accessors(ty, &bytes, &fields) {
             return Err(TestCaseError::fail(format!("{ty} {encoding:?}: {e}")));
         }

@@ -6,15 +6,13 @@
 //! (needs `ULAB_SHARED` for the reference policies).
 use criterion::{criterion_group, criterion_main, Criterion};
 use policy_runtime::{
-    Controller, LstmInitialState, LstmPolicy, OnnxPolicy, PolicyController, PolicySpec,
-    RobotObservation,
+    Controller, LstmInitialState, LstmPolicy, OnnxPolicy, PolicyController, PolicySpec, RobotObservation,
 };
 use std::hint::black_box;
 use std::path::PathBuf;
 
 fn spec(name: &str) -> PolicySpec {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join(format!("../../robots/h1_2/policies/{name}.toml"));
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("../../robots/h1_2/policies/{name}.toml"));
     PolicySpec::load(&p).unwrap_or_else(|e| panic!("{name}: {e}"))
 }
 
@@ -38,16 +36,12 @@ fn bench(c: &mut Criterion) {
     let g = spec("gepetto_demo_rsl");
     let onnx = OnnxPolicy::load(&g.model_path).expect("onnx");
     let x: Vec<f32> = (0..270).map(|i| ((i as f32) * 0.1).sin() * 0.5).collect();
-    c.bench_function("onnx_mlp_270_forward", |b| {
-        b.iter(|| onnx.forward(black_box(&x)).expect("forward"))
-    });
+    c.bench_function("onnx_mlp_270_forward", |b| b.iter(|| onnx.forward(black_box(&x)).expect("forward")));
 
     let u = spec("unitree_rl_gym_lstm");
     let mut lstm = LstmPolicy::load(&u.model_path, LstmInitialState::Stored).expect("lstm");
     let x: Vec<f32> = (0..47).map(|i| ((i as f32) * 0.1).sin() * 0.5).collect();
-    c.bench_function("lstm_47_step", |b| {
-        b.iter(|| lstm.step(black_box(&x)).expect("step"))
-    });
+    c.bench_function("lstm_47_step", |b| b.iter(|| lstm.step(black_box(&x)).expect("step")));
 
     for s in [g, u] {
         let name = format!("controller_act_{}", s.name);

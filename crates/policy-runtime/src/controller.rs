@@ -29,13 +29,10 @@ impl PolicyController {
     pub fn from_spec(spec: PolicySpec) -> Result<Self, PolicyError> {
         let network = match spec.kind {
             PolicyKind::OnnxMlp => PolicyNetwork::Onnx(OnnxPolicy::load(&spec.model_path)?),
-            PolicyKind::LstmNpz => {
-                PolicyNetwork::Lstm(LstmPolicy::load(&spec.model_path, spec.lstm_initial_state)?)
+            PolicyKind::LstmNpz => PolicyNetwork::Lstm(LstmPolicy::load(&spec.model_path, spec.lstm_initial_state)?),
+            PolicyKind::LstmTorchScript => {
+                PolicyNetwork::Lstm(LstmPolicy::load_torchscript(&spec.model_path, spec.lstm_initial_state)?)
             }
-            PolicyKind::LstmTorchScript => PolicyNetwork::Lstm(LstmPolicy::load_torchscript(
-                &spec.model_path,
-                spec.lstm_initial_state,
-            )?),
         };
         Self::with_network(spec, network)
     }
@@ -44,11 +41,7 @@ impl PolicyController {
     pub fn with_network(spec: PolicySpec, network: PolicyNetwork) -> Result<Self, PolicyError> {
         if spec.observation_dim() != network.input_dim() {
             return Err(SpecError::DimensionMismatch {
-                what: format!(
-                    "observation size ({} per frame × {} frames)",
-                    spec.frame_dim(),
-                    spec.history_length
-                ),
+                what: format!("observation size ({} per frame × {} frames)", spec.frame_dim(), spec.history_length),
                 spec: spec.observation_dim(),
                 model: network.input_dim(),
             }
@@ -64,13 +57,7 @@ impl PolicyController {
         }
         let history = ObservationHistory::new(spec.history_length, spec.history_layout);
         let last_action = vec![0.0; spec.action_dim()];
-        Ok(PolicyController {
-            spec,
-            network,
-            history,
-            last_action,
-            last_observation: Vec::new(),
-        })
+        Ok(PolicyController { spec, network, history, last_action, last_observation: Vec::new() })
     }
 
     pub fn spec(&self) -> &PolicySpec {
@@ -127,9 +114,7 @@ impl Controller for PolicyController {
         let raw = self.network.step(&input)?;
         self.last_observation = input;
         if raw.iter().any(|a| !a.is_finite()) {
-            return Err(PolicyError::Inference(
-                "network output is not finite".into(),
-            ));
+            return Err(PolicyError::Inference("network output is not finite".into()));
         }
         let clip = self.spec.clip_actions.unwrap_or(f64::INFINITY);
         for (dst, &a) in self.last_action.iter_mut().zip(&raw) {

@@ -38,12 +38,7 @@ fn quat_mul(a: [f64; 4], b: [f64; 4]) -> [f64; 4] {
 
 /// Pelvis orientation and angular velocity from the torso IMU quaternion (`[w, x, y, z]`, torso-to-world),
 /// its gyroscope (torso frame) and the waist joint angle and velocity. See the module docs.
-pub fn pelvis_imu_from_torso(
-    torso_quat: [f64; 4],
-    torso_gyro: [f64; 3],
-    waist_q: f64,
-    waist_dq: f64,
-) -> PelvisImu {
+pub fn pelvis_imu_from_torso(torso_quat: [f64; 4], torso_gyro: [f64; 3], waist_q: f64, waist_dq: f64) -> PelvisImu {
     let (s, c) = (0.5 * waist_q).sin_cos();
     // q_pelvis = q_torso ⊗ conj(q_z(waist)), with q_z = (cos q/2, 0, 0, sin q/2).
     let quat = quat_mul(torso_quat, [c, 0.0, 0.0, -s]);
@@ -75,13 +70,6 @@ impl RobotObservation {
             }
         };
         let pelvis = pelvis_imu_from_torso(torso_quat, torso_gyro, waist_q, waist_dq);
-        Ok(RobotObservation {
-            time,
-            base_quat: pelvis.quat,
-            base_ang_vel: pelvis.ang_vel,
-            q,
-            dq,
-            command,
-        })
+        Ok(RobotObservation { time, base_quat: pelvis.quat, base_ang_vel: pelvis.ang_vel, q, dq, command })
     }
 }

@@ -21,8 +21,7 @@ pub use controller::PolicyController;
 pub use imu::{pelvis_imu_from_torso, PelvisImu, WAIST_SLOT};
 pub use network::{LstmPolicy, OnnxPolicy, PolicyNetwork};
 pub use spec::{
-    HistoryLayout, JointSpec, LstmInitialState, ObservationTerm, PolicyKind, PolicySpec, SpecError,
-    TermKind,
+    HistoryLayout, JointSpec, LstmInitialState, ObservationTerm, PolicyKind, PolicySpec, SpecError, TermKind,
 };
 
 use diff_physics::PdTarget;

@@ -8,16 +8,13 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 fn model_err(path: &Path, reason: impl std::fmt::Display) -> PolicyError {
-    PolicyError::Model {
-        path: path.display().to_string(),
-        reason: reason.to_string(),
-    }
+    PolicyError::Model { path: path.display().to_string(), reason: reason.to_string() }
 }
 
-#[cfg(feature = "onnx")]
-pub use onnx::OnnxPolicy;
 #[cfg(not(feature = "onnx"))]
 pub use no_onnx::OnnxPolicy;
+#[cfg(feature = "onnx")]
+pub use onnx::OnnxPolicy;
 
 /// ONNX inference with tract (feature `onnx`, on by default; the fuzz build leaves it out because the engine
 /// fuzz target never runs a policy and instrumenting tract doubles its build time).
@@ -42,17 +39,10 @@ mod onnx {
         /// Loads, type-checks and optimizes the model for a batch of one.
         pub fn load(path: &Path) -> Result<Self, PolicyError> {
             if !path.is_file() {
-                return Err(crate::SpecError::MissingFile {
-                    path: path.display().to_string(),
-                }
-                .into());
+                return Err(crate::SpecError::MissingFile { path: path.display().to_string() }.into());
             }
-            let model = tract_onnx::onnx()
-                .model_for_path(path)
-                .map_err(|e| model_err(path, format!("{e:#}")))?;
-            let typed = model
-                .into_typed()
-                .map_err(|e| model_err(path, format!("{e:#}")))?;
+            let model = tract_onnx::onnx().model_for_path(path).map_err(|e| model_err(path, format!("{e:#}")))?;
+            let typed = model.into_typed().map_err(|e| model_err(path, format!("{e:#}")))?;
             if typed.inputs.len() != 1 || typed.outputs.len() != 1 {
                 return Err(model_err(
                     path,
@@ -69,12 +59,7 @@ mod onnx {
                 .into_optimized()
                 .and_then(|m| m.into_runnable())
                 .map_err(|e| model_err(path, format!("{e:#}")))?;
-            Ok(OnnxPolicy {
-                path: path.to_path_buf(),
-                plan,
-                input_dim,
-                output_dim,
-            })
+            Ok(OnnxPolicy { path: path.to_path_buf(), plan, input_dim, output_dim })
         }
 
         pub fn input_dim(&self) -> usize {
@@ -95,18 +80,12 @@ mod onnx {
                     self.input_dim
                 )));
             }
-            let input = Tensor::from_shape(&[1, self.input_dim], obs)
-                .map_err(|e| PolicyError::Inference(format!("{e:#}")))?;
-            let out = self
-                .plan
-                .run(tvec!(input.into_tvalue()))
-                .map_err(|e| PolicyError::Inference(format!("{e:#}")))?;
-            let first = out
-                .first()
-                .ok_or_else(|| PolicyError::Inference("network returned no output".into()))?;
-            let view = first
-                .to_plain_array_view::<f32>()
-                .map_err(|e| PolicyError::Inference(format!("{e:#}")))?;
+            let input =
+                Tensor::from_shape(&[1, self.input_dim], obs).map_err(|e| PolicyError::Inference(format!("{e:#}")))?;
+            let out =
+                self.plan.run(tvec!(input.into_tvalue())).map_err(|e| PolicyError::Inference(format!("{e:#}")))?;
+            let first = out.first().ok_or_else(|| PolicyError::Inference("network returned no output".into()))?;
+            let view = first.to_plain_array_view::<f32>().map_err(|e| PolicyError::Inference(format!("{e:#}")))?;
             let v: Vec<f32> = view.iter().copied().collect();
             if v.len() != self.output_dim {
                 return Err(PolicyError::Inference(format!(
@@ -120,27 +99,15 @@ mod onnx {
     }
 
     /// Number of values in a `[1, n]` (or `[n]`) fact with concrete dimensions.
-    fn flat_dim(
-        model: &TypedModel,
-        outlet: OutletId,
-        path: &Path,
-        what: &str,
-    ) -> Result<usize, PolicyError> {
-        let fact = model
-            .outlet_fact(outlet)
-            .map_err(|e| model_err(path, format!("{e:#}")))?;
-        let dims = fact.shape.as_concrete().ok_or_else(|| {
-            model_err(
-                path,
-                format!("{what} shape {:?} is not concrete", fact.shape),
-            )
-        })?;
+    fn flat_dim(model: &TypedModel, outlet: OutletId, path: &Path, what: &str) -> Result<usize, PolicyError> {
+        let fact = model.outlet_fact(outlet).map_err(|e| model_err(path, format!("{e:#}")))?;
+        let dims = fact
+            .shape
+            .as_concrete()
+            .ok_or_else(|| model_err(path, format!("{what} shape {:?} is not concrete", fact.shape)))?;
         match dims {
             [n] | [1, n] => Ok(*n),
-            other => Err(model_err(
-                path,
-                format!("{what} shape {other:?}: expected [1, n]"),
-            )),
+            other => Err(model_err(path, format!("{what} shape {other:?}: expected [1, n]"))),
         }
     }
 }
@@ -232,10 +199,7 @@ pub type NamedArrays = BTreeMap<String, (Vec<f64>, Vec<usize>)>;
 /// Every array of an `.npz` archive (all must be `float32`).
 pub fn read_npz(path: &Path) -> Result<NamedArrays, PolicyError> {
     if !path.is_file() {
-        return Err(crate::SpecError::MissingFile {
-            path: path.display().to_string(),
-        }
-        .into());
+        return Err(crate::SpecError::MissingFile { path: path.display().to_string() }.into());
     }
     let mut npz = npyz::npz::NpzArchive::open(path).map_err(|e| model_err(path, e))?;
     let names: Vec<String> = npz.array_names().map(str::to_string).collect();
@@ -246,23 +210,15 @@ pub fn read_npz(path: &Path) -> Result<NamedArrays, PolicyError> {
             .map_err(|e| model_err(path, format!("array `{name}`: {e}")))?
             .ok_or_else(|| model_err(path, format!("array `{name}` missing")))?;
         let shape: Vec<usize> = npy.shape().iter().map(|&d| d as usize).collect();
-        let data: Vec<f32> = npy
-            .into_vec()
-            .map_err(|e| model_err(path, format!("array `{name}`: {e} (expected float32)")))?;
+        let data: Vec<f32> =
+            npy.into_vec().map_err(|e| model_err(path, format!("array `{name}`: {e} (expected float32)")))?;
         out.insert(name, (data.into_iter().map(f64::from).collect(), shape));
     }
     Ok(out)
 }
 
-fn take(
-    arrays: &NamedArrays,
-    name: &str,
-    path: &Path,
-) -> Result<(Vec<f64>, Vec<usize>), PolicyError> {
-    arrays
-        .get(name)
-        .cloned()
-        .ok_or_else(|| model_err(path, format!("array `{name}` missing")))
+fn take(arrays: &NamedArrays, name: &str, path: &Path) -> Result<(Vec<f64>, Vec<usize>), PolicyError> {
+    arrays.get(name).cloned().ok_or_else(|| model_err(path, format!("array `{name}` missing")))
 }
 
 impl LstmPolicy {
@@ -280,11 +236,7 @@ impl LstmPolicy {
     /// Uses `memory.{weight,bias}_{ih,hh}_l0`, `actor.<k>.{weight,bias}` and, for
     /// [`LstmInitialState::Stored`], `hidden_state` / `cell_state` (shape `[1, 1, H]`). `path` names the
     /// source in errors.
-    pub fn from_arrays(
-        arrays: &NamedArrays,
-        initial: LstmInitialState,
-        path: &Path,
-    ) -> Result<Self, PolicyError> {
+    pub fn from_arrays(arrays: &NamedArrays, initial: LstmInitialState, path: &Path) -> Result<Self, PolicyError> {
         let names: Vec<&String> = arrays.keys().collect();
         let (w_ih, s_ih) = take(arrays, "memory.weight_ih_l0", path)?;
         let (w_hh, s_hh) = take(arrays, "memory.weight_hh_l0", path)?;
@@ -292,18 +244,10 @@ impl LstmPolicy {
         let (b_hh, s_bhh) = take(arrays, "memory.bias_hh_l0", path)?;
         let (n4, n_in) = match s_ih[..] {
             [a, b] => (a, b),
-            _ => {
-                return Err(model_err(
-                    path,
-                    format!("memory.weight_ih_l0 shape {s_ih:?}"),
-                ))
-            }
+            _ => return Err(model_err(path, format!("memory.weight_ih_l0 shape {s_ih:?}"))),
         };
         if n4 == 0 || n4 % 4 != 0 {
-            return Err(model_err(
-                path,
-                format!("memory.weight_ih_l0 has {n4} rows, not 4·hidden"),
-            ));
+            return Err(model_err(path, format!("memory.weight_ih_l0 has {n4} rows, not 4·hidden")));
         }
         let n_hidden = n4 / 4;
         if s_hh != [n4, n_hidden] || s_bih != [n4] || s_bhh != [n4] {
@@ -312,27 +256,14 @@ impl LstmPolicy {
                 format!("LSTM shapes disagree: W_hh {s_hh:?}, b_ih {s_bih:?}, b_hh {s_bhh:?}"),
             ));
         }
-        if names
-            .iter()
-            .any(|n| n.starts_with("memory.") && n.ends_with("_l1"))
-        {
-            return Err(model_err(
-                path,
-                "multi-layer LSTM not supported (found *_l1 arrays)",
-            ));
+        if names.iter().any(|n| n.starts_with("memory.") && n.ends_with("_l1")) {
+            return Err(model_err(path, "multi-layer LSTM not supported (found *_l1 arrays)"));
         }
         let bias: Vec<f64> = b_ih.iter().zip(&b_hh).map(|(a, b)| a + b).collect();
 
         // Actor layers, by index (actor.0, actor.2, ...: activations sit at the odd indices).
-        let mut idx: Vec<usize> = names
-            .iter()
-            .filter_map(|n| {
-                n.strip_prefix("actor.")?
-                    .strip_suffix(".weight")?
-                    .parse()
-                    .ok()
-            })
-            .collect();
+        let mut idx: Vec<usize> =
+            names.iter().filter_map(|n| n.strip_prefix("actor.")?.strip_suffix(".weight")?.parse().ok()).collect();
         idx.sort_unstable();
         if idx.is_empty() {
             return Err(model_err(path, "no actor.<k>.weight arrays"));
@@ -352,12 +283,7 @@ impl LstmPolicy {
                     format!("actor.{k}: weight {sw:?}, bias {sb:?} do not follow a layer of width {width}"),
                 ));
             }
-            actor.push(Linear {
-                w,
-                b,
-                n_in: n_in_k,
-                n_out,
-            });
+            actor.push(Linear { w, b, n_in: n_in_k, n_out });
             width = n_out;
         }
 
@@ -367,26 +293,12 @@ impl LstmPolicy {
                 let (h, sh) = take(arrays, "hidden_state", path)?;
                 let (c, sc) = take(arrays, "cell_state", path)?;
                 if h.len() != n_hidden || c.len() != n_hidden {
-                    return Err(model_err(
-                        path,
-                        format!("stored state shapes {sh:?}, {sc:?}; hidden size {n_hidden}"),
-                    ));
+                    return Err(model_err(path, format!("stored state shapes {sh:?}, {sc:?}; hidden size {n_hidden}")));
                 }
                 (h, c)
             }
         };
-        Ok(LstmPolicy {
-            n_in,
-            n_hidden,
-            w_ih,
-            w_hh,
-            bias,
-            actor,
-            h: h0.clone(),
-            c: c0.clone(),
-            h0,
-            c0,
-        })
+        Ok(LstmPolicy { n_in, n_hidden, w_ih, w_hh, bias, actor, h: h0.clone(), c: c0.clone(), h0, c0 })
     }
 
     pub fn input_dim(&self) -> usize {

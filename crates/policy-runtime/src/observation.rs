@@ -9,17 +9,11 @@ use std::collections::VecDeque;
 pub fn projected_gravity(quat: [f64; 4]) -> Result<[f64; 3], PolicyError> {
     let n = quat.iter().map(|v| v * v).sum::<f64>().sqrt();
     if !(n.is_finite() && n > 1e-9) {
-        return Err(PolicyError::Observation(format!(
-            "base quaternion {quat:?} is not a rotation"
-        )));
+        return Err(PolicyError::Observation(format!("base quaternion {quat:?} is not a rotation")));
     }
     let [w, x, y, z] = quat.map(|v| v / n);
     // Third row of R (world z in body coordinates), negated.
-    Ok([
-        -2.0 * (x * z - w * y),
-        -2.0 * (y * z + w * x),
-        -(1.0 - 2.0 * (x * x + y * y)),
-    ])
+    Ok([-2.0 * (x * z - w * y), -2.0 * (y * z + w * x), -(1.0 - 2.0 * (x * x + y * y))])
 }
 
 /// `(sin 2πφ, cos 2πφ)` with `φ = (time mod period) / period`.
@@ -51,22 +45,12 @@ pub fn build_frame(
         )));
     }
     let finite = obs.time.is_finite()
-        && obs
-            .base_quat
-            .iter()
-            .chain(&obs.base_ang_vel)
-            .chain(&obs.command)
-            .all(|v| v.is_finite())
+        && obs.base_quat.iter().chain(&obs.base_ang_vel).chain(&obs.command).all(|v| v.is_finite())
         && obs.q.iter().chain(&obs.dq).all(|v| v.is_finite());
     if !finite {
-        return Err(PolicyError::Observation(
-            "non-finite value in the robot observation".into(),
-        ));
+        return Err(PolicyError::Observation("non-finite value in the robot observation".into()));
     }
-    spec.observation
-        .iter()
-        .map(|term| term_values(spec, term, obs, last_action))
-        .collect()
+    spec.observation.iter().map(|term| term_values(spec, term, obs, last_action)).collect()
 }
 
 fn term_values(
@@ -79,21 +63,13 @@ fn term_values(
         TermKind::AngVel => obs.base_ang_vel.to_vec(),
         TermKind::ProjectedGravity => projected_gravity(obs.base_quat)?.to_vec(),
         TermKind::Command => obs.command.to_vec(),
-        TermKind::JointPosRel => spec
-            .policy_joints
-            .iter()
-            .map(|&s| obs.q[s] - spec.joints[s].default_q)
-            .collect(),
+        TermKind::JointPosRel => spec.policy_joints.iter().map(|&s| obs.q[s] - spec.joints[s].default_q).collect(),
         TermKind::JointVel => spec.policy_joints.iter().map(|&s| obs.dq[s]).collect(),
         TermKind::LastAction => last_action.to_vec(),
         TermKind::GaitPhaseSinCos { period } => gait_phase_sin_cos(obs.time, period).to_vec(),
     };
     let clip = spec.clip_observations.unwrap_or(f64::INFINITY);
-    Ok(raw
-        .iter()
-        .zip(&term.scale)
-        .map(|(v, s)| (v * s).clamp(-clip, clip))
-        .collect())
+    Ok(raw.iter().zip(&term.scale).map(|(v, s)| (v * s).clamp(-clip, clip)).collect())
 }
 
 /// The last `length` frames of every term. The first push after a reset fills the whole history with copies
@@ -108,11 +84,7 @@ pub struct ObservationHistory {
 
 impl ObservationHistory {
     pub fn new(length: usize, layout: HistoryLayout) -> Self {
-        ObservationHistory {
-            length: length.max(1),
-            layout,
-            terms: Vec::new(),
-        }
+        ObservationHistory { length: length.max(1), layout, terms: Vec::new() }
     }
 
     pub fn clear(&mut self) {
@@ -122,10 +94,8 @@ impl ObservationHistory {
     /// Appends one frame (as returned by [`build_frame`]).
     pub fn push(&mut self, frame: Vec<Vec<f64>>) {
         if self.terms.len() != frame.len() {
-            self.terms = frame
-                .into_iter()
-                .map(|t| std::iter::repeat_n(t, self.length).collect::<VecDeque<_>>())
-                .collect();
+            self.terms =
+                frame.into_iter().map(|t| std::iter::repeat_n(t, self.length).collect::<VecDeque<_>>()).collect();
             return;
         }
         for (hist, t) in self.terms.iter_mut().zip(frame) {

@@ -14,10 +14,7 @@ use thiserror::Error;
 #[derive(Debug, Error)]
 pub enum SpecError {
     #[error("cannot read policy spec {path}: {source}")]
-    Io {
-        path: String,
-        source: std::io::Error,
-    },
+    Io { path: String, source: std::io::Error },
     #[error("policy spec {path}: {message}")]
     Parse { path: String, message: String },
     #[error("unknown observation term `{term}` (known: {known})")]
@@ -31,17 +28,9 @@ pub enum SpecError {
     #[error("unknown joint `{0}` (not a [joints] name or slot of this spec)")]
     UnknownJoint(String),
     #[error("observation term `{term}`: scale has {found} components, expected 1 or {expected}")]
-    BadScale {
-        term: String,
-        expected: usize,
-        found: usize,
-    },
+    BadScale { term: String, expected: usize, found: usize },
     #[error("{what}: the spec gives {spec}, the model has {model}")]
-    DimensionMismatch {
-        what: String,
-        spec: usize,
-        model: usize,
-    },
+    DimensionMismatch { what: String, spec: usize, model: usize },
     #[error("policy model file {path} does not exist")]
     MissingFile { path: String },
     #[error("model path `{0}` uses ${{ULAB_SHARED}} but ULAB_SHARED is not set (set it or pass the model path)")]
@@ -98,7 +87,8 @@ impl TermKind {
     }
 }
 
-const KNOWN_TERMS: &str = "ang_vel, projected_gravity, command, joint_pos_rel, joint_vel, last_action, gait_phase_sin_cos";
+const KNOWN_TERMS: &str =
+    "ang_vel, projected_gravity, command, joint_pos_rel, joint_vel, last_action, gait_phase_sin_cos";
 
 /// One observation term with its per-component scale (`scale.len()` = the term's dimension).
 #[derive(Debug, Clone, PartialEq)]
@@ -251,10 +241,8 @@ const SHARED_VAR: &str = "${ULAB_SHARED}";
 impl PolicySpec {
     /// Reads and validates a spec file; the model path is resolved against the file's directory.
     pub fn load(path: &Path) -> Result<Self, SpecError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SpecError::Io {
-            path: path.display().to_string(),
-            source,
-        })?;
+        let text = std::fs::read_to_string(path)
+            .map_err(|source| SpecError::Io { path: path.display().to_string(), source })?;
         let base = path.parent().unwrap_or_else(|| Path::new("."));
         Self::parse(&text, base, &path.display().to_string())
     }
@@ -293,9 +281,7 @@ impl PolicySpec {
     /// Physics steps per policy call at timestep `dt`; the period must be a whole number of steps.
     pub fn decimation(&self, dt: f64) -> Result<usize, SpecError> {
         if !(dt.is_finite() && dt > 0.0) {
-            return Err(SpecError::Invalid(format!(
-                "timestep {dt} must be finite and > 0"
-            )));
+            return Err(SpecError::Invalid(format!("timestep {dt} must be finite and > 0")));
         }
         let ratio = self.control_period / dt;
         let n = ratio.round();
@@ -330,10 +316,8 @@ impl PolicySpec {
     }
 
     fn parse(text: &str, base_dir: &Path, origin: &str) -> Result<Self, SpecError> {
-        let raw: RawSpec = toml::from_str(text).map_err(|e| SpecError::Parse {
-            path: origin.to_string(),
-            message: e.to_string(),
-        })?;
+        let raw: RawSpec =
+            toml::from_str(text).map_err(|e| SpecError::Parse { path: origin.to_string(), message: e.to_string() })?;
         let kind = match raw.kind.as_str() {
             "onnx_mlp" => PolicyKind::OnnxMlp,
             "lstm_npz" => PolicyKind::LstmNpz,
@@ -358,32 +342,17 @@ impl PolicySpec {
                 )));
             }
             if joints.iter().any(|k: &JointSpec| k.name == j.name) {
-                return Err(SpecError::Invalid(format!(
-                    "joint `{}` listed twice",
-                    j.name
-                )));
+                return Err(SpecError::Invalid(format!("joint `{}` listed twice", j.name)));
             }
             for (what, v) in [("default", j.default), ("kp", j.kp), ("kd", j.kd)] {
                 if !v.is_finite() {
-                    return Err(SpecError::Invalid(format!(
-                        "joint `{}`: {what} is not finite",
-                        j.name
-                    )));
+                    return Err(SpecError::Invalid(format!("joint `{}`: {what} is not finite", j.name)));
                 }
             }
             if j.kp < 0.0 || j.kd < 0.0 {
-                return Err(SpecError::Invalid(format!(
-                    "joint `{}`: negative gain",
-                    j.name
-                )));
+                return Err(SpecError::Invalid(format!("joint `{}`: negative gain", j.name)));
             }
-            joints.push(JointSpec {
-                slot: j.slot,
-                name: j.name,
-                default_q: j.default,
-                kp: j.kp,
-                kd: j.kd,
-            });
+            joints.push(JointSpec { slot: j.slot, name: j.name, default_q: j.default, kp: j.kp, kd: j.kd });
         }
 
         // Policy joints (action order).
@@ -392,16 +361,12 @@ impl PolicySpec {
             let slot = match r {
                 JointRef::Slot(s) if *s < joints.len() => *s,
                 JointRef::Slot(s) => return Err(SpecError::UnknownJoint(format!("slot {s}"))),
-                JointRef::Name(n) => joints
-                    .iter()
-                    .position(|j| &j.name == n)
-                    .ok_or_else(|| SpecError::UnknownJoint(n.clone()))?,
+                JointRef::Name(n) => {
+                    joints.iter().position(|j| &j.name == n).ok_or_else(|| SpecError::UnknownJoint(n.clone()))?
+                }
             };
             if policy_joints.contains(&slot) {
-                return Err(SpecError::Invalid(format!(
-                    "policy joint `{}` listed twice",
-                    joints[slot].name
-                )));
+                return Err(SpecError::Invalid(format!("policy joint `{}` listed twice", joints[slot].name)));
             }
             policy_joints.push(slot);
         }
@@ -425,25 +390,15 @@ impl PolicySpec {
                 "last_action" => TermKind::LastAction,
                 "gait_phase_sin_cos" => {
                     let period = t.period.ok_or_else(|| {
-                        SpecError::Invalid(
-                            "observation term `gait_phase_sin_cos` needs `period`".into(),
-                        )
+                        SpecError::Invalid("observation term `gait_phase_sin_cos` needs `period`".into())
                     })?;
                     positive("gait_phase_sin_cos period", period)?;
                     TermKind::GaitPhaseSinCos { period }
                 }
-                other => {
-                    return Err(SpecError::UnknownTerm {
-                        term: other.to_string(),
-                        known: KNOWN_TERMS.into(),
-                    })
-                }
+                other => return Err(SpecError::UnknownTerm { term: other.to_string(), known: KNOWN_TERMS.into() }),
             };
             if t.period.is_some() && !matches!(kind, TermKind::GaitPhaseSinCos { .. }) {
-                return Err(SpecError::Invalid(format!(
-                    "observation term `{}` takes no `period`",
-                    t.term
-                )));
+                return Err(SpecError::Invalid(format!("observation term `{}` takes no `period`", t.term)));
             }
             let dim = match kind {
                 TermKind::AngVel | TermKind::ProjectedGravity | TermKind::Command => 3,
@@ -456,18 +411,11 @@ impl PolicySpec {
                 Some(RawScale::Vector(v)) if v.len() == dim => v,
                 Some(RawScale::Vector(v)) if v.len() == 1 => vec![v[0]; dim],
                 Some(RawScale::Vector(v)) => {
-                    return Err(SpecError::BadScale {
-                        term: t.term,
-                        expected: dim,
-                        found: v.len(),
-                    })
+                    return Err(SpecError::BadScale { term: t.term, expected: dim, found: v.len() })
                 }
             };
             if scale.iter().any(|s| !s.is_finite()) {
-                return Err(SpecError::Invalid(format!(
-                    "observation term `{}`: scale is not finite",
-                    t.term
-                )));
+                return Err(SpecError::Invalid(format!("observation term `{}`: scale is not finite", t.term)));
             }
             observation.push(ObservationTerm { kind, scale });
         }
@@ -492,9 +440,7 @@ impl PolicySpec {
             Some(other) => return Err(SpecError::UnknownInitialState(other.to_string())),
         };
         if raw.lstm.is_some() && kind == PolicyKind::OnnxMlp {
-            return Err(SpecError::Invalid(
-                "[lstm] given for a non-LSTM policy".into(),
-            ));
+            return Err(SpecError::Invalid("[lstm] given for a non-LSTM policy".into()));
         }
         if !raw.action.scale.is_finite() {
             return Err(SpecError::Invalid("[action] scale is not finite".into()));
@@ -528,9 +474,7 @@ fn positive(what: &str, v: f64) -> Result<(), SpecError> {
     if v.is_finite() && v > 0.0 {
         Ok(())
     } else {
-        Err(SpecError::Invalid(format!(
-            "{what} must be finite and > 0, got {v}"
-        )))
+        Err(SpecError::Invalid(format!("{what} must be finite and > 0, got {v}")))
     }
 }
 

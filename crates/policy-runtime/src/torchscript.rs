@@ -15,10 +15,7 @@ use std::io::Read;
 use std::path::Path;
 
 fn err(path: &Path, reason: impl std::fmt::Display) -> PolicyError {
-    PolicyError::Model {
-        path: path.display().to_string(),
-        reason: format!("TorchScript archive: {reason}"),
-    }
+    PolicyError::Model { path: path.display().to_string(), reason: format!("TorchScript archive: {reason}") }
 }
 
 /// A pickled value, as far as module files need it.
@@ -84,38 +81,25 @@ impl<'a> Machine<'a> {
 
     fn line(&mut self) -> Result<String, String> {
         let rest = self.data.get(self.pos..).ok_or("truncated pickle")?;
-        let n = rest
-            .iter()
-            .position(|&b| b == b'\n')
-            .ok_or("unterminated text argument")?;
-        let s = std::str::from_utf8(&rest[..n])
-            .map_err(|e| e.to_string())?
-            .to_string();
+        let n = rest.iter().position(|&b| b == b'\n').ok_or("unterminated text argument")?;
+        let s = std::str::from_utf8(&rest[..n]).map_err(|e| e.to_string())?.to_string();
         self.pos += n + 1;
         Ok(s)
     }
 
     fn pop(&mut self) -> Result<Value, String> {
-        self.stack
-            .pop()
-            .ok_or_else(|| "pickle stack underflow".to_string())
+        self.stack.pop().ok_or_else(|| "pickle stack underflow".to_string())
     }
 
     fn pop_mark(&mut self) -> Result<Vec<Value>, String> {
-        let at = self
-            .stack
-            .iter()
-            .rposition(|v| matches!(v, Value::Mark))
-            .ok_or("MARK not found")?;
+        let at = self.stack.iter().rposition(|v| matches!(v, Value::Mark)).ok_or("MARK not found")?;
         let items = self.stack.split_off(at + 1);
         self.stack.pop();
         Ok(items)
     }
 
     fn top(&mut self) -> Result<&mut Value, String> {
-        self.stack
-            .last_mut()
-            .ok_or_else(|| "pickle stack underflow".to_string())
+        self.stack.last_mut().ok_or_else(|| "pickle stack underflow".to_string())
     }
 
     fn run(mut self) -> Result<Value, String> {
@@ -139,8 +123,7 @@ impl<'a> Machine<'a> {
                 }
                 b'M' => {
                     let b = self.bytes(2)?;
-                    self.stack
-                        .push(Value::Int(i64::from(u16::from_le_bytes([b[0], b[1]]))));
+                    self.stack.push(Value::Int(i64::from(u16::from_le_bytes([b[0], b[1]]))));
                 }
                 b'J' => {
                     let v = self.u32le()? as i32;
@@ -170,17 +153,13 @@ impl<'a> Machine<'a> {
                 }
                 b'X' => {
                     let n = self.u32le()? as usize;
-                    let s = std::str::from_utf8(self.bytes(n)?)
-                        .map_err(|e| e.to_string())?
-                        .to_string();
+                    let s = std::str::from_utf8(self.bytes(n)?).map_err(|e| e.to_string())?.to_string();
                     self.stack.push(Value::Str(s));
                 }
                 0x8c => {
                     // SHORT_BINUNICODE
                     let n = usize::from(self.byte()?);
-                    let s = std::str::from_utf8(self.bytes(n)?)
-                        .map_err(|e| e.to_string())?
-                        .to_string();
+                    let s = std::str::from_utf8(self.bytes(n)?).map_err(|e| e.to_string())?.to_string();
                     self.stack.push(Value::Str(s));
                 }
                 b'c' => {
@@ -200,20 +179,12 @@ impl<'a> Machine<'a> {
                 }
                 b'h' => {
                     let k = u32::from(self.byte()?);
-                    let v = self
-                        .memo
-                        .get(&k)
-                        .cloned()
-                        .ok_or("BINGET of an unknown memo key")?;
+                    let v = self.memo.get(&k).cloned().ok_or("BINGET of an unknown memo key")?;
                     self.stack.push(v);
                 }
                 b'j' => {
                     let k = self.u32le()?;
-                    let v = self
-                        .memo
-                        .get(&k)
-                        .cloned()
-                        .ok_or("LONG_BINGET of an unknown memo key")?;
+                    let v = self.memo.get(&k).cloned().ok_or("LONG_BINGET of an unknown memo key")?;
                     self.stack.push(v);
                 }
                 b't' => {
@@ -273,10 +244,7 @@ impl<'a> Machine<'a> {
                         Value::Global(m, n) => format!("{m}.{n}"),
                         _ => return Err("NEWOBJ of a non-class".into()),
                     };
-                    self.stack.push(Value::Object {
-                        class,
-                        state: Box::new(Value::None),
-                    });
+                    self.stack.push(Value::Object { class, state: Box::new(Value::None) });
                 }
                 b'b' => {
                     // BUILD
@@ -296,12 +264,7 @@ impl<'a> Machine<'a> {
                     let v = reduce(callable, args)?;
                     self.stack.push(v);
                 }
-                other => {
-                    return Err(format!(
-                        "unsupported pickle opcode 0x{other:02x} at byte {}",
-                        self.pos - 1
-                    ))
-                }
+                other => return Err(format!("unsupported pickle opcode 0x{other:02x} at byte {}", self.pos - 1)),
             }
         }
         Err("pickle too long".into())
@@ -343,9 +306,7 @@ fn reduce(callable: Value, args: Value) -> Result<Value, String> {
                 return Err("storage persistent id is not a tuple".into());
             };
             let (storage_type, storage_key) = match p.as_slice() {
-                [Value::Str(tag), Value::Global(_, ty), Value::Str(key), ..]
-                    if tag == "storage" =>
-                {
+                [Value::Str(tag), Value::Global(_, ty), Value::Str(key), ..] if tag == "storage" => {
                     (ty.clone(), key.clone())
                 }
                 _ => return Err(format!("unexpected storage id {p:?}")),
@@ -362,10 +323,7 @@ fn reduce(callable: Value, args: Value) -> Result<Value, String> {
         ("torch.jit._pickle", "restore_type_tag") | ("torch.jit._pickle", "build_tensorlist") => {
             Ok(args.into_iter().next().unwrap_or(Value::None))
         }
-        _ => Ok(Value::Object {
-            class: format!("{module}.{name}"),
-            state: Box::new(Value::Tuple(args)),
-        }),
+        _ => Ok(Value::Object { class: format!("{module}.{name}"), state: Box::new(Value::Tuple(args)) }),
     }
 }
 
@@ -379,11 +337,7 @@ fn collect(value: &Value, prefix: &str, out: &mut Vec<(String, TensorRef)>) {
     };
     for (k, v) in items {
         let Value::Str(key) = k else { continue };
-        let name = if prefix.is_empty() {
-            key.clone()
-        } else {
-            format!("{prefix}.{key}")
-        };
+        let name = if prefix.is_empty() { key.clone() } else { format!("{prefix}.{key}") };
         match v {
             Value::Tensor(t) => out.push((name, t.clone())),
             Value::Object { .. } => collect(v, &name, out),
@@ -395,10 +349,7 @@ fn collect(value: &Value, prefix: &str, out: &mut Vec<(String, TensorRef)>) {
 /// Every float tensor attribute of the archive's module tree, by `state_dict()`-style name.
 pub fn read_tensors(path: &Path) -> Result<NamedArrays, PolicyError> {
     if !path.is_file() {
-        return Err(crate::SpecError::MissingFile {
-            path: path.display().to_string(),
-        }
-        .into());
+        return Err(crate::SpecError::MissingFile { path: path.display().to_string() }.into());
     }
     let file = std::fs::File::open(path).map_err(|e| err(path, e))?;
     let mut zip = zip::ZipArchive::new(file).map_err(|e| err(path, e))?;
@@ -408,30 +359,20 @@ pub fn read_tensors(path: &Path) -> Result<NamedArrays, PolicyError> {
         .find(|n| n.ends_with("/data.pkl") && n.matches('/').count() == 1)
         .ok_or_else(|| err(path, "no <root>/data.pkl"))?;
     let root = pkl_name.trim_end_matches("data.pkl").to_string();
-    let read =
-        |zip: &mut zip::ZipArchive<std::fs::File>, name: &str| -> Result<Vec<u8>, PolicyError> {
-            let mut f = zip
-                .by_name(name)
-                .map_err(|e| err(path, format!("{name}: {e}")))?;
-            let mut buf = Vec::new();
-            f.read_to_end(&mut buf)
-                .map_err(|e| err(path, format!("{name}: {e}")))?;
-            Ok(buf)
-        };
+    let read = |zip: &mut zip::ZipArchive<std::fs::File>, name: &str| -> Result<Vec<u8>, PolicyError> {
+        let mut f = zip.by_name(name).map_err(|e| err(path, format!("{name}: {e}")))?;
+        let mut buf = Vec::new();
+        f.read_to_end(&mut buf).map_err(|e| err(path, format!("{name}: {e}")))?;
+        Ok(buf)
+    };
     if let Ok(order) = read(&mut zip, &format!("{root}byteorder")) {
         if order.trim_ascii() != b"little" {
             return Err(err(path, "big-endian storages are not supported"));
         }
     }
     let pkl = read(&mut zip, &pkl_name)?;
-    let module = Machine {
-        data: &pkl,
-        pos: 0,
-        stack: Vec::new(),
-        memo: HashMap::new(),
-    }
-    .run()
-    .map_err(|e| err(path, e))?;
+    let module =
+        Machine { data: &pkl, pos: 0, stack: Vec::new(), memo: HashMap::new() }.run().map_err(|e| err(path, e))?;
     let mut tensors = Vec::new();
     collect(&module, "", &mut tensors);
     if tensors.is_empty() {
@@ -440,24 +381,12 @@ pub fn read_tensors(path: &Path) -> Result<NamedArrays, PolicyError> {
     let mut out = NamedArrays::new();
     for (name, t) in tensors {
         if t.storage_type != "FloatStorage" {
-            return Err(err(
-                path,
-                format!("{name}: {} (only float32 is supported)", t.storage_type),
-            ));
+            return Err(err(path, format!("{name}: {} (only float32 is supported)", t.storage_type)));
         }
         let bytes = read(&mut zip, &format!("{root}data/{}", t.storage_key))?;
-        let storage: Vec<f32> = bytes
-            .chunks_exact(4)
-            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-            .collect();
+        let storage: Vec<f32> = bytes.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
         if t.shape.len() != t.stride.len() {
-            return Err(err(
-                path,
-                format!(
-                    "{name}: shape {:?} and stride {:?} differ in rank",
-                    t.shape, t.stride
-                ),
-            ));
+            return Err(err(path, format!("{name}: shape {:?} and stride {:?} differ in rank", t.shape, t.stride)));
         }
         // Gather in row-major order through the strides.
         // Saved parameters are dense views: never more elements than their storage holds.
@@ -466,19 +395,12 @@ pub fn read_tensors(path: &Path) -> Result<NamedArrays, PolicyError> {
             .iter()
             .try_fold(1usize, |acc, &d| acc.checked_mul(d))
             .filter(|&n| n <= storage.len())
-            .ok_or_else(|| {
-                err(
-                    path,
-                    format!("{name}: shape {:?} exceeds its storage", t.shape),
-                )
-            })?;
+            .ok_or_else(|| err(path, format!("{name}: shape {:?} exceeds its storage", t.shape)))?;
         let mut data = Vec::with_capacity(n);
         let mut idx = vec![0usize; t.shape.len()];
         for _ in 0..n {
             let at = t.offset + idx.iter().zip(&t.stride).map(|(i, s)| i * s).sum::<usize>();
-            let v = storage
-                .get(at)
-                .ok_or_else(|| err(path, format!("{name}: index {at} outside its storage")))?;
+            let v = storage.get(at).ok_or_else(|| err(path, format!("{name}: index {at} outside its storage")))?;
             data.push(f64::from(*v));
             for d in (0..idx.len()).rev() {
                 idx[d] += 1;

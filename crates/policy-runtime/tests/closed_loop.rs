@@ -23,13 +23,11 @@ fn walk(policy: &str, command: [f64; 3], seconds: f64) -> Option<Outcome> {
             return None;
         }
     }
-    let spec_path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join(format!("../../robots/h1_2/policies/{policy}.toml"));
+    let spec_path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("../../robots/h1_2/policies/{policy}.toml"));
     let spec = PolicySpec::load(&spec_path).unwrap_or_else(|e| panic!("{policy}: {e}"));
-    let model = robot_model::RobotModel::load(
-        &PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../robots/h1_2/h1_2.toml"),
-    )
-    .expect("robots/h1_2 loads");
+    let model =
+        robot_model::RobotModel::load(&PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../robots/h1_2/h1_2.toml"))
+            .expect("robots/h1_2 loads");
     spec.check_robot(&model).expect("spec fits the model");
     let common = CommonSettings::default();
     let decimation = spec.decimation(common.timestep).expect("whole steps");
@@ -40,11 +38,7 @@ fn walk(policy: &str, command: [f64; 3], seconds: f64) -> Option<Outcome> {
 
     let mut target = ctl.default_target();
     let steps = (seconds / common.timestep).round() as usize;
-    let mut out = Outcome {
-        min_height: f64::INFINITY,
-        min_uprightness: f64::INFINITY,
-        final_pos: [0.0; 3],
-    };
+    let mut out = Outcome { min_height: f64::INFINITY, min_uprightness: f64::INFINITY, final_pos: [0.0; 3] };
     for k in 1..=steps {
         let s = engine.state();
         let tau = pd_torques(&model, &target, &s.q, &s.dq);
@@ -63,9 +57,7 @@ fn walk(policy: &str, command: [f64; 3], seconds: f64) -> Option<Outcome> {
                 dq: s.dq.clone(),
                 command,
             };
-            target = ctl
-                .act(&obs)
-                .unwrap_or_else(|e| panic!("{policy} at t = {:.2} s: {e}", engine.time()));
+            target = ctl.act(&obs).unwrap_or_else(|e| panic!("{policy} at t = {:.2} s: {e}", engine.time()));
         }
     }
     eprintln!(
@@ -79,27 +71,11 @@ fn check_walks_forward(policy: &str) {
     let Some(o) = walk(policy, [0.5, 0.0, 0.0], 5.0) else {
         return;
     };
-    assert!(
-        o.min_height > 0.8,
-        "{policy}: the pelvis fell to {:.3} m",
-        o.min_height
-    );
-    assert!(
-        o.min_uprightness > 0.8,
-        "{policy}: tilted to cos = {:.3}",
-        o.min_uprightness
-    );
+    assert!(o.min_height > 0.8, "{policy}: the pelvis fell to {:.3} m", o.min_height);
+    assert!(o.min_uprightness > 0.8, "{policy}: tilted to cos = {:.3}", o.min_uprightness);
     // 0.5 m/s for 5 s is 2.5 m; allow for the start-up and tracking error, but it must clearly walk forward.
-    assert!(
-        o.final_pos[0] > 1.25,
-        "{policy}: moved only {:.3} m forward",
-        o.final_pos[0]
-    );
-    assert!(
-        o.final_pos[1].abs() < 1.0,
-        "{policy}: drifted {:.3} m sideways",
-        o.final_pos[1]
-    );
+    assert!(o.final_pos[0] > 1.25, "{policy}: moved only {:.3} m forward", o.final_pos[0]);
+    assert!(o.final_pos[1].abs() < 1.0, "{policy}: drifted {:.3} m sideways", o.final_pos[1]);
 }
 
 #[test]

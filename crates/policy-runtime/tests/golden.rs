@@ -11,8 +11,7 @@
 //! The models are read from `$ULAB_SHARED/reference/policies/`; without `ULAB_SHARED` the tests skip.
 
 use policy_runtime::{
-    Controller, LstmInitialState, LstmPolicy, OnnxPolicy, PolicyController, PolicySpec,
-    RobotObservation,
+    Controller, LstmInitialState, LstmPolicy, OnnxPolicy, PolicyController, PolicySpec, RobotObservation,
 };
 use serde::Deserialize;
 use sha2::{Digest, Sha256};
@@ -71,19 +70,12 @@ fn spec(policy: &str) -> PolicySpec {
 
 fn max_abs_diff<A: Copy + Into<f64>, B: Copy + Into<f64>>(a: &[A], b: &[B]) -> f64 {
     assert_eq!(a.len(), b.len(), "length mismatch");
-    a.iter()
-        .zip(b)
-        .map(|(&x, &y)| (x.into() - y.into()).abs())
-        .fold(0.0, f64::max)
+    a.iter().zip(b).map(|(&x, &y)| (x.into() - y.into()).abs()).fold(0.0, f64::max)
 }
 
 fn check_model_file(g: &Golden, model_path: &Path) {
-    let bytes =
-        std::fs::read(model_path).unwrap_or_else(|e| panic!("{}: {e}", model_path.display()));
-    let sha: String = Sha256::digest(&bytes)
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect();
+    let bytes = std::fs::read(model_path).unwrap_or_else(|e| panic!("{}: {e}", model_path.display()));
+    let sha: String = Sha256::digest(&bytes).iter().map(|b| format!("{b:02x}")).collect();
     assert_eq!(
         sha,
         g.model_sha256,
@@ -109,8 +101,7 @@ fn check_forward(g: &Golden, spec: &PolicySpec) {
             }
         }
         "unitree_rl_gym_lstm" => {
-            let mut net =
-                LstmPolicy::load(&spec.model_path, LstmInitialState::Stored).expect("LSTM loads");
+            let mut net = LstmPolicy::load(&spec.model_path, LstmInitialState::Stored).expect("LSTM loads");
             assert_eq!((net.input_dim(), net.output_dim()), (47, 12));
             for (k, s) in g.steps.iter().enumerate() {
                 let a = net.step(&s.obs).expect("step");
@@ -120,21 +111,13 @@ fn check_forward(g: &Golden, spec: &PolicySpec) {
             }
             // The sequence exercises the recurrent state: a fresh LSTM on the last input answers differently.
             let last = g.steps.last().expect("steps");
-            let mut fresh =
-                LstmPolicy::load(&spec.model_path, LstmInitialState::Stored).expect("LSTM loads");
+            let mut fresh = LstmPolicy::load(&spec.model_path, LstmInitialState::Stored).expect("LSTM loads");
             let a = fresh.step(&last.obs).expect("step");
-            assert!(
-                max_abs_diff(&a, &last.action) > 1e-2,
-                "recurrent state has no effect on this sequence"
-            );
+            assert!(max_abs_diff(&a, &last.action) > 1e-2, "recurrent state has no effect on this sequence");
         }
         other => panic!("unknown policy {other}"),
     }
-    eprintln!(
-        "{}: forward pass, {} steps, max |diff| {worst:e}",
-        g.policy,
-        g.steps.len()
-    );
+    eprintln!("{}: forward pass, {} steps, max |diff| {worst:e}", g.policy, g.steps.len());
 }
 
 /// Robot state → observation → action → PD targets, through the controller built from the shipped spec.
@@ -154,25 +137,16 @@ fn check_controller(g: &Golden, spec: PolicySpec) {
         };
         let t = ctl.act(&obs).unwrap_or_else(|e| panic!("step {k}: {e}"));
         let d_obs = max_abs_diff(ctl.last_observation(), &s.obs);
-        assert!(
-            d_obs <= OBS_TOL,
-            "step {k}: observation differs from the oracle's by {d_obs:e}"
-        );
+        assert!(d_obs <= OBS_TOL, "step {k}: observation differs from the oracle's by {d_obs:e}");
         let d_act = max_abs_diff(ctl.last_action(), &s.action);
-        assert!(
-            d_act <= FORWARD_TOL,
-            "step {k}: action differs by {d_act:e}"
-        );
+        assert!(d_act <= FORWARD_TOL, "step {k}: action differs by {d_act:e}");
         let d_q = max_abs_diff(&t.q_des, &s.q_des);
         assert!(d_q <= FORWARD_TOL, "step {k}: q_des differs by {d_q:e}");
         assert!(t.dq_des.iter().chain(&t.tau_ff).all(|&v| v == 0.0));
         worst_obs = worst_obs.max(d_obs);
         worst_q = worst_q.max(d_q);
     }
-    eprintln!(
-        "{}: controller, max |obs diff| {worst_obs:e}, max |q_des diff| {worst_q:e}",
-        g.policy
-    );
+    eprintln!("{}: controller, max |obs diff| {worst_obs:e}, max |q_des diff| {worst_q:e}", g.policy);
 }
 
 fn committed_dir() -> PathBuf {
@@ -184,10 +158,7 @@ fn onnx_forward_matches_onnxruntime() {
     if shared().is_none() {
         return;
     }
-    check_forward(
-        &read_golden(&committed_dir(), "gepetto_demo_rsl"),
-        &spec("gepetto_demo_rsl"),
-    );
+    check_forward(&read_golden(&committed_dir(), "gepetto_demo_rsl"), &spec("gepetto_demo_rsl"));
 }
 
 #[test]
@@ -195,10 +166,7 @@ fn lstm_forward_matches_numpy() {
     if shared().is_none() {
         return;
     }
-    check_forward(
-        &read_golden(&committed_dir(), "unitree_rl_gym_lstm"),
-        &spec("unitree_rl_gym_lstm"),
-    );
+    check_forward(&read_golden(&committed_dir(), "unitree_rl_gym_lstm"), &spec("unitree_rl_gym_lstm"));
 }
 
 #[test]
@@ -206,10 +174,7 @@ fn gepetto_controller_matches_oracle() {
     if shared().is_none() {
         return;
     }
-    check_controller(
-        &read_golden(&committed_dir(), "gepetto_demo_rsl"),
-        spec("gepetto_demo_rsl"),
-    );
+    check_controller(&read_golden(&committed_dir(), "gepetto_demo_rsl"), spec("gepetto_demo_rsl"));
 }
 
 #[test]
@@ -217,25 +182,17 @@ fn unitree_lstm_controller_matches_oracle() {
     if shared().is_none() {
         return;
     }
-    check_controller(
-        &read_golden(&committed_dir(), "unitree_rl_gym_lstm"),
-        spec("unitree_rl_gym_lstm"),
-    );
+    check_controller(&read_golden(&committed_dir(), "unitree_rl_gym_lstm"), spec("unitree_rl_gym_lstm"));
 }
 
 #[test]
 fn golden_files_are_small_sequences() {
     for policy in ["gepetto_demo_rsl", "unitree_rl_gym_lstm"] {
         let path = committed_dir().join(format!("{policy}.json"));
-        let len = std::fs::metadata(&path)
-            .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-            .len();
+        let len = std::fs::metadata(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display())).len();
         assert!(len < 300_000, "{} is {len} bytes", path.display());
         let g = read_golden(&committed_dir(), policy);
-        assert!(
-            g.steps.len() >= 10,
-            "{policy}: a sequence, not a single step"
-        );
+        assert!(g.steps.len() >= 10, "{policy}: a sequence, not a single step");
     }
 }
 
@@ -261,15 +218,8 @@ fn live_oracle_agrees() {
     for policy in ["gepetto_demo_rsl", "unitree_rl_gym_lstm"] {
         let fresh = read_golden(&out, policy);
         let committed = read_golden(&committed_dir(), policy);
-        assert_eq!(
-            fresh.model_sha256, committed.model_sha256,
-            "{policy}: model changed since the golden data"
-        );
-        assert_eq!(
-            fresh.steps.len(),
-            committed.steps.len(),
-            "{policy}: regenerate corpus/golden/policies"
-        );
+        assert_eq!(fresh.model_sha256, committed.model_sha256, "{policy}: model changed since the golden data");
+        assert_eq!(fresh.steps.len(), committed.steps.len(), "{policy}: regenerate corpus/golden/policies");
         for (k, (f, c)) in fresh.steps.iter().zip(&committed.steps).enumerate() {
             let same_inputs = f.time == c.time
                 && f.base_quat == c.base_quat
@@ -277,10 +227,7 @@ fn live_oracle_agrees() {
                 && f.q == c.q
                 && f.dq == c.dq
                 && f.command == c.command;
-            assert!(
-                same_inputs,
-                "{policy} step {k}: oracle inputs changed; regenerate corpus/golden/policies"
-            );
+            assert!(same_inputs, "{policy} step {k}: oracle inputs changed; regenerate corpus/golden/policies");
             let d = max_abs_diff(&f.obs, &c.obs).max(max_abs_diff(&f.action, &c.action));
             assert!(d <= 1e-6, "{policy} step {k}: oracle output changed by {d:e}; regenerate corpus/golden/policies");
         }

@@ -38,8 +38,7 @@ fn normalize(q: [f64; 4]) -> [f64; 4] {
 fn pelvis_from_torso_matches_mujoco_kinematics() {
     let model = robot_model::RobotModel::h1_2().expect("model");
     let torso = model.link_index("torso_link").expect("torso_link");
-    let mut engine =
-        make_engine(EngineKind::Mujoco, &model, &CommonSettings::default()).expect("MuJoCo");
+    let mut engine = make_engine(EngineKind::Mujoco, &model, &CommonSettings::default()).expect("MuJoCo");
     // A fixed pseudo-random sequence (no RNG dependency needed): varied, non-trivial values.
     let cases = [
         ([0.1, -0.2, 0.7], [0.4, -1.1, 0.8], 0.6, -1.5),
@@ -70,20 +69,11 @@ fn pelvis_from_torso_matches_mujoco_kinematics() {
         // Torso angular velocity in the torso frame: conj(t0) ⊗ t1 ≈ (1, ω ε / 2).
         let d = qmul(qconj(t0), t1);
         let sign = d[0].signum();
-        let gyro = [
-            2.0 * sign * d[1] / eps,
-            2.0 * sign * d[2] / eps,
-            2.0 * sign * d[3] / eps,
-        ];
+        let gyro = [2.0 * sign * d[1] / eps, 2.0 * sign * d[2] / eps, 2.0 * sign * d[3] / eps];
 
         let p = pelvis_imu_from_torso(t0, gyro, waist, waist_dq);
         let dot: f64 = p.quat.iter().zip(&s.base_quat).map(|(a, b)| a * b).sum();
-        assert!(
-            (dot.abs() - 1.0).abs() < 1e-12,
-            "pelvis orientation: {:?} vs {:?}",
-            p.quat,
-            s.base_quat
-        );
+        assert!((dot.abs() - 1.0).abs() < 1e-12, "pelvis orientation: {:?} vs {:?}", p.quat, s.base_quat);
         for k in 0..3 {
             assert!(
                 (p.ang_vel[k] - w_pelvis[k]).abs() < 1e-4,

@@ -1,12 +1,8 @@
 //! Observation building against values derived by hand: projected gravity of known rotations, gait phase,
 //! history layouts, joint order, and the torso-IMU → pelvis transform.
 
-use policy_runtime::observation::{
-    build_frame, gait_phase_sin_cos, projected_gravity, ObservationHistory,
-};
-use policy_runtime::{
-    pelvis_imu_from_torso, HistoryLayout, PolicySpec, RobotObservation, WAIST_SLOT,
-};
+use policy_runtime::observation::{build_frame, gait_phase_sin_cos, projected_gravity, ObservationHistory};
+use policy_runtime::{pelvis_imu_from_torso, HistoryLayout, PolicySpec, RobotObservation, WAIST_SLOT};
 use std::f64::consts::{FRAC_PI_2, PI};
 use std::path::Path;
 
@@ -26,30 +22,14 @@ fn projected_gravity_of_known_rotations() {
     // Upright: gravity points down the body z axis.
     assert!(close(&g([1.0, 0.0, 0.0, 0.0]), &[0.0, 0.0, -1.0], 1e-15));
     // Yaw does not change it.
-    assert!(close(
-        &g(axis_angle([0.0, 0.0, 1.0], 2.0)),
-        &[0.0, 0.0, -1.0],
-        1e-15
-    ));
+    assert!(close(&g(axis_angle([0.0, 0.0, 1.0], 2.0)), &[0.0, 0.0, -1.0], 1e-15));
     // Roll θ about x: Rx(θ)ᵀ (0,0,-1) = (0, -sin θ, -cos θ).
     let t: f64 = 0.3;
-    assert!(close(
-        &g(axis_angle([1.0, 0.0, 0.0], t)),
-        &[0.0, -t.sin(), -t.cos()],
-        1e-15
-    ));
+    assert!(close(&g(axis_angle([1.0, 0.0, 0.0], t)), &[0.0, -t.sin(), -t.cos()], 1e-15));
     // Pitch θ about y: Ry(θ)ᵀ (0,0,-1) = (sin θ, 0, -cos θ) (nose down → gravity has +x in the body).
-    assert!(close(
-        &g(axis_angle([0.0, 1.0, 0.0], t)),
-        &[t.sin(), 0.0, -t.cos()],
-        1e-15
-    ));
+    assert!(close(&g(axis_angle([0.0, 1.0, 0.0], t)), &[t.sin(), 0.0, -t.cos()], 1e-15));
     // Upside down about x.
-    assert!(close(
-        &g(axis_angle([1.0, 0.0, 0.0], PI)),
-        &[0.0, 0.0, 1.0],
-        1e-15
-    ));
+    assert!(close(&g(axis_angle([1.0, 0.0, 0.0], PI)), &[0.0, 0.0, 1.0], 1e-15));
     // Not normalized: same direction.
     let q = axis_angle([0.0, 1.0, 0.0], t).map(|v| 3.0 * v);
     assert!(close(&g(q), &[t.sin(), 0.0, -t.cos()], 1e-15));
@@ -69,10 +49,7 @@ fn gait_phase_sin_cos_values() {
         (1.0, 1.0, 0.0),  // wraps: 1.0 mod 0.8 = 0.2
     ] {
         let [s, c] = gait_phase_sin_cos(t, p);
-        assert!(
-            (s - sin).abs() < 1e-12 && (c - cos).abs() < 1e-12,
-            "t = {t}: got ({s}, {c})"
-        );
+        assert!((s - sin).abs() < 1e-12 && (c - cos).abs() < 1e-12, "t = {t}: got ({s}, {c})");
     }
 }
 
@@ -84,28 +61,16 @@ fn frame(a: [f64; 3], b: [f64; 2]) -> Vec<Vec<f64>> {
 fn history_term_major_fills_with_first_frame() {
     let mut h = ObservationHistory::new(3, HistoryLayout::TermMajor);
     h.push(frame([1.0, 2.0, 3.0], [10.0, 20.0]));
-    assert_eq!(
-        h.flatten(),
-        vec![1., 2., 3., 1., 2., 3., 1., 2., 3., 10., 20., 10., 20., 10., 20.]
-    );
+    assert_eq!(h.flatten(), vec![1., 2., 3., 1., 2., 3., 1., 2., 3., 10., 20., 10., 20., 10., 20.]);
     h.push(frame([4.0, 5.0, 6.0], [30.0, 40.0]));
-    assert_eq!(
-        h.flatten(),
-        vec![1., 2., 3., 1., 2., 3., 4., 5., 6., 10., 20., 10., 20., 30., 40.]
-    );
+    assert_eq!(h.flatten(), vec![1., 2., 3., 1., 2., 3., 4., 5., 6., 10., 20., 10., 20., 30., 40.]);
     h.push(frame([7.0, 8.0, 9.0], [50.0, 60.0]));
     h.push(frame([0.5, 0.5, 0.5], [70.0, 80.0]));
     // Oldest first; the first frame has left.
-    assert_eq!(
-        h.flatten(),
-        vec![4., 5., 6., 7., 8., 9., 0.5, 0.5, 0.5, 30., 40., 50., 60., 70., 80.]
-    );
+    assert_eq!(h.flatten(), vec![4., 5., 6., 7., 8., 9., 0.5, 0.5, 0.5, 30., 40., 50., 60., 70., 80.]);
     h.clear();
     h.push(frame([1.0, 1.0, 1.0], [2.0, 2.0]));
-    assert_eq!(
-        h.flatten(),
-        vec![1., 1., 1., 1., 1., 1., 1., 1., 1., 2., 2., 2., 2., 2., 2.]
-    );
+    assert_eq!(h.flatten(), vec![1., 1., 1., 1., 1., 1., 1., 1., 1., 2., 2., 2., 2., 2., 2.]);
 }
 
 #[test]
@@ -113,10 +78,7 @@ fn history_step_major() {
     let mut h = ObservationHistory::new(2, HistoryLayout::StepMajor);
     h.push(frame([1.0, 2.0, 3.0], [10.0, 20.0]));
     h.push(frame([4.0, 5.0, 6.0], [30.0, 40.0]));
-    assert_eq!(
-        h.flatten(),
-        vec![1., 2., 3., 10., 20., 4., 5., 6., 30., 40.]
-    );
+    assert_eq!(h.flatten(), vec![1., 2., 3., 10., 20., 4., 5., 6., 30., 40.]);
 }
 
 /// A 4-slot robot whose policy commands slots 3 and 1, in that order.
@@ -204,10 +166,7 @@ fn frame_follows_spec_order_scales_and_joint_order() {
 
 #[test]
 fn observation_clipping() {
-    let text = SMALL_SPEC.replace(
-        "control_period = 0.02",
-        "control_period = 0.02\nclip_observations = 0.5",
-    );
+    let text = SMALL_SPEC.replace("control_period = 0.02", "control_period = 0.02\nclip_observations = 0.5");
     let spec = PolicySpec::from_toml_str(&text, Path::new("/")).expect("valid spec");
     let obs = RobotObservation {
         time: 0.0,
@@ -229,21 +188,12 @@ fn torso_imu_to_pelvis_hand_cases() {
     let p = pelvis_imu_from_torso(axis_angle([0.0, 0.0, 1.0], a), [0.0, 0.0, 0.3], a, 0.3);
     assert!(close(&p.quat, &[1.0, 0.0, 0.0, 0.0], 1e-15), "{:?}", p.quat);
     // The torso spins at 0.3 rad/s only because the waist does: the pelvis does not rotate.
-    assert!(
-        close(&p.ang_vel, &[0.0, 0.0, 0.0], 1e-15),
-        "{:?}",
-        p.ang_vel
-    );
+    assert!(close(&p.ang_vel, &[0.0, 0.0, 0.0], 1e-15), "{:?}", p.ang_vel);
 
     // Pelvis rolling about its x axis at r with the waist at +90°: the torso's x axis is the pelvis's y axis,
     // so the torso gyro reads (0, −r, 0); the pelvis gets (r, 0, 0).
     let r = 1.3;
-    let p = pelvis_imu_from_torso(
-        axis_angle([0.0, 0.0, 1.0], FRAC_PI_2),
-        [0.0, -r, 0.0],
-        FRAC_PI_2,
-        0.0,
-    );
+    let p = pelvis_imu_from_torso(axis_angle([0.0, 0.0, 1.0], FRAC_PI_2), [0.0, -r, 0.0], FRAC_PI_2, 0.0);
     assert!(close(&p.ang_vel, &[r, 0.0, 0.0], 1e-12), "{:?}", p.ang_vel);
 
     // Pelvis pitched by b about y, waist at a: torso = Ry(b) Rz(a), pelvis = Ry(b).
@@ -263,15 +213,9 @@ fn observation_from_torso_imu_uses_the_waist_slot() {
     q[WAIST_SLOT] = a;
     let mut dq = vec![0.0; 27];
     dq[WAIST_SLOT] = 0.5;
-    let obs = RobotObservation::from_torso_imu(
-        1.0,
-        axis_angle([0.0, 0.0, 1.0], a),
-        [0.0, 0.0, 0.5],
-        q,
-        dq,
-        [0.5, 0.0, 0.0],
-    )
-    .expect("observation");
+    let obs =
+        RobotObservation::from_torso_imu(1.0, axis_angle([0.0, 0.0, 1.0], a), [0.0, 0.0, 0.5], q, dq, [0.5, 0.0, 0.0])
+            .expect("observation");
     assert!(close(&obs.base_quat, &[1.0, 0.0, 0.0, 0.0], 1e-15));
     assert!(close(&obs.base_ang_vel, &[0.0; 3], 1e-15));
     assert!(RobotObservation::from_torso_imu(

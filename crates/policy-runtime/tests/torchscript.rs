@@ -21,21 +21,13 @@ fn shared() -> Option<PathBuf> {
 fn pt_tensors_equal_the_npz_arrays() {
     let Some(shared) = shared() else { return };
     let dir = shared.join("reference/policies");
-    let pt = policy_runtime::torchscript::read_tensors(&dir.join("h1_2_unitree_rl_gym_lstm.pt"))
-        .expect("reads .pt");
+    let pt = policy_runtime::torchscript::read_tensors(&dir.join("h1_2_unitree_rl_gym_lstm.pt")).expect("reads .pt");
     let npz = read_npz(&dir.join("h1_2_unitree_rl_gym_lstm.npz")).expect("reads .npz");
     assert_eq!(npz.len(), 10, "{:?}", npz.keys().collect::<Vec<_>>());
     for (name, (values, shape)) in &npz {
-        let (v, s) = pt
-            .get(name)
-            .unwrap_or_else(|| panic!("`{name}` not found in the .pt; it has {:?}", pt.keys()));
+        let (v, s) = pt.get(name).unwrap_or_else(|| panic!("`{name}` not found in the .pt; it has {:?}", pt.keys()));
         assert_eq!(s, shape, "{name}: shape");
-        assert!(
-            v.iter()
-                .zip(values)
-                .all(|(a, b)| a.to_bits() == b.to_bits()),
-            "{name}: values differ"
-        );
+        assert!(v.iter().zip(values).all(|(a, b)| a.to_bits() == b.to_bits()), "{name}: values differ");
         assert_eq!(v.len(), values.len());
     }
 }
@@ -46,22 +38,15 @@ fn torchscript_controller_matches_golden() {
         return;
     }
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let mut spec = PolicySpec::load(&root.join("robots/h1_2/policies/unitree_rl_gym_lstm.toml"))
-        .expect("spec");
+    let mut spec = PolicySpec::load(&root.join("robots/h1_2/policies/unitree_rl_gym_lstm.toml")).expect("spec");
     spec.kind = PolicyKind::LstmTorchScript;
     spec.model_path = spec.model_path.with_extension("pt");
     let mut ctl = PolicyController::from_spec(spec).expect("controller from the .pt");
-    let text =
-        std::fs::read_to_string(root.join("corpus/golden/policies/unitree_rl_gym_lstm.json"))
-            .expect("golden");
+    let text = std::fs::read_to_string(root.join("corpus/golden/policies/unitree_rl_gym_lstm.json")).expect("golden");
     let doc: serde_json::Value = serde_json::from_str(&text).expect("json");
     let steps = doc["steps"].as_array().expect("steps");
     let f = |v: &serde_json::Value| -> Vec<f64> {
-        v.as_array()
-            .expect("array")
-            .iter()
-            .map(|x| x.as_f64().expect("number"))
-            .collect()
+        v.as_array().expect("array").iter().map(|x| x.as_f64().expect("number")).collect()
     };
     for (k, s) in steps.iter().enumerate() {
         let a3 = |key: &str| -> [f64; 3] { f(&s[key]).try_into().expect("3 values") };
@@ -75,12 +60,7 @@ fn torchscript_controller_matches_golden() {
         };
         let t = ctl.act(&obs).expect("act");
         let want = f(&s["q_des"]);
-        let d = t
-            .q_des
-            .iter()
-            .zip(&want)
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0, f64::max);
+        let d = t.q_des.iter().zip(&want).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
         assert!(d <= 1e-5, "step {k}: q_des differs by {d:e}");
     }
 }
@@ -89,22 +69,12 @@ fn torchscript_controller_matches_golden() {
 fn not_a_torchscript_archive() {
     let Some(shared) = shared() else { return };
     // An .npz is a zip too, but has no data.pkl.
-    let e = policy_runtime::torchscript::read_tensors(
-        &shared.join("reference/policies/h1_2_unitree_rl_gym_lstm.npz"),
-    )
-    .unwrap_err();
-    assert!(
-        matches!(e, policy_runtime::PolicyError::Model { .. }),
-        "{e}"
-    );
-    let e = policy_runtime::torchscript::read_tensors(
-        &shared.join("reference/policies/h1_2_gepetto_demo_rsl.onnx"),
-    )
-    .unwrap_err();
-    assert!(
-        matches!(e, policy_runtime::PolicyError::Model { .. }),
-        "{e}"
-    );
+    let e = policy_runtime::torchscript::read_tensors(&shared.join("reference/policies/h1_2_unitree_rl_gym_lstm.npz"))
+        .unwrap_err();
+    assert!(matches!(e, policy_runtime::PolicyError::Model { .. }), "{e}");
+    let e = policy_runtime::torchscript::read_tensors(&shared.join("reference/policies/h1_2_gepetto_demo_rsl.onnx"))
+        .unwrap_err();
+    assert!(matches!(e, policy_runtime::PolicyError::Model { .. }), "{e}");
 }
 
 /// Damaged archives give errors, never panics or hangs: every truncation of the real `data.pkl` and
@@ -125,28 +95,19 @@ fn damaged_pickles_are_errors_not_panics() {
             entries.push((name, buf));
         }
     }
-    let pkl_at = entries
-        .iter()
-        .position(|(n, _)| n.ends_with("/data.pkl"))
-        .expect("data.pkl");
+    let pkl_at = entries.iter().position(|(n, _)| n.ends_with("/data.pkl")).expect("data.pkl");
     let pkl = entries[pkl_at].1.clone();
-    let tmp =
-        std::env::temp_dir().join(format!("policy-runtime-damaged-{}.pt", std::process::id()));
+    let tmp = std::env::temp_dir().join(format!("policy-runtime-damaged-{}.pt", std::process::id()));
     let write = |bad: &[u8]| {
         let mut z = zip::ZipWriter::new(std::fs::File::create(&tmp).expect("create"));
-        let opts =
-            zip::write::FileOptions::default().compression_method(zip::CompressionMethod::Stored);
+        let opts = zip::write::FileOptions::default().compression_method(zip::CompressionMethod::Stored);
         for (k, (name, data)) in entries.iter().enumerate() {
             z.start_file(name.as_str(), opts).expect("start");
-            z.write_all(if k == pkl_at { bad } else { data })
-                .expect("write");
+            z.write_all(if k == pkl_at { bad } else { data }).expect("write");
         }
         z.finish().expect("finish");
     };
-    let mut variants: Vec<Vec<u8>> = (0..pkl.len())
-        .step_by(7)
-        .map(|n| pkl[..n].to_vec())
-        .collect();
+    let mut variants: Vec<Vec<u8>> = (0..pkl.len()).step_by(7).map(|n| pkl[..n].to_vec()).collect();
     let mut x: u64 = 0x9E37_79B9_7F4A_7C15;
     for _ in 0..300 {
         x ^= x << 13;
@@ -165,8 +126,5 @@ fn damaged_pickles_are_errors_not_panics() {
         }
     }
     let _ = std::fs::remove_file(&tmp);
-    assert!(
-        errors >= (pkl.len() / 7),
-        "every truncation must fail ({errors} errors)"
-    );
+    assert!(errors >= (pkl.len() / 7), "every truncation must fail ({errors} errors)");
 }

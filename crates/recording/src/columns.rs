@@ -33,10 +33,7 @@ pub struct Flatten {
 
 impl Flatten {
     pub fn of<T: IdlStruct>(value: &T) -> Columns {
-        let mut f = Flatten {
-            prefix: String::new(),
-            columns: Vec::new(),
-        };
+        let mut f = Flatten { prefix: String::new(), columns: Vec::new() };
         value.walk(&mut f);
         f.columns
     }

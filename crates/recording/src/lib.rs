@@ -48,18 +48,18 @@ pub fn add_topic<W: Write + Seek>(
 
 /// The DDS type name a recorded channel carries: its [`DDS_TYPE_KEY`] metadata, else its schema name.
 pub fn channel_type_name(channel: &mcap::Channel<'_>) -> Option<String> {
-    channel
-        .metadata
-        .get(DDS_TYPE_KEY)
-        .cloned()
-        .or_else(|| channel.schema.as_ref().map(|s| s.name.clone()))
+    channel.metadata.get(DDS_TYPE_KEY).cloned().or_else(|| channel.schema.as_ref().map(|s| s.name.clone()))
 }
 
 /// The `tick` of a LowState sample (hg or go), if it decodes.
 pub fn lowstate_tick(kind: MessageType, bytes: &[u8]) -> Option<u32> {
     match kind {
-        MessageType::HgLowState => lowlevel_codec::decode::<unitree_idl::hg::LowState_>(bytes).ok().map(|d| d.value.tick),
-        MessageType::GoLowState => lowlevel_codec::decode::<unitree_idl::go::LowState_>(bytes).ok().map(|d| d.value.tick),
+        MessageType::HgLowState => {
+            lowlevel_codec::decode::<unitree_idl::hg::LowState_>(bytes).ok().map(|d| d.value.tick)
+        }
+        MessageType::GoLowState => {
+            lowlevel_codec::decode::<unitree_idl::go::LowState_>(bytes).ok().map(|d| d.value.tick)
+        }
         _ => None,
     }
 }

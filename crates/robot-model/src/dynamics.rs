@@ -110,7 +110,14 @@ impl RobotModel {
     /// Inverse dynamics: generalized force needed for acceleration `a` at (`c`, `v`) under `gravity`
     /// (world vector, e.g. `[0, 0, -9.81]`), without contacts, damping or friction.
     /// `armature`: add each joint's armature × its acceleration.
-    pub fn rnea(&self, c: &GenCoords, v: &[f64], a: &[f64], gravity: [f64; 3], armature: bool) -> Result<DVector<f64>, ModelError> {
+    pub fn rnea(
+        &self,
+        c: &GenCoords,
+        v: &[f64],
+        a: &[f64],
+        gravity: [f64; 3],
+        armature: bool,
+    ) -> Result<DVector<f64>, ModelError> {
         let nv = self.nv();
         self.check_len("v", v, nv)?;
         self.check_len("a", a, nv)?;
@@ -186,7 +193,14 @@ impl RobotModel {
 
     /// Forward dynamics without contact, damping or friction: `a = M⁻¹ (f − b)`.
     /// `f` is the full generalized force (nv); use [`RobotModel::joint_force`] for joint torques only.
-    pub fn forward_dynamics(&self, c: &GenCoords, v: &[f64], f: &[f64], gravity: [f64; 3], armature: bool) -> Result<DVector<f64>, ModelError> {
+    pub fn forward_dynamics(
+        &self,
+        c: &GenCoords,
+        v: &[f64],
+        f: &[f64],
+        gravity: [f64; 3],
+        armature: bool,
+    ) -> Result<DVector<f64>, ModelError> {
         self.check_len("f", f, self.nv())?;
         let m = self.mass_matrix(c, armature)?;
         let b = self.bias_forces(c, v, gravity)?;

@@ -21,7 +21,11 @@ impl GenCoords {
     }
     /// The sidecar's standing pose.
     pub fn standing(model: &RobotModel) -> Self {
-        GenCoords { base_pos: model.standing.base_pos, base_quat: model.standing.base_quat, q: model.standing.q.clone() }
+        GenCoords {
+            base_pos: model.standing.base_pos,
+            base_quat: model.standing.base_quat,
+            q: model.standing.q.clone(),
+        }
     }
     /// Base pose as an isometry. Errors on a zero or non-finite quaternion.
     pub fn base_iso(&self) -> Result<Isometry3<f64>, ModelError> {
@@ -89,7 +93,13 @@ impl RobotModel {
     /// World centre of mass of every link at `c`.
     pub fn link_coms(&self, c: &GenCoords) -> Result<Vec<Vector3<f64>>, ModelError> {
         let fk = self.fk(c)?;
-        Ok(self.links.iter().zip(&fk.link_poses).map(|(l, p)| p * nalgebra::Point3::from(l.inertial.com)).map(|p| p.coords).collect())
+        Ok(self
+            .links
+            .iter()
+            .zip(&fk.link_poses)
+            .map(|(l, p)| p * nalgebra::Point3::from(l.inertial.com))
+            .map(|p| p.coords)
+            .collect())
     }
 
     /// Whole-body centre of mass in the world frame at `c`.
@@ -111,9 +121,7 @@ impl RobotModel {
                 let m = r.matrix();
                 // Support of the shape in direction -z: centre z minus the extent along world z.
                 let ext = match col.shape {
-                    crate::Shape::Box { half_extents: h } => {
-                        (0..3).map(|k| h[k] * m[(2, k)].abs()).sum::<f64>()
-                    }
+                    crate::Shape::Box { half_extents: h } => (0..3).map(|k| h[k] * m[(2, k)].abs()).sum::<f64>(),
                     crate::Shape::Sphere { radius } => radius,
                     crate::Shape::Capsule { radius, half_length } => half_length * m[(2, 2)].abs() + radius,
                     crate::Shape::Cylinder { radius, half_length } => {

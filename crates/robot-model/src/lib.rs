@@ -26,9 +26,7 @@ pub use error::ModelError;
 pub use kinematics::{quat_wxyz, tilt_from_vertical, FkResult, GenCoords};
 pub use load::SidecarFile;
 pub use mjcf::{MjcfOptions, ShapeFilter};
-pub use model::{
-    Collision, ContactParams, ImuSite, Inertial, Joint, Link, RobotModel, Shape, StandingPose,
-};
+pub use model::{Collision, ContactParams, ImuSite, Inertial, Joint, Link, RobotModel, Shape, StandingPose};
 
 /// Built-in robots, by the name used on the command line (`--robot`).
 pub const BUILTIN_ROBOTS: &[&str] = &["h1_2"];

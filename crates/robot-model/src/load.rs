@@ -243,7 +243,10 @@ impl RobotModel {
         let mut seen = std::collections::HashSet::new();
         for m in &motors {
             if m.slot >= side.model.slot_count {
-                return Err(ModelError::BadMotor { slot: m.slot, reason: format!("beyond slot_count {}", side.model.slot_count) });
+                return Err(ModelError::BadMotor {
+                    slot: m.slot,
+                    reason: format!("beyond slot_count {}", side.model.slot_count),
+                });
             }
             if !urdf_joint.contains_key(m.joint.as_str()) {
                 return Err(ModelError::MotorJointMissing { slot: m.slot, joint: m.joint.clone() });
@@ -294,18 +297,34 @@ impl RobotModel {
                 return Err(bad(format!("default_q {} outside [{lo}, {hi}]", m.default_q)));
             }
             if (j.limit.effort - m.torque_limit).abs() > 1e-9 {
-                return Err(bad(format!("URDF effort {} differs from sidecar torque_limit {}", j.limit.effort, m.torque_limit)));
+                return Err(bad(format!(
+                    "URDF effort {} differs from sidecar torque_limit {}",
+                    j.limit.effort, m.torque_limit
+                )));
             }
             if (j.limit.velocity - m.speed_limit).abs() > 1e-9 {
-                return Err(bad(format!("URDF velocity {} differs from sidecar speed_limit {}", j.limit.velocity, m.speed_limit)));
+                return Err(bad(format!(
+                    "URDF velocity {} differs from sidecar speed_limit {}",
+                    j.limit.velocity, m.speed_limit
+                )));
             }
             let arm = m.armature.unwrap_or(side.joint_defaults.armature);
             let damp = m.damping.unwrap_or(side.joint_defaults.damping);
             let fl = m.frictionloss.unwrap_or(side.joint_defaults.frictionloss);
-            for (what, v) in [("torque_limit", m.torque_limit), ("speed_limit", m.speed_limit), ("kp", m.kp), ("kd", m.kd),
-                ("armature", arm), ("damping", damp), ("frictionloss", fl)] {
+            for (what, v) in [
+                ("torque_limit", m.torque_limit),
+                ("speed_limit", m.speed_limit),
+                ("kp", m.kp),
+                ("kd", m.kd),
+                ("armature", arm),
+                ("damping", damp),
+                ("frictionloss", fl),
+            ] {
                 if !(v.is_finite() && v >= 0.0) {
-                    return Err(ModelError::BadMotor { slot: m.slot, reason: format!("{what} = {v} must be finite and >= 0") });
+                    return Err(ModelError::BadMotor {
+                        slot: m.slot,
+                        reason: format!("{what} = {v} must be finite and >= 0"),
+                    });
                 }
             }
             joints.push(Joint {
@@ -347,8 +366,12 @@ impl RobotModel {
             .get(side.imu.link.as_str())
             .ok_or_else(|| ModelError::Invalid(format!("imu.link {:?} is not a link", side.imu.link)))?;
         let c = &side.contact;
-        for (what, v) in [("friction", c.friction), ("torsional_friction", c.torsional_friction),
-            ("rolling_friction", c.rolling_friction), ("restitution", c.restitution)] {
+        for (what, v) in [
+            ("friction", c.friction),
+            ("torsional_friction", c.torsional_friction),
+            ("rolling_friction", c.rolling_friction),
+            ("restitution", c.restitution),
+        ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(ModelError::Invalid(format!("contact.{what} = {v} must be finite and >= 0")));
             }
@@ -359,7 +382,11 @@ impl RobotModel {
             links,
             joints,
             slot_count: side.model.slot_count,
-            standing: StandingPose { base_pos: side.standing.base_pos, base_quat: side.standing.base_quat, q: standing_q },
+            standing: StandingPose {
+                base_pos: side.standing.base_pos,
+                base_quat: side.standing.base_quat,
+                q: standing_q,
+            },
             contact: ContactParams {
                 friction: c.friction,
                 torsional_friction: c.torsional_friction,

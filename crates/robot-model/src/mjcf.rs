@@ -54,7 +54,11 @@ impl Default for MjcfOptions {
 fn f(x: f64) -> String {
     // Shortest round-trip representation: MuJoCo parses it back to the same f64.
     let s = format!("{x:?}");
-    if s == "-0.0" { "0".into() } else { s }
+    if s == "-0.0" {
+        "0".into()
+    } else {
+        s
+    }
 }
 
 fn v3(v: &[f64]) -> String {
@@ -90,7 +94,11 @@ impl RobotModel {
         }
         let _ = writeln!(s, "  <worldbody>");
         if o.floor {
-            let _ = writeln!(s, r#"    <geom name="floor" type="plane" size="0 0 0.05" contype="1" conaffinity="{}" condim="3" friction="{fr}"/>"#, if c.self_collision { 3 } else { 2 });
+            let _ = writeln!(
+                s,
+                r#"    <geom name="floor" type="plane" size="0 0 0.05" contype="1" conaffinity="{}" condim="3" friction="{fr}"/>"#,
+                if c.self_collision { 3 } else { 2 }
+            );
         }
         let base = &self.standing;
         let bp = base.base_pos;
@@ -107,7 +115,17 @@ impl RobotModel {
     }
 
     #[allow(clippy::too_many_arguments)]
-    fn body(&self, s: &mut String, li: usize, depth: usize, placement: &str, o: &MjcfOptions, rt: u32, ra: u32, fr: &str) {
+    fn body(
+        &self,
+        s: &mut String,
+        li: usize,
+        depth: usize,
+        placement: &str,
+        o: &MjcfOptions,
+        rt: u32,
+        ra: u32,
+        fr: &str,
+    ) {
         let pad = " ".repeat(depth * 2);
         let l = &self.links[li];
         let _ = writeln!(s, r#"{pad}<body name="{}" {placement}>"#, l.name);
@@ -160,7 +178,8 @@ impl RobotModel {
             }
         }
         if li == self.imu.link {
-            let _ = writeln!(s, r#"{pad}  <site name="imu" pos="{}" quat="{}"/>"#, v3(&self.imu.pos), v3(&self.imu.quat));
+            let _ =
+                writeln!(s, r#"{pad}  <site name="imu" pos="{}" quat="{}"/>"#, v3(&self.imu.pos), v3(&self.imu.quat));
         }
         for ji in self.child_joints(li) {
             let j = &self.joints[ji];

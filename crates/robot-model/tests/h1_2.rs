@@ -12,7 +12,11 @@ fn random_coords(m: &RobotModel, rng: &mut impl Rng) -> GenCoords {
     let q = m.joints.iter().map(|j| rng.gen_range(j.lower..j.upper)).collect();
     let axis = Vector3::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0));
     let r = UnitQuaternion::from_scaled_axis(axis * 2.0);
-    GenCoords { base_pos: [rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0), rng.gen_range(0.5..1.5)], base_quat: [r.w, r.i, r.j, r.k], q }
+    GenCoords {
+        base_pos: [rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0), rng.gen_range(0.5..1.5)],
+        base_quat: [r.w, r.i, r.j, r.k],
+        q,
+    }
 }
 
 /// q ⊕ v·h with the crate's velocity coordinates (linear world, angular body frame).
@@ -139,7 +143,9 @@ fn gravity_forces_are_the_gradient_of_potential_energy() {
         for k in 0..nv {
             let mut e = vec![0.0; nv];
             e[k] = 1.0;
-            let d = (m.potential_energy(&integrate(&c, &e, h), g).expect("pe") - m.potential_energy(&integrate(&c, &e, -h), g).expect("pe")) / (2.0 * h);
+            let d = (m.potential_energy(&integrate(&c, &e, h), g).expect("pe")
+                - m.potential_energy(&integrate(&c, &e, -h), g).expect("pe"))
+                / (2.0 * h);
             assert!((d - gq[k]).abs() < 1e-5 * (1.0 + gq[k].abs()), "dof {k}: dV/dq {d} vs g(q) {}", gq[k]);
         }
     }
@@ -156,7 +162,9 @@ fn coriolis_terms_satisfy_the_energy_identity() {
         let c = random_coords(&m, &mut rng);
         let v: Vec<f64> = (0..nv).map(|_| rng.gen_range(-2.0..2.0)).collect();
         let h = 1e-6;
-        let mdot = (m.mass_matrix(&integrate(&c, &v, h), false).expect("M") - m.mass_matrix(&integrate(&c, &v, -h), false).expect("M")) / (2.0 * h);
+        let mdot = (m.mass_matrix(&integrate(&c, &v, h), false).expect("M")
+            - m.mass_matrix(&integrate(&c, &v, -h), false).expect("M"))
+            / (2.0 * h);
         let vv = DVector::from_vec(v.clone());
         let lhs = vv.dot(&(&mdot * &vv));
         let cvec = m.bias_forces(&c, &v, g).expect("b") - m.bias_forces(&c, &vec![0.0; nv], g).expect("g");
@@ -215,7 +223,11 @@ fn validation_rejects_broken_files() {
     let u = urdf.replacen("effort=\"300\"", "effort=\"301\"", 1);
     assert!(matches!(RobotModel::from_strs(&u, &toml), Err(ModelError::BadJoint { .. })));
     // Mesh collision geometry.
-    let u = urdf.replacen("<geometry><box size=\"0.14 0.24 0.14\"/></geometry>", "<geometry><mesh filename=\"pelvis.stl\"/></geometry>", 1);
+    let u = urdf.replacen(
+        "<geometry><box size=\"0.14 0.24 0.14\"/></geometry>",
+        "<geometry><mesh filename=\"pelvis.stl\"/></geometry>",
+        1,
+    );
     assert!(matches!(RobotModel::from_strs(&u, &toml), Err(ModelError::UnsupportedGeometry { .. })));
     // Unknown key in the sidecar.
     let t = toml.replacen("[contact]", "[contact]\nbogus = 1", 1);

@@ -54,13 +54,20 @@ impl ImuTracker {
             site,
             gravity: Vector3::zeros(),
             velocity: Vector3::zeros(),
-            reading: ImuReading { quaternion: [1.0, 0.0, 0.0, 0.0], gyroscope: [0.0; 3], accelerometer: [0.0; 3], rpy: [0.0; 3] },
+            reading: ImuReading {
+                quaternion: [1.0, 0.0, 0.0, 0.0],
+                gyroscope: [0.0; 3],
+                accelerometer: [0.0; 3],
+                rpy: [0.0; 3],
+            },
         })
     }
 
     /// World pose of the IMU frame, and its world linear and angular velocity.
     fn kinematics(&self, model: &RobotModel, state: &State) -> Result<ImuKinematics, ModelError> {
-        let pose = |c: &GenCoords| -> Result<Isometry3<f64>, ModelError> { Ok(model.fk(c)?.link_poses[self.link] * self.site) };
+        let pose = |c: &GenCoords| -> Result<Isometry3<f64>, ModelError> {
+            Ok(model.fk(c)?.link_poses[self.link] * self.site)
+        };
         let c0 = state.coords();
         let p0 = pose(&c0)?;
         // Advance the configuration by EPS along the generalized velocity.

@@ -164,7 +164,12 @@ pub struct SimRobot {
 
 impl SimRobot {
     /// Wraps `engine` (built for `model`) and resets it to `initial`.
-    pub fn new(engine: Box<dyn Engine>, model: RobotModel, config: BridgeConfig, initial: &State) -> Result<Self, BridgeError> {
+    pub fn new(
+        engine: Box<dyn Engine>,
+        model: RobotModel,
+        config: BridgeConfig,
+        initial: &State,
+    ) -> Result<Self, BridgeError> {
         let n = model.nj();
         if model.joints.iter().any(|j| j.slot >= hg::MOTOR_SLOTS) {
             return Err(BridgeError::SlotMismatch { model: n, slots: hg::MOTOR_SLOTS });

@@ -39,13 +39,25 @@ pub fn settings(timestep: f64) -> CommonSettings {
 
 /// The robot on the stand at these joint angles and speeds, pelvis at rest at [`BASE_POS`], upright.
 pub fn state_on_stand(q: &[f64], dq: &[f64]) -> State {
-    State { base_pos: BASE_POS, base_quat: [1.0, 0.0, 0.0, 0.0], q: q.to_vec(), base_lin_vel: [0.0; 3], base_ang_vel: [0.0; 3], dq: dq.to_vec() }
+    State {
+        base_pos: BASE_POS,
+        base_quat: [1.0, 0.0, 0.0, 0.0],
+        q: q.to_vec(),
+        base_lin_vel: [0.0; 3],
+        base_ang_vel: [0.0; 3],
+        dq: dq.to_vec(),
+    }
 }
 
 /// Generalized force of the stand on the free joint (world-frame force, then torque on the pelvis' rotational
 /// dofs) for `state`; `weight` (N) is the suspended model's total weight, fed forward.
 pub fn base_wrench(state: &State, weight: f64) -> [f64; 6] {
-    let q = UnitQuaternion::from_quaternion(Quaternion::new(state.base_quat[0], state.base_quat[1], state.base_quat[2], state.base_quat[3]));
+    let q = UnitQuaternion::from_quaternion(Quaternion::new(
+        state.base_quat[0],
+        state.base_quat[1],
+        state.base_quat[2],
+        state.base_quat[3],
+    ));
     let rotvec = q.scaled_axis(); // target orientation is identity
     let mut f = [0.0; 6];
     for k in 0..3 {

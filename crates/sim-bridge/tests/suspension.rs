@@ -41,7 +41,12 @@ fn the_stand_holds_the_pelvis_still_and_without_it_the_robot_falls() {
     // (2.9°), with every joint swinging at 2 Hz.
     assert!(pos < 1e-3 && rot < 5e-3, "pelvis moved {pos} m / {rot} rad on the stand");
     // Same model, same settings, no stand: gravity takes it down by far more.
-    let mut free = MujocoEngine::new(&suspension::suspended_model(&model), &suspension::settings(0.002), &MujocoSettings::default()).expect("engine");
+    let mut free = MujocoEngine::new(
+        &suspension::suspended_model(&model),
+        &suspension::settings(0.002),
+        &MujocoSettings::default(),
+    )
+    .expect("engine");
     let (pos, _) = swing(&mut free, &model, 1.0);
     assert!(pos > 1.0, "without the stand the pelvis should fall (moved {pos} m)");
 }

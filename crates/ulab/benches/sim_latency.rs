@@ -100,7 +100,9 @@ fn clock_ticks() -> f64 {
 }
 
 fn loadavg() -> String {
-    std::fs::read_to_string("/proc/loadavg").map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" ")).unwrap_or_default()
+    std::fs::read_to_string("/proc/loadavg")
+        .map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
+        .unwrap_or_default()
 }
 
 fn percentile(sorted: &[f64], p: f64) -> f64 {
@@ -284,7 +286,18 @@ struct Rtf {
 /// of the per-second values) and from its final line (simulated / wall over the whole run).
 fn measure_rtf(engine: &str, domain: u32) -> Rtf {
     let mut child = Command::new(ulab())
-        .args(["sim", "--engine", engine, "--domain", &domain.to_string(), "--fast", "--dt", "0.002", "--duration", &FAST_S.to_string()])
+        .args([
+            "sim",
+            "--engine",
+            engine,
+            "--domain",
+            &domain.to_string(),
+            "--fast",
+            "--dt",
+            "0.002",
+            "--duration",
+            &FAST_S.to_string(),
+        ])
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
         .spawn()
@@ -293,10 +306,8 @@ fn measure_rtf(engine: &str, domain: u32) -> Rtf {
     let status = wait_bounded(&mut child, Duration::from_secs_f64(FAST_S + 30.0));
     let err = stderr.join().unwrap_or_default();
     assert!(status.is_some_and(|s| s.success()), "{engine}: ulab sim --fast failed: {err}");
-    let mut per_second: Vec<f64> = err
-        .lines()
-        .filter_map(|l| l.split("rtf ").nth(1)?.split_whitespace().next()?.parse().ok())
-        .collect();
+    let mut per_second: Vec<f64> =
+        err.lines().filter_map(|l| l.split("rtf ").nth(1)?.split_whitespace().next()?.parse().ok()).collect();
     per_second.sort_by(f64::total_cmp);
     let overall = err
         .lines()
@@ -314,7 +325,8 @@ fn measure_rtf(engine: &str, domain: u32) -> Rtf {
 fn main() {
     // `cargo bench` passes `--bench`; other arguments select engines.
     let wanted: Vec<String> = std::env::args().skip(1).filter(|a| !a.starts_with('-')).collect();
-    let engines: Vec<&str> = ENGINES.iter().copied().filter(|e| wanted.is_empty() || wanted.iter().any(|w| w == e)).collect();
+    let engines: Vec<&str> =
+        ENGINES.iter().copied().filter(|e| wanted.is_empty() || wanted.iter().any(|w| w == e)).collect();
     let cores = std::thread::available_parallelism().map_or(0, |n| n.get());
     let mut rows = Vec::new();
     for (i, engine) in engines.iter().enumerate() {
@@ -329,7 +341,11 @@ fn main() {
     println!("| engine | latency p50 | latency p99 (max) | p99 / target {P99_TARGET_MS:.0} ms | probes (superseded, unresolved) | LowState rate | bridge CPU, real time | RTF `--fast` median (whole run) | RTF / target | load avg before → after |");
     println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---|");
     for (engine, l, r, before, after) in &rows {
-        let rtf_ratio = if engine == "mujoco" { format!("{:.2} (target {RTF_TARGET_MUJOCO})", r.median / RTF_TARGET_MUJOCO) } else { "— (no target)".to_owned() };
+        let rtf_ratio = if engine == "mujoco" {
+            format!("{:.2} (target {RTF_TARGET_MUJOCO})", r.median / RTF_TARGET_MUJOCO)
+        } else {
+            "— (no target)".to_owned()
+        };
         println!(
             "| {engine} | {:.2} ms | {:.2} ms ({:.2}) | {:.2} | {} ({}, {}) | {:.1} Hz | {:.0} % of a core | {:.2} ({:.2}) | {rtf_ratio} | {before} → {after} |",
             l.p50_ms,

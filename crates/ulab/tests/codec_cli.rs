@@ -123,7 +123,9 @@ fn errors_exit_2_with_a_message() {
 /// subnormals, non-finite floats, sequences) and the error messages users see.
 #[test]
 fn snapshots() {
-    for case in ["hg_imustate_edge_x1le", "hg_imustate_nonfinite_x2be", "hg_handcmd_typical_x2le", "go_bmscmd_edge_x1le"] {
+    for case in
+        ["hg_imustate_edge_x1le", "hg_imustate_nonfinite_x2be", "hg_handcmd_typical_x2le", "go_bmscmd_edge_x1le"]
+    {
         let ty = match &case[..6] {
             "hg_imu" => "hg/IMUState",
             "hg_han" => "hg/HandCmd",
@@ -142,7 +144,11 @@ fn snapshots() {
     ];
     for (ty, bytes) in inputs {
         let out = ulab(&["codec", "decode", "--type", ty], bytes);
-        errors.push_str(&format!("{ty} {bytes:02x?}\n  exit {:?}: {}", out.status.code(), String::from_utf8_lossy(&out.stderr)));
+        errors.push_str(&format!(
+            "{ty} {bytes:02x?}\n  exit {:?}: {}",
+            out.status.code(),
+            String::from_utf8_lossy(&out.stderr)
+        ));
     }
     insta::assert_snapshot!("decode_errors", errors);
 }
@@ -152,7 +158,12 @@ fn snapshots() {
 #[test]
 fn validate_lists_findings() {
     let mut report = String::new();
-    for (case, ty) in [("hg_lowcmd_zero_x1le", "hg/LowCmd"), ("hg_lowcmd_nonfinite_x1le", "hg/LowCmd"), ("hg_lowcmd_badcrc_x1le", "hg/LowCmd"), ("hg_lowstate_zero_x1le", "hg/LowState")] {
+    for (case, ty) in [
+        ("hg_lowcmd_zero_x1le", "hg/LowCmd"),
+        ("hg_lowcmd_nonfinite_x1le", "hg/LowCmd"),
+        ("hg_lowcmd_badcrc_x1le", "hg/LowCmd"),
+        ("hg_lowstate_zero_x1le", "hg/LowState"),
+    ] {
         let bytes = std::fs::read(golden(&format!("{case}.cdr"))).expect("cdr");
         let out = ulab(&["codec", "validate", "--type", ty], &bytes);
         let stdout = String::from_utf8_lossy(&out.stdout);

@@ -68,10 +68,14 @@ fn failing_checks(domain: u32, switches: &[&str]) -> BTreeSet<String> {
     let _bridge = sim(domain, switches);
     let dir = out_dir(&format!("d{domain}"));
     let d = domain.to_string();
-    let (code, out, err) = conform(&["--domain", &d, "--format", "json", "--quiet", "--out", dir.to_str().expect("utf-8 path")], 150);
-    let report: serde_json::Value = serde_json::from_str(&out).unwrap_or_else(|e| panic!("stdout is not JSON ({e}); exit {code:?}\nstderr:\n{}", tail(&err)));
+    let (code, out, err) =
+        conform(&["--domain", &d, "--format", "json", "--quiet", "--out", dir.to_str().expect("utf-8 path")], 150);
+    let report: serde_json::Value = serde_json::from_str(&out)
+        .unwrap_or_else(|e| panic!("stdout is not JSON ({e}); exit {code:?}\nstderr:\n{}", tail(&err)));
     // The files match what was printed.
-    let file: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).expect("report.json")).expect("report.json is JSON");
+    let file: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).expect("report.json"))
+            .expect("report.json is JSON");
     assert_eq!(file, report);
     assert!(std::fs::read_to_string(dir.join("report.md")).expect("report.md").contains("# Conformance report"));
     let _ = std::fs::remove_dir_all(&dir);
@@ -94,7 +98,9 @@ fn failing_checks(domain: u32, switches: &[&str]) -> BTreeSet<String> {
     let ids: BTreeSet<&str> = results.iter().filter_map(|r| r["id"].as_str()).collect();
     let expected: BTreeSet<&str> = ALL_CHECKS.iter().copied().collect();
     assert_eq!(ids, expected, "set of checks");
-    let status = |s: &str| -> BTreeSet<String> { results.iter().filter(|r| r["status"] == s).filter_map(|r| r["id"].as_str().map(str::to_owned)).collect() };
+    let status = |s: &str| -> BTreeSet<String> {
+        results.iter().filter(|r| r["status"] == s).filter_map(|r| r["id"].as_str().map(str::to_owned)).collect()
+    };
     let fails = status("fail");
     let inconclusive = status("inconclusive");
     let dump = serde_json::to_string_pretty(&report).unwrap_or_default();
@@ -102,7 +108,10 @@ fn failing_checks(domain: u32, switches: &[&str]) -> BTreeSet<String> {
     assert_eq!(code, Some(if fails.is_empty() { 0 } else { 1 }), "exit code; failing {fails:?}\n{}", tail(&err));
     // Evidence is present for every check.
     for r in results {
-        assert!(r["evidence"].as_object().is_some_and(|e| !e.is_empty()) || r["id"] == "discovery_type_information", "no evidence: {r}");
+        assert!(
+            r["evidence"].as_object().is_some_and(|e| !e.is_empty()) || r["id"] == "discovery_type_information",
+            "no evidence: {r}"
+        );
     }
     println!("{switches:?}: failing {fails:?}");
     if !fails.is_empty() {
@@ -138,13 +147,30 @@ fn fuzz_finds_a_failure_in_the_unprotected_bridge_and_its_reproducer_replays() {
     let _g = SERIAL.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
     let _bridge = sim(84, &["--unsafe-skip-limit-check"]);
     let dir = out_dir("fuzz");
-    let (code, out, err) = conform(&["--domain", "84", "--fuzz", "--budget", "30", "--seed", "3", "--quiet", "--format", "json", "--out", dir.to_str().expect("utf-8 path")], 120);
+    let (code, out, err) = conform(
+        &[
+            "--domain",
+            "84",
+            "--fuzz",
+            "--budget",
+            "30",
+            "--seed",
+            "3",
+            "--quiet",
+            "--format",
+            "json",
+            "--out",
+            dir.to_str().expect("utf-8 path"),
+        ],
+        120,
+    );
     assert_eq!(code, Some(1), "fuzz should find a failure\n{out}\n{}", tail(&err));
     let report: serde_json::Value = serde_json::from_str(&out).expect("report JSON");
     let repros = report["reproducers"].as_array().expect("reproducers");
     assert_eq!(repros.len(), 1, "{out}");
     let file = dir.join(repros[0].as_str().expect("path"));
-    let rep: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&file).expect("reproducer file")).expect("reproducer JSON");
+    let rep: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&file).expect("reproducer file")).expect("reproducer JSON");
     assert_eq!(rep["schema_version"], 1);
     assert!(rep["steps"].as_array().is_some_and(|s| !s.is_empty() && s.len() <= 6), "{rep}");
     let (code, out, err) = conform(&["replay", file.to_str().expect("utf-8 path"), "--domain", "84"], 60);

@@ -29,7 +29,11 @@ fn tmp(name: &str) -> std::path::PathBuf {
 }
 
 fn reproducers(dir: &Path) -> Vec<std::path::PathBuf> {
-    let mut v: Vec<_> = std::fs::read_dir(dir).expect("out dir").filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.file_name().is_some_and(|n| n.to_string_lossy().starts_with("repro_"))).collect();
+    let mut v: Vec<_> = std::fs::read_dir(dir)
+        .expect("out dir")
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.file_name().is_some_and(|n| n.to_string_lossy().starts_with("repro_")))
+        .collect();
     v.sort();
     v
 }
@@ -38,11 +42,33 @@ fn reproducers(dir: &Path) -> Vec<std::path::PathBuf> {
 fn builtin_input_report_and_bit_exact_replay() {
     let out = tmp("run");
     let o = out.to_string_lossy().to_string();
-    let (code, stdout, err) = ulab(&["diff", "--robot", "h1_2", "--engines", "mujoco,rapier-multibody,rapier-impulse", "--episodes", "2", "--seconds", "0.2", "--seed", "3", "--window", "25", "--minimize", "2", "--out", &o]);
+    let (code, stdout, err) = ulab(&[
+        "diff",
+        "--robot",
+        "h1_2",
+        "--engines",
+        "mujoco,rapier-multibody,rapier-impulse",
+        "--episodes",
+        "2",
+        "--seconds",
+        "0.2",
+        "--seed",
+        "3",
+        "--window",
+        "25",
+        "--minimize",
+        "2",
+        "--out",
+        &o,
+    ]);
     assert_eq!(code, Some(0), "{}\n{}", stdout, tail(&err));
     let md = std::fs::read_to_string(out.join("report.md")).expect("report.md");
-    assert!(md.contains("rapier_multibody") && md.contains("rapier_impulse") && md.contains("Triaged divergences"), "{md}");
-    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).expect("report.json")).expect("json");
+    assert!(
+        md.contains("rapier_multibody") && md.contains("rapier_impulse") && md.contains("Triaged divergences"),
+        "{md}"
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).expect("report.json")).expect("json");
     assert_eq!(json["schema_version"], 1);
     assert_eq!(json["seeds"], serde_json::json!([3, 4]));
     assert_eq!(json["engines"].as_array().map(|a| a.len()), Some(3));
@@ -54,7 +80,10 @@ fn builtin_input_report_and_bit_exact_replay() {
         assert!(t.contains("<svg") && t.contains("<polyline"), "{svg}");
     }
     let repros = reproducers(&out);
-    assert_eq!(repros.len(), json["entries"].as_array().map(|a| a.iter().filter(|e| !e["minimized"].is_null()).count()).unwrap_or(0));
+    assert_eq!(
+        repros.len(),
+        json["entries"].as_array().map(|a| a.iter().filter(|e| !e["minimized"].is_null()).count()).unwrap_or(0)
+    );
     for r in &repros {
         let (code, stdout, err) = ulab(&["diff", "replay", &r.to_string_lossy()]);
         assert_eq!(code, Some(0), "{}: {stdout}\n{}", r.display(), tail(&err));
@@ -79,12 +108,32 @@ fn builtin_input_report_and_bit_exact_replay() {
 fn fuzz_writes_corpus_and_triaged_report() {
     let out = tmp("fuzz");
     let o = out.to_string_lossy().to_string();
-    let (code, stdout, err) = ulab(&["diff", "fuzz", "--engines", "mujoco,rapier-impulse", "--iterations", "6", "--seconds", "0.1", "--window", "10", "--minimize", "1", "--seed", "1", "--jobs", "2", "--out", &o]);
+    let (code, stdout, err) = ulab(&[
+        "diff",
+        "fuzz",
+        "--engines",
+        "mujoco,rapier-impulse",
+        "--iterations",
+        "6",
+        "--seconds",
+        "0.1",
+        "--window",
+        "10",
+        "--minimize",
+        "1",
+        "--seed",
+        "1",
+        "--jobs",
+        "2",
+        "--out",
+        &o,
+    ]);
     assert_eq!(code, Some(0), "{stdout}\n{}", tail(&err));
     assert!(stdout.contains("6 inputs evaluated"), "{stdout}");
     let corpus = std::fs::read_dir(out.join("corpus")).expect("corpus").count();
     assert!(corpus >= 1);
-    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).expect("report.json")).expect("json");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).expect("report.json")).expect("json");
     for e in json["entries"].as_array().expect("entries") {
         assert!(e["triage"]["class"].is_string(), "untriaged entry {e}");
     }
@@ -97,9 +146,11 @@ fn fuzz_writes_corpus_and_triaged_report() {
         assert!(stdout.contains("identical"), "{stdout}");
     }
     // Flip the lowest bit of the recorded value: the replay must notice and exit 1.
-    let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&repros[0]).expect("read")).expect("json");
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&repros[0]).expect("read")).expect("json");
     let x = v["expected"]["value_bits"].as_str().expect("bits").to_string();
-    v["expected"]["value_bits"] = serde_json::Value::String(format!("{:016x}", u64::from_str_radix(&x, 16).expect("hex") ^ 1));
+    v["expected"]["value_bits"] =
+        serde_json::Value::String(format!("{:016x}", u64::from_str_radix(&x, 16).expect("hex") ^ 1));
     let bad = out.join("tampered.json");
     std::fs::write(&bad, v.to_string()).expect("write");
     let (code, stdout, _) = ulab(&["diff", "replay", &bad.to_string_lossy()]);
@@ -107,7 +158,24 @@ fn fuzz_writes_corpus_and_triaged_report() {
     assert!(stdout.contains("DIFFERS"), "{stdout}");
     // The written corpus is a valid seed corpus.
     let out2 = tmp("fuzz2");
-    let (code, stdout, err) = ulab(&["diff", "fuzz", "--engines", "mujoco,rapier-impulse", "--iterations", "1", "--seconds", "0.05", "--window", "10", "--minimize", "0", "--corpus", &out.join("corpus").to_string_lossy(), "--out", &out2.to_string_lossy()]);
+    let (code, stdout, err) = ulab(&[
+        "diff",
+        "fuzz",
+        "--engines",
+        "mujoco,rapier-impulse",
+        "--iterations",
+        "1",
+        "--seconds",
+        "0.05",
+        "--window",
+        "10",
+        "--minimize",
+        "0",
+        "--corpus",
+        &out.join("corpus").to_string_lossy(),
+        "--out",
+        &out2.to_string_lossy(),
+    ]);
     assert_eq!(code, Some(0), "{stdout}\n{}", tail(&err));
     let _ = std::fs::remove_dir_all(&out);
     let _ = std::fs::remove_dir_all(&out2);
@@ -122,7 +190,21 @@ fn shipped_policies_run_across_engines() {
     for spec in ["gepetto_demo_rsl.toml", "unitree_rl_gym_lstm.toml"] {
         let out = tmp(spec);
         let p = root().join("robots/h1_2/policies").join(spec);
-        let (code, stdout, err) = ulab(&["diff", "--policy", &p.to_string_lossy(), "--episodes", "2", "--seconds", "0.2", "--window", "25", "--minimize", "1", "--out", &out.to_string_lossy()]);
+        let (code, stdout, err) = ulab(&[
+            "diff",
+            "--policy",
+            &p.to_string_lossy(),
+            "--episodes",
+            "2",
+            "--seconds",
+            "0.2",
+            "--window",
+            "25",
+            "--minimize",
+            "1",
+            "--out",
+            &out.to_string_lossy(),
+        ]);
         assert_eq!(code, Some(0), "{spec}: {stdout}\n{}", tail(&err));
         let md = std::fs::read_to_string(out.join("report.md")).expect("report.md");
         assert!(md.contains("Episode outcomes"), "{md}");

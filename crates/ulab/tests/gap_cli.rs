@@ -36,7 +36,16 @@ fn read_with_python(path: &Path) -> serde_json::Value {
 fn simulated_log_is_a_recording_and_diagnose_finds_the_effect() {
     let d = dir("simulate");
     let log = d.join("real.mcap");
-    let (code, out, err) = ulab(&["gap", "simulate", "--duration", "5", "--effect", "damping:left_arm:2.5", "--out", log.to_str().unwrap_or("")]);
+    let (code, out, err) = ulab(&[
+        "gap",
+        "simulate",
+        "--duration",
+        "5",
+        "--effect",
+        "damping:left_arm:2.5",
+        "--out",
+        log.to_str().unwrap_or(""),
+    ]);
     assert_eq!(code, Some(0), "simulate failed:\n{out}\n{err}");
 
     // Independent reader: Python mcap + Unitree's Cyclone DDS types.
@@ -49,7 +58,20 @@ fn simulated_log_is_a_recording_and_diagnose_finds_the_effect() {
     assert_eq!(v["topics"]["rt/lowstate"]["count"], 2500, "500 Hz for 5 s");
 
     let out_dir = d.join("report");
-    let (code, out, err) = ulab(&["gap", "diagnose", "--log", log.to_str().unwrap_or(""), "--robot", "h1_2", "--out", out_dir.to_str().unwrap_or(""), "--format", "json", "--block", "0.5"]);
+    let (code, out, err) = ulab(&[
+        "gap",
+        "diagnose",
+        "--log",
+        log.to_str().unwrap_or(""),
+        "--robot",
+        "h1_2",
+        "--out",
+        out_dir.to_str().unwrap_or(""),
+        "--format",
+        "json",
+        "--block",
+        "0.5",
+    ]);
     assert_eq!(code, Some(0), "diagnose failed:\n{}\n{err}", tail(&out));
     let r: serde_json::Value = serde_json::from_str(&out).expect("JSON report on stdout");
     assert_eq!(r["schema_version"], gap_diagnosis::diagnose::SCHEMA_VERSION);
@@ -62,9 +84,21 @@ fn simulated_log_is_a_recording_and_diagnose_finds_the_effect() {
 
     // The same log through `ulab log export` (CSV pair) gives the same verdict.
     let csv = d.join("csv");
-    let (code, out, err) = ulab(&["log", "export", log.to_str().unwrap_or(""), "--format", "csv", "--out", csv.to_str().unwrap_or("")]);
+    let (code, out, err) =
+        ulab(&["log", "export", log.to_str().unwrap_or(""), "--format", "csv", "--out", csv.to_str().unwrap_or("")]);
     assert_eq!(code, Some(0), "export failed:\n{out}\n{err}");
-    let (code, out, err) = ulab(&["gap", "diagnose", "--log", csv.to_str().unwrap_or(""), "--out", d.join("report_csv").to_str().unwrap_or(""), "--format", "json", "--block", "0.5"]);
+    let (code, out, err) = ulab(&[
+        "gap",
+        "diagnose",
+        "--log",
+        csv.to_str().unwrap_or(""),
+        "--out",
+        d.join("report_csv").to_str().unwrap_or(""),
+        "--format",
+        "json",
+        "--block",
+        "0.5",
+    ]);
     assert_eq!(code, Some(0), "diagnose (csv) failed:\n{}\n{err}", tail(&out));
     let r: serde_json::Value = serde_json::from_str(&out).expect("JSON report on stdout");
     assert_eq!(r["ranked"][0], "damping", "ranked {}", r["ranked"]);
@@ -74,7 +108,18 @@ fn simulated_log_is_a_recording_and_diagnose_finds_the_effect() {
 fn excitation_plan_is_within_limits_and_readable() {
     let d = dir("excite");
     let plan = d.join("plan.mcap");
-    let (code, out, err) = ulab(&["gap", "excite", "--robot", "h1_2", "--duration", "6", "--rate", "100", "--out", plan.to_str().unwrap_or("")]);
+    let (code, out, err) = ulab(&[
+        "gap",
+        "excite",
+        "--robot",
+        "h1_2",
+        "--duration",
+        "6",
+        "--rate",
+        "100",
+        "--out",
+        plan.to_str().unwrap_or(""),
+    ]);
     assert_eq!(code, Some(0), "excite failed:\n{out}\n{err}");
     let v = read_with_python(&plan);
     assert_eq!(v["errors"].as_array().map(|a| a.len()), Some(0), "{}", v["errors"]);
@@ -90,7 +135,13 @@ fn excitation_plan_is_within_limits_and_readable() {
         assert!(lowlevel_codec::verify(&c), "CRC");
         for (j, joint) in model.joints.iter().enumerate() {
             let q = f64::from(c.motor_cmd[joint.slot].q);
-            assert!(q > joint.lower && q < joint.upper, "{} target {q} outside [{}, {}]", joint.name, joint.lower, joint.upper);
+            assert!(
+                q > joint.lower && q < joint.upper,
+                "{} target {q} outside [{}, {}]",
+                joint.name,
+                joint.lower,
+                joint.upper
+            );
             assert!(f64::from(c.motor_cmd[joint.slot].kp) <= joint.kp + 1e-3);
             moved[j] |= (q - joint.default_q).abs() > 0.02;
         }
@@ -103,13 +154,32 @@ fn bad_input_fails_cleanly() {
     let d = dir("bad");
     let junk = d.join("junk.mcap");
     std::fs::write(&junk, b"not an mcap file at all").expect("write");
-    let (code, _, err) = ulab(&["gap", "diagnose", "--log", junk.to_str().unwrap_or(""), "--out", d.join("o").to_str().unwrap_or("")]);
+    let (code, _, err) =
+        ulab(&["gap", "diagnose", "--log", junk.to_str().unwrap_or(""), "--out", d.join("o").to_str().unwrap_or("")]);
     assert_eq!(code, Some(2));
     assert!(err.contains("MCAP"), "{err}");
-    let (code, _, err) = ulab(&["gap", "diagnose", "--log", junk.to_str().unwrap_or(""), "--engine", "bullet", "--out", d.join("o").to_str().unwrap_or("")]);
+    let (code, _, err) = ulab(&[
+        "gap",
+        "diagnose",
+        "--log",
+        junk.to_str().unwrap_or(""),
+        "--engine",
+        "bullet",
+        "--out",
+        d.join("o").to_str().unwrap_or(""),
+    ]);
     assert_eq!(code, Some(2));
     assert!(err.contains("engine"), "{err}");
-    let (code, _, err) = ulab(&["gap", "simulate", "--effect", "damping:left_tail:1", "--duration", "2", "--out", d.join("x.mcap").to_str().unwrap_or("")]);
+    let (code, _, err) = ulab(&[
+        "gap",
+        "simulate",
+        "--effect",
+        "damping:left_tail:1",
+        "--duration",
+        "2",
+        "--out",
+        d.join("x.mcap").to_str().unwrap_or(""),
+    ]);
     assert_eq!(code, Some(2));
     assert!(err.contains("left_tail"), "{err}");
 }
@@ -127,25 +197,62 @@ fn walking_log_is_diagnosed_on_the_floating_base() {
     let bench = d.join("bench");
     let policy = root().join("robots/h1_2/policies/unitree_rl_gym_lstm.toml");
     let (code, out, err) = ulab(&[
-        "gap", "bench", "--floating", "--policy", policy.to_str().unwrap_or(""), "--trials", "1", "--seed", "1", "--duration", "4",
-        "--out", bench.to_str().unwrap_or(""),
+        "gap",
+        "bench",
+        "--floating",
+        "--policy",
+        policy.to_str().unwrap_or(""),
+        "--trials",
+        "1",
+        "--seed",
+        "1",
+        "--duration",
+        "4",
+        "--out",
+        bench.to_str().unwrap_or(""),
     ]);
     assert_eq!(code, Some(0), "bench failed:\n{}\n{}", tail(&out), tail(&err));
-    let scores: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(bench.join("scores.json")).unwrap_or_default()).expect("scores.json");
+    let scores: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(bench.join("scores.json")).unwrap_or_default())
+            .expect("scores.json");
     let injected = &scores[0]["injected"];
     assert_eq!(injected.as_array().map(Vec::len), Some(1), "trial 0 is a single effect: {injected}");
     let log = bench.join("trial_000.mcap");
 
-    let (code, out, err) = ulab(&["gap", "diagnose", "--log", log.to_str().unwrap_or(""), "--out", d.join("report").to_str().unwrap_or(""), "--format", "json", "--block", "0.5"]);
+    let (code, out, err) = ulab(&[
+        "gap",
+        "diagnose",
+        "--log",
+        log.to_str().unwrap_or(""),
+        "--out",
+        d.join("report").to_str().unwrap_or(""),
+        "--format",
+        "json",
+        "--block",
+        "0.5",
+    ]);
     assert_eq!(code, Some(0), "diagnose failed:\n{}\n{err}", tail(&out));
     let r: serde_json::Value = serde_json::from_str(&out).expect("JSON report on stdout");
     assert_eq!(r["plant"], "floating", "rig check: {}", r["rig_check"]["message"]);
     assert_eq!(r["rig_check"]["suspended"], false);
-    assert!(r["rig_check"]["foot_load_fraction"].as_f64().is_some_and(|f| f > 0.5), "a walking robot's feet carry it: {}", r["rig_check"]);
+    assert!(
+        r["rig_check"]["foot_load_fraction"].as_f64().is_some_and(|f| f > 0.5),
+        "a walking robot's feet carry it: {}",
+        r["rig_check"]
+    );
     assert_eq!(r["windows_down"], 0);
     assert_eq!(r["ranked"][0], injected[0]["kind"], "ranked {} for {injected}", r["ranked"]);
 
-    let (code, _, err) = ulab(&["gap", "diagnose", "--log", log.to_str().unwrap_or(""), "--out", d.join("report_rig").to_str().unwrap_or(""), "--plant", "rig"]);
+    let (code, _, err) = ulab(&[
+        "gap",
+        "diagnose",
+        "--log",
+        log.to_str().unwrap_or(""),
+        "--out",
+        d.join("report_rig").to_str().unwrap_or(""),
+        "--plant",
+        "rig",
+    ]);
     assert_eq!(code, Some(3), "--plant rig on a walking log must abstain with exit 3:\n{err}");
     assert!(err.contains("ABSTAINED"), "{err}");
 }

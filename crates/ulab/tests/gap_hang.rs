@@ -28,27 +28,48 @@ fn hung_sim_recording_is_diagnosed_without_a_confident_effect() {
     let (plan, rec, out) = (d.join("plan.mcap"), d.join("rec.mcap"), d.join("report"));
     let s = |p: &Path| p.to_str().unwrap_or("").to_string();
 
-    let (code, o, e) = run_ulab(&["gap", "excite", "--duration", "6", "--rate", "100", "--out", &s(&plan)], Duration::from_secs(30));
+    let (code, o, e) =
+        run_ulab(&["gap", "excite", "--duration", "6", "--rate", "100", "--out", &s(&plan)], Duration::from_secs(30));
     assert_eq!(code, Some(0), "excite failed:\n{o}\n{e}");
 
     let sim = spawn(&["sim", "--hang", "--on-time-state", "--domain", DOMAIN, "--duration", "30", "--quiet"]);
     let recorder = spawn(&["record", "--domain", DOMAIN, "--duration", "9", "--quiet", "--out", &s(&rec)]);
     std::thread::sleep(Duration::from_millis(1000));
-    let (code, o, e) = run_ulab(&["replay", &s(&plan), "--domain", DOMAIN, "--topics", "rt/lowcmd"], Duration::from_secs(30));
+    let (code, o, e) =
+        run_ulab(&["replay", &s(&plan), "--domain", DOMAIN, "--topics", "rt/lowcmd"], Duration::from_secs(30));
     assert_eq!(code, Some(0), "replay failed:\n{o}\n{e}");
     let (code, o, e) = finish(recorder, Duration::from_secs(20));
     assert_eq!(code, Some(0), "record failed:\n{o}\n{e}");
     drop(sim);
 
-    let (code, o, e) = run_ulab(&["gap", "diagnose", "--log", &s(&rec), "--out", &s(&out), "--format", "json", "--block", "0.5"], Duration::from_secs(180));
+    let (code, o, e) = run_ulab(
+        &["gap", "diagnose", "--log", &s(&rec), "--out", &s(&out), "--format", "json", "--block", "0.5"],
+        Duration::from_secs(180),
+    );
     assert_eq!(code, Some(0), "diagnose failed or abstained on the rig check:\n{}\n{e}", tail(&o));
     let r: serde_json::Value = serde_json::from_str(&o).expect("JSON report");
     eprintln!("rig check: {}", r["rig_check"]["message"]);
-    eprintln!("baseline {} ; effects: {}", r["baseline_metric"], r["effects"].as_array().map(|a| a.iter().map(|e| format!("{}:{}:{}", e["kind"], e["named"], e["reduction"]["value"])).collect::<Vec<_>>().join(" ")).unwrap_or_default());
+    eprintln!(
+        "baseline {} ; effects: {}",
+        r["baseline_metric"],
+        r["effects"]
+            .as_array()
+            .map(|a| a
+                .iter()
+                .map(|e| format!("{}:{}:{}", e["kind"], e["named"], e["reduction"]["value"]))
+                .collect::<Vec<_>>()
+                .join(" "))
+            .unwrap_or_default()
+    );
     assert_eq!(r["outcome"], "diagnosed");
     assert_eq!(r["rig_check"]["suspended"], true, "{}", r["rig_check"]);
     assert!(r["log_duration_s"].as_f64().unwrap_or(0.0) > 6.0, "{}", r["log_duration_s"]);
-    assert_eq!(r["ranked"].as_array().map(Vec::len), Some(0), "named effects on a log of the same model: {}", r["ranked"]);
+    assert_eq!(
+        r["ranked"].as_array().map(Vec::len),
+        Some(0),
+        "named effects on a log of the same model: {}",
+        r["ranked"]
+    );
     assert_eq!(r["unexplained"], true);
 }
 
@@ -73,7 +94,10 @@ fn diagnose_with_plant_rig_abstains_with_exit_3_on_a_swinging_pelvis() {
     log.write_mcap(std::io::BufWriter::new(std::fs::File::create(&file).expect("create")), &m).expect("write");
     let out = d.join("report");
     let f = |p: &Path| p.to_str().unwrap_or("").to_string();
-    let (code, o, e) = run_ulab(&["gap", "diagnose", "--log", &f(&file), "--plant", "rig", "--out", &f(&out), "--format", "json"], Duration::from_secs(120));
+    let (code, o, e) = run_ulab(
+        &["gap", "diagnose", "--log", &f(&file), "--plant", "rig", "--out", &f(&out), "--format", "json"],
+        Duration::from_secs(120),
+    );
     assert_eq!(code, Some(3), "expected the rig-check abstention:\n{}\n{e}", tail(&o));
     assert!(e.contains("ABSTAINED") && e.contains("not from a suspended robot"), "{e}");
     let r: serde_json::Value = serde_json::from_str(&o).expect("JSON report");

@@ -3,7 +3,11 @@ use std::process::Command;
 
 fn ulab(args: &[&str]) -> (i32, String, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_ulab")).args(args).output().expect("run ulab");
-    (out.status.code().unwrap_or(-1), String::from_utf8_lossy(&out.stdout).into(), String::from_utf8_lossy(&out.stderr).into())
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into(),
+        String::from_utf8_lossy(&out.stderr).into(),
+    )
 }
 
 fn json(s: &str) -> serde_json::Value {
@@ -12,7 +16,8 @@ fn json(s: &str) -> serde_json::Value {
 
 #[test]
 fn check_mujoco_passes_and_reports_errors_and_tolerances() {
-    let (code, out, err) = ulab(&["model", "check", "--robot", "h1_2", "--engine", "mujoco", "--format", "json", "--samples", "2"]);
+    let (code, out, err) =
+        ulab(&["model", "check", "--robot", "h1_2", "--engine", "mujoco", "--format", "json", "--samples", "2"]);
     assert_eq!(code, 0, "{out}\n{err}");
     let r = json(&out);
     assert_eq!(r["engines"][0]["name"], "mujoco");
@@ -28,7 +33,8 @@ fn check_mujoco_passes_and_reports_errors_and_tolerances() {
 #[test]
 fn inspect_mujoco_equals_the_reference_mass_matrix() {
     let m = |engine: &str| {
-        let (code, out, err) = ulab(&["model", "inspect", "--robot", "h1_2", "--engine", engine, "--q", "random:5", "--format", "json"]);
+        let (code, out, err) =
+            ulab(&["model", "inspect", "--robot", "h1_2", "--engine", engine, "--q", "random:5", "--format", "json"]);
         assert_eq!(code, 0, "{err}");
         json(&out)
     };
@@ -41,7 +47,12 @@ fn inspect_mujoco_equals_the_reference_mass_matrix() {
         assert_eq!(v["mass_matrix"].as_array().expect("rows").len(), 33);
     }
     let flat = |v: &serde_json::Value| -> Vec<f64> {
-        v["mass_matrix"].as_array().expect("rows").iter().flat_map(|r| r.as_array().expect("row").iter().map(|x| x.as_f64().expect("f64"))).collect()
+        v["mass_matrix"]
+            .as_array()
+            .expect("rows")
+            .iter()
+            .flat_map(|r| r.as_array().expect("row").iter().map(|x| x.as_f64().expect("f64")))
+            .collect()
     };
     let (ma, mb) = (flat(&a), flat(&b));
     let norm = mb.iter().map(|x| x * x).sum::<f64>().sqrt();

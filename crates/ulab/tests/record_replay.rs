@@ -32,9 +32,7 @@ fn tmp(name: &str) -> PathBuf {
 
 fn read_mcap(path: &Path) -> serde_json::Value {
     let (ok, out, err) = run_with_timeout(
-        Command::new(python())
-            .arg(crate_dir().join("tests/py/read_mcap.py"))
-            .arg(path),
+        Command::new(python()).arg(crate_dir().join("tests/py/read_mcap.py")).arg(path),
         Duration::from_secs(60),
     );
     assert!(ok, "Python mcap reader failed:\n{out}\n{err}");
@@ -44,11 +42,7 @@ fn read_mcap(path: &Path) -> serde_json::Value {
 /// Records a session (LowState at 100 Hz with one outage, LowCmd at 50 Hz) on `domain`.
 fn record_session(domain: u32, out: &Path) -> String {
     let d = domain.to_string();
-    let rec = Proc::spawn(
-        ulab()
-            .args(["record", "--domain", &d, "--duration", "6", "--out"])
-            .arg(out),
-    );
+    let rec = Proc::spawn(ulab().args(["record", "--domain", &d, "--duration", "6", "--out"]).arg(out));
     std::thread::sleep(Duration::from_millis(500));
     let st = Proc::spawn(py_peer().args([
         "pub-lowstate",
@@ -77,14 +71,8 @@ fn record_then_read_with_python_mcap_then_replay_then_export() {
     let report = record_session(191, &file);
 
     // The report counts messages and finds the outage (tick jump + arrival gap).
-    assert!(
-        report.contains("rt/lowstate: 200 messages") || report.contains("rt/lowstate: 199 messages"),
-        "{report}"
-    );
-    assert!(
-        report.contains("tick step 2, 1 tick jumps, about 15 samples missing by tick"),
-        "{report}"
-    );
+    assert!(report.contains("rt/lowstate: 200 messages") || report.contains("rt/lowstate: 199 messages"), "{report}");
+    assert!(report.contains("tick step 2, 1 tick jumps, about 15 samples missing by tick"), "{report}");
     assert!(report.contains("gap: tick jump 240 -> 272"), "{report}");
     assert!(report.contains("gap: arrival gap of"), "{report}");
 
@@ -94,12 +82,7 @@ fn record_then_read_with_python_mcap_then_replay_then_export() {
     let st = &v["topics"]["rt/lowstate"];
     let n_state = st["count"].as_u64().expect("count");
     assert!(n_state >= 199, "{n_state}");
-    let ticks: Vec<u64> = st["ticks"]
-        .as_array()
-        .expect("ticks")
-        .iter()
-        .filter_map(|t| t.as_u64())
-        .collect();
+    let ticks: Vec<u64> = st["ticks"].as_array().expect("ticks").iter().filter_map(|t| t.as_u64()).collect();
     assert_eq!(ticks.len() as u64, n_state);
     assert!(ticks.windows(2).all(|w| w[1] > w[0]), "ticks increase");
     assert_eq!(ticks.last(), Some(&430));
@@ -109,31 +92,16 @@ fn record_then_read_with_python_mcap_then_replay_then_export() {
     assert_eq!(schema["encoding"], "omgidl");
     assert!(schema["idl"].as_str().expect("idl").contains("struct LowState_"));
     assert_eq!(v["channels"]["rt/lowstate"]["encoding"], "cdr");
-    assert!(v["metadata"]["ulab.record"]["report"]
-        .as_str()
-        .expect("report")
-        .contains("tick jump"));
+    assert!(v["metadata"]["ulab.record"]["report"].as_str().expect("report").contains("tick jump"));
 
     // Replay at 2x to a Python subscriber: everything arrives, in order, in about half the time.
     let sub = Proc::spawn(
         py_peer()
-            .args([
-                "sub",
-                "--domain",
-                "192",
-                "--topic",
-                "rt/lowstate",
-                "--seconds",
-                "15",
-                "--count",
-            ])
+            .args(["sub", "--domain", "192", "--topic", "rt/lowstate", "--seconds", "15", "--count"])
             .arg(n_state.to_string()),
     );
     let (ok, out, err) = run_with_timeout(
-        ulab()
-            .arg("replay")
-            .arg(&file)
-            .args(["--domain", "192", "--speed", "2", "--topics", "rt/lowstate"]),
+        ulab().arg("replay").arg(&file).args(["--domain", "192", "--speed", "2", "--topics", "rt/lowstate"]),
         Duration::from_secs(30),
     );
     assert!(ok, "ulab replay failed:\n{out}\n{err}");
@@ -150,12 +118,7 @@ fn record_then_read_with_python_mcap_then_replay_then_export() {
     assert_eq!(got, ticks, "same samples, same order");
     let t0 = samples[0]["t"].as_f64().expect("t");
     let t1 = samples[samples.len() - 1]["t"].as_f64().expect("t");
-    let logs: Vec<u64> = st["log_times"]
-        .as_array()
-        .expect("log times")
-        .iter()
-        .filter_map(|t| t.as_u64())
-        .collect();
+    let logs: Vec<u64> = st["log_times"].as_array().expect("log times").iter().filter_map(|t| t.as_u64()).collect();
     let recorded_span = (logs[logs.len() - 1] - logs[0]) as f64 / 1e9;
     let replay_span = t1 - t0;
     assert!(
@@ -166,11 +129,7 @@ fn record_then_read_with_python_mcap_then_replay_then_export() {
     // CSV export: one row per message, named columns, values from our codec.
     let dir = tmp("session_csv");
     let (ok, out, err) = run_with_timeout(
-        ulab()
-            .args(["log", "export"])
-            .arg(&file)
-            .args(["--format", "csv", "--out"])
-            .arg(&dir),
+        ulab().args(["log", "export"]).arg(&file).args(["--format", "csv", "--out"]).arg(&dir),
         Duration::from_secs(30),
     );
     assert!(ok, "export failed:\n{out}\n{err}");
@@ -179,9 +138,8 @@ fn record_then_read_with_python_mcap_then_replay_then_export() {
     let header: Vec<&str> = lines.next().expect("header").split(',').collect();
     let tick_col = header.iter().position(|c| *c == "tick").expect("tick column");
     assert!(header.contains(&"motor_state[34].tau_est") && header.contains(&"imu_state.quaternion[0]"));
-    let csv_ticks: Vec<u64> = lines
-        .map(|l| l.split(',').nth(tick_col).and_then(|t| t.parse().ok()).expect("tick"))
-        .collect();
+    let csv_ticks: Vec<u64> =
+        lines.map(|l| l.split(',').nth(tick_col).and_then(|t| t.parse().ok()).expect("tick")).collect();
     assert_eq!(csv_ticks, ticks);
     let cmd_csv = std::fs::read_to_string(dir.join("rt_lowcmd.csv")).expect("csv");
     assert!(cmd_csv.lines().next().expect("header").contains("motor_cmd[0].kp"));
@@ -198,34 +156,21 @@ fn ctrl_c_finishes_the_file() {
         Duration::from_secs(20),
     );
     assert!(ok, "{o}\n{e}");
-    let (ok, o, e) = run_with_timeout(
-        Command::new("kill").args(["-INT", &pid.to_string()]),
-        Duration::from_secs(5),
-    );
+    let (ok, o, e) = run_with_timeout(Command::new("kill").args(["-INT", &pid.to_string()]), Duration::from_secs(5));
     assert!(ok, "{o}\n{e}");
     let (code, out, err) = rec.wait(Duration::from_secs(15));
     assert_eq!(code, Some(0), "{out}\n{err}");
     let v = read_mcap(&file);
-    assert!(
-        v["topics"]["rt/lowstate"]["count"].as_u64().expect("count") >= 99,
-        "{v}"
-    );
+    assert!(v["topics"]["rt/lowstate"]["count"].as_u64().expect("count") >= 99, "{v}");
     assert!(v["message_count"].as_u64().expect("summary statistics present") >= 99);
 }
 
 #[test]
 fn refuses_the_robot_network_without_the_flag() {
     let file = tmp("never.mcap");
-    for args in [
-        ["--domain", "0", "--interface", "lo"],
-        ["--domain", "5", "--interface", "eth0"],
-    ] {
+    for args in [["--domain", "0", "--interface", "lo"], ["--domain", "5", "--interface", "eth0"]] {
         let (ok, out, err) = run_with_timeout(
-            ulab()
-                .arg("record")
-                .args(args)
-                .args(["--duration", "1", "--out"])
-                .arg(&file),
+            ulab().arg("record").args(args).args(["--duration", "1", "--out"]).arg(&file),
             Duration::from_secs(20),
         );
         assert!(!ok, "{out}");

@@ -59,7 +59,11 @@ fn client_binary() -> PathBuf {
 fn counter(line: &str, key: &str) -> u64 {
     let pat = format!("{key} ");
     let at = line.find(&pat).unwrap_or_else(|| panic!("`{key}` not in {line:?}")) + pat.len();
-    line[at..].split_whitespace().next().and_then(|n| n.parse().ok()).unwrap_or_else(|| panic!("`{key}` value in {line:?}"))
+    line[at..]
+        .split_whitespace()
+        .next()
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("`{key}` value in {line:?}"))
 }
 
 #[test]
@@ -67,7 +71,16 @@ fn cyclone_0_10_2_client_drives_mujoco() {
     let _guard = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let client_bin = client_binary();
     let sim = Command::new(env!("CARGO_BIN_EXE_ulab"))
-        .args(["sim", "--engine", "mujoco", "--domain", &DOMAIN.to_string(), "--duration", &SIM_SECONDS.to_string(), "--quiet"])
+        .args([
+            "sim",
+            "--engine",
+            "mujoco",
+            "--domain",
+            &DOMAIN.to_string(),
+            "--duration",
+            &SIM_SECONDS.to_string(),
+            "--quiet",
+        ])
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
         .spawn()
@@ -92,7 +105,8 @@ fn cyclone_0_10_2_client_drives_mujoco() {
     assert!(sim_status.is_some_and(|s| s.success()), "ulab sim failed ({sim_status:?}):\n{sim_err}");
     assert!(!sim_err.contains("panicked"), "{sim_err}");
 
-    let line = out.lines().rev().find_map(|l| l.strip_prefix("RESULT ")).unwrap_or_else(|| panic!("no RESULT line:\n{all}"));
+    let line =
+        out.lines().rev().find_map(|l| l.strip_prefix("RESULT ")).unwrap_or_else(|| panic!("no RESULT line:\n{all}"));
     let r: Value = serde_json::from_str(line).unwrap_or_else(|e| panic!("RESULT is not JSON ({e}): {line}"));
     assert!(r.get("error").is_none(), "{}\n{all}", r["error"]);
     assert_eq!(r["version"], "0.10.2", "the client must run on Cyclone DDS 0.10.2");
@@ -113,21 +127,45 @@ fn cyclone_0_10_2_client_drives_mujoco() {
     assert!(rpy.iter().all(|a| a.abs() < 0.3), "robot fell: rpy {rpy:?}");
     // Left elbow, kp 120: steady-state error from gravity and friction stays below ~0.05 rad.
     let m = &r["move"];
-    let (start, target, fin) = (m["start"].as_f64().expect("start"), m["target"].as_f64().expect("target"), m["final"].as_f64().expect("final"));
+    let (start, target, fin) = (
+        m["start"].as_f64().expect("start"),
+        m["target"].as_f64().expect("target"),
+        m["final"].as_f64().expect("final"),
+    );
     assert!((fin - target).abs() < 0.08, "elbow ended at {fin:.3}, target {target:.3} (start {start:.3})");
     let c = &r["corrupted"];
-    let (held, bad, fin) = (c["held_target"].as_f64().expect("held"), c["corrupt_target"].as_f64().expect("corrupt"), c["final"].as_f64().expect("final"));
-    assert!((fin - held).abs() < 0.08 && (fin - bad).abs() > 0.5, "corrupted-CRC command moved the elbow to {fin:.3} (held {held:.3}, corrupt {bad:.3})");
+    let (held, bad, fin) = (
+        c["held_target"].as_f64().expect("held"),
+        c["corrupt_target"].as_f64().expect("corrupt"),
+        c["final"].as_f64().expect("final"),
+    );
+    assert!(
+        (fin - held).abs() < 0.08 && (fin - bad).abs() > 0.5,
+        "corrupted-CRC command moved the elbow to {fin:.3} (held {held:.3}, corrupt {bad:.3})"
+    );
 
     // The bridge's own account: the C-sealed commands were accepted (its Rust CRC agrees with
     // ours in C), the corrupted ones counted as bad CRC, nothing else. Loopback may lose a few
     // best-effort samples, hence the 90 % floor; more than sent would be a counting bug.
-    let summary = sim_err.lines().rev().find(|l| l.contains("cmds received")).unwrap_or_else(|| panic!("no summary line:\n{sim_err}"));
+    let summary = sim_err
+        .lines()
+        .rev()
+        .find(|l| l.contains("cmds received"))
+        .unwrap_or_else(|| panic!("no summary line:\n{sim_err}"));
     let valid = r["valid_writes"].as_u64().expect("valid_writes");
     let corrupt = r["corrupt_writes"].as_u64().expect("corrupt_writes");
     let (accepted, bad_crc) = (counter(summary, "accepted"), counter(summary, "bad-crc"));
-    assert!(accepted * 10 >= valid * 9 && accepted <= valid, "accepted {accepted} of {valid} valid commands: {summary}");
-    assert!(bad_crc * 10 >= corrupt * 9 && bad_crc <= corrupt, "bad-crc {bad_crc} of {corrupt} corrupted commands: {summary}");
+    assert!(
+        accepted * 10 >= valid * 9 && accepted <= valid,
+        "accepted {accepted} of {valid} valid commands: {summary}"
+    );
+    assert!(
+        bad_crc * 10 >= corrupt * 9 && bad_crc <= corrupt,
+        "bad-crc {bad_crc} of {corrupt} corrupted commands: {summary}"
+    );
     assert_eq!((counter(summary, "rejected"), counter(summary, "malformed")), (0, 0), "{summary}");
-    eprintln!("0.10.2 client: {rate:.1} Hz, {states} states, elbow {start:.3} -> {target:.3} reached {:.3}; {summary}", m["final"]);
+    eprintln!(
+        "0.10.2 client: {rate:.1} Hz, {states} states, elbow {start:.3} -> {target:.3} reached {:.3}; {summary}",
+        m["final"]
+    );
 }

@@ -40,7 +40,16 @@ impl Sim {
     /// Starts `ulab sim --engine mujoco` on `domain` for `seconds` of wall time.
     fn start(domain: u32, seconds: f64, extra: &[&str]) -> Sim {
         let child = Command::new(env!("CARGO_BIN_EXE_ulab"))
-            .args(["sim", "--engine", "mujoco", "--domain", &domain.to_string(), "--duration", &seconds.to_string(), "--quiet"])
+            .args([
+                "sim",
+                "--engine",
+                "mujoco",
+                "--domain",
+                &domain.to_string(),
+                "--duration",
+                &seconds.to_string(),
+                "--quiet",
+            ])
             .args(extra)
             .stdout(Stdio::null())
             .stderr(Stdio::piped())
@@ -75,11 +84,19 @@ struct Counters {
 }
 
 fn counters(stderr: &str) -> Counters {
-    let line = stderr.lines().rev().find(|l| l.contains("cmds received")).unwrap_or_else(|| panic!("no summary line in:\n{stderr}"));
+    let line = stderr
+        .lines()
+        .rev()
+        .find(|l| l.contains("cmds received"))
+        .unwrap_or_else(|| panic!("no summary line in:\n{stderr}"));
     let get = |key: &str| -> u64 {
         let pat = format!(" {key} ");
         let at = line.find(&pat).unwrap_or_else(|| panic!("`{key}` not in {line:?}")) + pat.len();
-        line[at..].split_whitespace().next().and_then(|n| n.parse().ok()).unwrap_or_else(|| panic!("`{key}` in {line:?}"))
+        line[at..]
+            .split_whitespace()
+            .next()
+            .and_then(|n| n.parse().ok())
+            .unwrap_or_else(|| panic!("`{key}` in {line:?}"))
     };
     let wall_s = line
         .split("stopped after ")
@@ -208,7 +225,10 @@ impl Report {
         assert!(!windows.is_empty(), "{what}: no whole second to measure");
         eprintln!("{what}: LowState per second {windows:?}");
         for (i, &n) in windows.iter().enumerate() {
-            assert!(n as f64 >= 0.9 * STATE_RATE, "{what}: second {i}: {n} LowState, set {STATE_RATE} Hz (all: {windows:?})");
+            assert!(
+                n as f64 >= 0.9 * STATE_RATE,
+                "{what}: second {i}: {n} LowState, set {STATE_RATE} Hz (all: {windows:?})"
+            );
         }
     }
 
@@ -274,7 +294,10 @@ fn connect(domain: u32) -> (Participant, Monitor, RawWriter, hg::LowState_) {
     let monitor = Monitor::start(&p);
     let writer = p.writer(&TopicSpec::lowcmd(Family::Hg)).expect("LowCmd writer");
     let first = monitor.first(Duration::from_secs(20));
-    assert!(writer.wait_for_readers(1, Duration::from_secs(10)).expect("matched status"), "bridge's rt/lowcmd reader never matched");
+    assert!(
+        writer.wait_for_readers(1, Duration::from_secs(10)).expect("matched status"),
+        "bridge's rt/lowcmd reader never matched"
+    );
     (p, monitor, writer, first)
 }
 
@@ -427,7 +450,10 @@ fn malformed_and_unsafe_commands_are_counted_and_never_applied() {
     // hold to this controller's gains): an applied unsafe command would pull it 0.8 rad away.
     let excursion = report.elbow_excursion(t_valid + Duration::from_millis(300), t_end, q[ELBOW]);
     eprintln!("elbow excursion from the hold: {excursion:.4} rad");
-    assert!(excursion < 0.05, "elbow moved {excursion:.3} rad from the hold while XCDR2/unsafe/malformed commands arrived");
+    assert!(
+        excursion < 0.05,
+        "elbow moved {excursion:.3} rad from the hold while XCDR2/unsafe/malformed commands arrived"
+    );
 
     let c = finish_ok(sim, Duration::from_secs(20));
     eprintln!(
@@ -524,10 +550,16 @@ fn subscribers_joining_and_leaving() {
     report.assert_rate(t0, t1, "while subscribers join and leave");
     // Readers that take were created 3 times in 4 cycles; each must have got data quickly.
     let takers = (0..cycles).filter(|c| c % 4 != 3).count();
-    assert!(received_by_churners * 10 >= takers * 9, "only {received_by_churners} of {takers} new readers got a LowState within 300 ms");
+    assert!(
+        received_by_churners * 10 >= takers * 9,
+        "only {received_by_churners} of {takers} new readers got a LowState within 300 ms"
+    );
 
     // "CHURN cycles N got M": participants created in the helper, and how many got a LowState.
-    let helper_line = helper_out.lines().find_map(|l| l.find("CHURN ").map(|i| &l[i..])).unwrap_or_else(|| panic!("churn helper output: {helper_out}"));
+    let helper_line = helper_out
+        .lines()
+        .find_map(|l| l.find("CHURN ").map(|i| &l[i..]))
+        .unwrap_or_else(|| panic!("churn helper output: {helper_out}"));
     let nums: Vec<usize> = helper_line.split_whitespace().filter_map(|w| w.parse().ok()).collect();
     let (helper_cycles, helper_got) = (nums.first().copied().unwrap_or(0), nums.get(1).copied().unwrap_or(0));
     assert!(helper_cycles >= 3 && helper_got * 10 >= helper_cycles * 9, "churn helper: {helper_line}");
@@ -553,7 +585,9 @@ fn churn_helper() {
     while t0.elapsed().as_secs_f64() < seconds {
         let reliability = if cycles % 2 == 0 { Reliability::BestEffort } else { Reliability::Reliable };
         let p = Participant::new(DomainConfig::loopback(domain)).expect("participant");
-        let r = p.reader_with(&TopicSpec::lowstate(Family::Hg), ReaderOptions { reliability, ..ReaderOptions::default() }).expect("reader");
+        let r = p
+            .reader_with(&TopicSpec::lowstate(Family::Hg), ReaderOptions { reliability, ..ReaderOptions::default() })
+            .expect("reader");
         got += usize::from(r.take(Duration::from_secs(2)).is_some());
         cycles += 1;
     }

@@ -62,7 +62,8 @@ fn check_engine(engine: &str, domain: u32, may_fall: bool) {
         eprintln!("{engine}: client failed ({status:?}): {}", tail(&err));
     }
     drop(sim.0.take().map(|mut c| c.kill()));
-    let report: Value = serde_json::from_str(out.lines().last().unwrap_or("")).unwrap_or_else(|e| panic!("{engine}: client output ...{}: {e}", tail(&out)));
+    let report: Value = serde_json::from_str(out.lines().last().unwrap_or(""))
+        .unwrap_or_else(|e| panic!("{engine}: client output ...{}: {e}", tail(&out)));
     assert!(report.get("error").is_none(), "{engine}: {}", report["error"]);
 
     let rate = report["rate_hz"].as_f64().expect("rate");
@@ -77,8 +78,13 @@ fn check_engine(engine: &str, domain: u32, may_fall: bool) {
     for sample in samples {
         let tick = sample["tick"].as_u64().expect("tick") as u32;
         let Some(own) = ours.get(&tick) else { continue };
-        let theirs: hg::LowState_ = json::value_from_json(sample).unwrap_or_else(|e| panic!("{engine}: python sample: {e}"));
-        assert_eq!(cdr::encode(&theirs, lowlevel_codec::Encoding::UNITREE), cdr::encode(own, lowlevel_codec::Encoding::UNITREE), "{engine}: tick {tick}");
+        let theirs: hg::LowState_ =
+            json::value_from_json(sample).unwrap_or_else(|e| panic!("{engine}: python sample: {e}"));
+        assert_eq!(
+            cdr::encode(&theirs, lowlevel_codec::Encoding::UNITREE),
+            cdr::encode(own, lowlevel_codec::Encoding::UNITREE),
+            "{engine}: tick {tick}"
+        );
         compared += 1;
     }
     assert!(compared >= 10, "{engine}: only {compared} samples matched by tick");
@@ -91,7 +97,9 @@ fn check_engine(engine: &str, domain: u32, may_fall: bool) {
     let upright = rpy.iter().take(2).all(|a| a.as_f64().is_some_and(|a| a.abs() < 0.3));
     if !upright {
         assert!(may_fall, "{engine}: the robot fell (torso rpy {rpy:?}); it stands on this engine");
-        eprintln!("{engine}: robot fell (torso rpy {rpy:?}); joint tracking and corrupted-CRC checks skipped on this engine");
+        eprintln!(
+            "{engine}: robot fell (torso rpy {rpy:?}); joint tracking and corrupted-CRC checks skipped on this engine"
+        );
         return;
     }
     // Arm joints with kp 120: gravity on the arm (< 5 N·m) and joint friction (0.2 N·m) leave
@@ -101,8 +109,15 @@ fn check_engine(engine: &str, domain: u32, may_fall: bool) {
         assert!((fin - target).abs() < 0.08, "{engine}: slot {} ended at {fin:.3}, target {target:.3}", m["slot"]);
     }
     let c = &report["corrupted"];
-    let (held, bad, fin) = (c["held_target"].as_f64().expect("h"), c["corrupt_target"].as_f64().expect("c"), c["final"].as_f64().expect("f"));
-    assert!((fin - held).abs() < 0.08 && (fin - bad).abs() > 0.5, "{engine}: corrupted-CRC command moved the elbow to {fin:.3} (held {held:.3}, corrupt {bad:.3})");
+    let (held, bad, fin) = (
+        c["held_target"].as_f64().expect("h"),
+        c["corrupt_target"].as_f64().expect("c"),
+        c["final"].as_f64().expect("f"),
+    );
+    assert!(
+        (fin - held).abs() < 0.08 && (fin - bad).abs() > 0.5,
+        "{engine}: corrupted-CRC command moved the elbow to {fin:.3} (held {held:.3}, corrupt {bad:.3})"
+    );
 }
 
 #[test]

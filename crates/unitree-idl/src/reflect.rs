@@ -66,7 +66,11 @@ macro_rules! primitive {
                 v.primitive_array(name, items)
             }
             #[inline(always)]
-            fn visit_array_mut<V: VisitorMut>(items: &mut [Self], name: &'static str, v: &mut V) -> Result<(), V::Error> {
+            fn visit_array_mut<V: VisitorMut>(
+                items: &mut [Self],
+                name: &'static str,
+                v: &mut V,
+            ) -> Result<(), V::Error> {
                 v.primitive_array(name, items)
             }
         }

@@ -42,11 +42,7 @@ pub struct RestitutionDrop {
 /// Restitution coefficients the #974 scene is run with (one run each).
 pub const RESTITUTIONS: [f64; 2] = [0.5, 0.8];
 
-pub const RESTITUTION_DROP: RestitutionDrop = RestitutionDrop {
-    radius: 0.25,
-    drop_height: 2.0,
-    duration: 2.5,
-};
+pub const RESTITUTION_DROP: RestitutionDrop = RestitutionDrop { radius: 0.25, drop_height: 2.0, duration: 2.5 };
 
 /// Issue #656 scene: a free-floating multibody (root: a bar; one link: a ball welded to the bar's far
 /// end by a fixed multibody joint) dropped flat onto a fixed pedestal whose edge is well inside the
@@ -96,12 +92,8 @@ pub struct BallJointLimit {
     pub duration: f64,
 }
 
-pub const BALL_JOINT_LIMIT: BallJointLimit = BallJointLimit {
-    pivot_z: 2.0,
-    rod_half: [0.5, 0.05, 0.05],
-    limit: 0.4,
-    duration: 2.0,
-};
+pub const BALL_JOINT_LIMIT: BallJointLimit =
+    BallJointLimit { pivot_z: 2.0, rod_half: [0.5, 0.05, 0.05], limit: 0.4, duration: 2.0 };
 
 /// Issue #968 scene: a dynamic ball (multibody root) with a second dynamic body (a small ball) welded
 /// `offset` above its centre by a fixed multibody joint, dropped on a fixed ground. Observable: the
@@ -284,12 +276,7 @@ fn failed(engine: &str, bug: &Bug, metric: &str, threshold: String, err: &SceneE
 fn samples_at(series: &Series, times: &[f64]) -> String {
     times
         .iter()
-        .map(|&t| {
-            series
-                .iter()
-                .find(|s| s.0 >= t - 1e-9)
-                .map_or("-".to_string(), |s| format!("{:.3}", s.1))
-        })
+        .map(|&t| series.iter().find(|s| s.0 >= t - 1e-9).map_or("-".to_string(), |s| format!("{:.3}", s.1)))
         .collect::<Vec<_>>()
         .join(" / ")
 }
@@ -304,11 +291,7 @@ fn trace(engine: &str, scene: &str, series: &Series) {
 }
 
 fn max_value(series: &Series, from: f64) -> Option<f64> {
-    series
-        .iter()
-        .filter(|s| s.0 >= from)
-        .map(|s| s.1)
-        .fold(None, |m: Option<f64>, v| Some(m.map_or(v, |m| m.max(v))))
+    series.iter().filter(|s| s.0 >= from).map(|s| s.1).fold(None, |m: Option<f64>, v| Some(m.map_or(v, |m| m.max(v))))
 }
 
 /// Runs every scene on `engine` and judges it with the same oracles.
@@ -333,10 +316,8 @@ pub fn evaluate<E: Engine>(engine: &mut E) -> Vec<Verdict> {
                             let e_eff = frac.max(0.0).sqrt();
                             let rel = (e_eff - e).abs() / e;
                             worst = Some(worst.map_or(rel, |w: f64| w.max(rel)));
-                            details.push(format!(
-                                "e={e}: rebound {frac:.3} of drop (e²={:.3}), e_eff={e_eff:.3}",
-                                e * e
-                            ));
+                            details
+                                .push(format!("e={e}: rebound {frac:.3} of drop (e²={:.3}), e_eff={e_eff:.3}", e * e));
                         }
                         None => {
                             worst = Some(1.0);
@@ -442,12 +423,7 @@ pub fn evaluate<E: Engine>(engine: &mut E) -> Vec<Verdict> {
                 let from = scene.duration - scene.window;
                 let v = max_value(&run.speed, from);
                 let hmax = max_value(&run.height, from);
-                let hmin = run
-                    .height
-                    .iter()
-                    .filter(|s| s.0 >= from)
-                    .map(|s| s.1)
-                    .fold(f64::INFINITY, f64::min);
+                let hmin = run.height.iter().filter(|s| s.0 >= from).map(|s| s.1).fold(f64::INFINITY, f64::min);
                 Verdict {
                     engine: name.clone(),
                     bug: bug.id.into(),
@@ -509,11 +485,8 @@ mod tests {
         let series: Series = (0..2500)
             .map(|i| {
                 let t = i as f64 * 1e-3;
-                let h = if t < t_hit {
-                    h0 - 0.5 * g * t * t
-                } else {
-                    v_out * (t - t_hit) - 0.5 * g * (t - t_hit).powi(2)
-                };
+                let h =
+                    if t < t_hit { h0 - 0.5 * g * t * t } else { v_out * (t - t_hit) - 0.5 * g * (t - t_hit).powi(2) };
                 (t, h.max(0.0))
             })
             .collect();

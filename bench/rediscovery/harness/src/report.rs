@@ -5,10 +5,7 @@ use std::fmt::Write as _;
 
 /// Parses JSON verdict lines (blank lines are skipped).
 pub fn parse_lines(text: &str) -> Result<Vec<Verdict>, serde_json::Error> {
-    text.lines()
-        .filter(|l| !l.trim().is_empty())
-        .map(serde_json::from_str)
-        .collect()
+    text.lines().filter(|l| !l.trim().is_empty()).map(serde_json::from_str).collect()
 }
 
 fn cell(v: &Verdict) -> String {
@@ -37,9 +34,8 @@ pub fn markdown(all: &[Verdict], reference_engine: &str) -> String {
         let bad = find(all, &bad_engine, bug.id);
         let good = find(all, &good_engine, bug.id);
         let reference = find(all, reference_engine, bug.id);
-        let (metric, threshold) = bad.or(good).map_or(("?".to_string(), "?".to_string()), |v| {
-            (v.metric.clone(), v.threshold.clone())
-        });
+        let (metric, threshold) =
+            bad.or(good).map_or(("?".to_string(), "?".to_string()), |v| (v.metric.clone(), v.threshold.clone()));
         let show = |v: Option<&Verdict>| v.map_or("not run".to_string(), cell);
         let ms = |v: Option<&Verdict>| v.map_or("-".to_string(), |v| format!("{:.0}", v.runtime_ms));
         let _ = writeln!(

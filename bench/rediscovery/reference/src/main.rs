@@ -53,9 +53,7 @@ impl Engine for Mujoco {
     }
 
     fn restitution_drop(&mut self, _: &RestitutionDrop, _: f64) -> Result<Series, SceneError> {
-        Err(SceneError::Unsupported(
-            "MuJoCo has no restitution coefficient; the reference is the analytic e²".into(),
-        ))
+        Err(SceneError::Unsupported("MuJoCo has no restitution coefficient; the reference is the analytic e²".into()))
     }
 
     fn offcentre_landing(&mut self, s: &OffCentreLanding) -> Result<Series, SceneError> {
@@ -76,9 +74,7 @@ impl Engine for Mujoco {
             o = s.tip_offset
         ))?;
         let mut out = Series::new();
-        run(&mut d, s.duration, |q, _, t| {
-            out.push((t, rediscovery_harness::x_axis_tilt(q[3], q[4], q[5], q[6])))
-        })?;
+        run(&mut d, s.duration, |q, _, t| out.push((t, rediscovery_harness::x_axis_tilt(q[3], q[4], q[5], q[6]))))?;
         Ok(out)
     }
 
@@ -93,9 +89,7 @@ impl Engine for Mujoco {
             limit = s.limit
         ))?;
         let mut out = Series::new();
-        run(&mut d, s.duration, |q, _, t| {
-            out.push((t, rediscovery_harness::quat_angle(q[0], q[1], q[2], q[3])))
-        })?;
+        run(&mut d, s.duration, |q, _, t| out.push((t, rediscovery_harness::quat_angle(q[0], q[1], q[2], q[3]))))?;
         Ok(out)
     }
 

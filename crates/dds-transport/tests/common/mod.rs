@@ -4,10 +4,10 @@
 
 use lowlevel_codec::{cdr, Encoding};
 use std::io::Read;
-use unitree_idl::hg;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
+use unitree_idl::hg;
 
 /// Serialized size of hg LowCmd_ with its header.
 pub const HG_LOWCMD_LEN: usize = 1004;
@@ -106,12 +106,7 @@ impl Proc {
     }
 
     pub fn spawn(cmd: &mut Command) -> Self {
-        match cmd
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-        {
+        match cmd.stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn() {
             Ok(c) => Self::new(c),
             Err(e) => panic!("cannot start {cmd:?}: {e}"),
         }

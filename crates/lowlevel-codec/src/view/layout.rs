@@ -43,7 +43,11 @@ struct Dheader {
 impl Layout {
     /// Walks `T`'s reflection once. `T` must have no sequence (checked where views are declared).
     pub fn of<T: IdlStruct>(representation: Representation) -> Layout {
-        let mut walk = Walk { representation, pos: 0, layout: Layout { leaves: Vec::new(), reads: Vec::new(), dheaders: Vec::new(), len: 0 } };
+        let mut walk = Walk {
+            representation,
+            pos: 0,
+            layout: Layout { leaves: Vec::new(), reads: Vec::new(), dheaders: Vec::new(), len: 0 },
+        };
         T::zeroed().walk(&mut walk);
         walk.layout.len = walk.pos;
         walk.layout

@@ -77,7 +77,11 @@ pub struct Cursor<'a> {
 
 impl core::fmt::Debug for Cursor<'_> {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.debug_struct("Cursor").field("payload_len", &self.body.len()).field("leaves", &self.leaves.len()).field("big_endian", &self.big).finish()
+        f.debug_struct("Cursor")
+            .field("payload_len", &self.body.len())
+            .field("leaves", &self.leaves.len())
+            .field("big_endian", &self.big)
+            .finish()
     }
 }
 
@@ -277,7 +281,11 @@ impl<T: Viewable> Copy for MessageView<'_, T> {}
 
 impl<T: Viewable> core::fmt::Debug for MessageView<'_, T> {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.debug_struct("MessageView").field("encoding", &self.encoding).field("options", &self.options).field("value", &self.root).finish()
+        f.debug_struct("MessageView")
+            .field("encoding", &self.encoding)
+            .field("options", &self.options)
+            .field("value", &self.root)
+            .finish()
     }
 }
 
@@ -527,22 +535,70 @@ macro_rules! with_viewable_type {
     ($kind:expr, $T:ident => $body:expr) => {{
         use unitree_idl::{go, hg, MessageType as M};
         match $kind {
-            M::HgLowCmd => { type $T = hg::LowCmd_; Some($body) }
-            M::HgMotorCmd => { type $T = hg::MotorCmd_; Some($body) }
-            M::HgLowState => { type $T = hg::LowState_; Some($body) }
-            M::HgMotorState => { type $T = hg::MotorState_; Some($body) }
-            M::HgImuState => { type $T = hg::IMUState_; Some($body) }
-            M::HgPressSensorState => { type $T = hg::PressSensorState_; Some($body) }
-            M::HgBmsCmd => { type $T = hg::BmsCmd_; Some($body) }
-            M::HgBmsState => { type $T = hg::BmsState_; Some($body) }
-            M::HgMainBoardState => { type $T = hg::MainBoardState_; Some($body) }
-            M::GoLowCmd => { type $T = go::LowCmd_; Some($body) }
-            M::GoMotorCmd => { type $T = go::MotorCmd_; Some($body) }
-            M::GoLowState => { type $T = go::LowState_; Some($body) }
-            M::GoMotorState => { type $T = go::MotorState_; Some($body) }
-            M::GoImuState => { type $T = go::IMUState_; Some($body) }
-            M::GoBmsCmd => { type $T = go::BmsCmd_; Some($body) }
-            M::GoBmsState => { type $T = go::BmsState_; Some($body) }
+            M::HgLowCmd => {
+                type $T = hg::LowCmd_;
+                Some($body)
+            }
+            M::HgMotorCmd => {
+                type $T = hg::MotorCmd_;
+                Some($body)
+            }
+            M::HgLowState => {
+                type $T = hg::LowState_;
+                Some($body)
+            }
+            M::HgMotorState => {
+                type $T = hg::MotorState_;
+                Some($body)
+            }
+            M::HgImuState => {
+                type $T = hg::IMUState_;
+                Some($body)
+            }
+            M::HgPressSensorState => {
+                type $T = hg::PressSensorState_;
+                Some($body)
+            }
+            M::HgBmsCmd => {
+                type $T = hg::BmsCmd_;
+                Some($body)
+            }
+            M::HgBmsState => {
+                type $T = hg::BmsState_;
+                Some($body)
+            }
+            M::HgMainBoardState => {
+                type $T = hg::MainBoardState_;
+                Some($body)
+            }
+            M::GoLowCmd => {
+                type $T = go::LowCmd_;
+                Some($body)
+            }
+            M::GoMotorCmd => {
+                type $T = go::MotorCmd_;
+                Some($body)
+            }
+            M::GoLowState => {
+                type $T = go::LowState_;
+                Some($body)
+            }
+            M::GoMotorState => {
+                type $T = go::MotorState_;
+                Some($body)
+            }
+            M::GoImuState => {
+                type $T = go::IMUState_;
+                Some($body)
+            }
+            M::GoBmsCmd => {
+                type $T = go::BmsCmd_;
+                Some($body)
+            }
+            M::GoBmsState => {
+                type $T = go::BmsState_;
+                Some($body)
+            }
             M::HgHandCmd | M::HgHandState => None,
         }
     }};

@@ -105,7 +105,12 @@ fn decode_to_json<T: IdlStruct>(ty: MessageType, bytes: &[u8]) -> Result<String>
     Ok(json::document_to_json(ty, &decoded.value, decoded.encoding, crc_ok))
 }
 
-fn encode_from_json<T: IdlStruct>(ty: MessageType, text: &str, repr: Option<ReprArg>, big_endian: bool) -> Result<Vec<u8>> {
+fn encode_from_json<T: IdlStruct>(
+    ty: MessageType,
+    text: &str,
+    repr: Option<ReprArg>,
+    big_endian: bool,
+) -> Result<Vec<u8>> {
     let doc = json::document_from_json::<T>(ty, text).with_context(|| format!("reading a {ty} document"))?;
     let representation = match repr {
         Some(ReprArg::Xcdr1) => Representation::Xcdr1,

@@ -126,7 +126,9 @@ impl Progress {
                 None => indicatif::ProgressBar::new_spinner(),
             };
             if len.is_some() {
-                if let Ok(style) = indicatif::ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {pos}/{len} s {msg}") {
+                if let Ok(style) =
+                    indicatif::ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {pos}/{len} s {msg}")
+                {
                     b.set_style(style);
                 }
             }
@@ -155,7 +157,10 @@ fn run_target(args: RunArgs) -> Result<ExitCode> {
     }
     anyhow::ensure!(args.state_rate.is_finite() && args.state_rate > 0.0, "--state-rate must be positive");
     if args.fuzz {
-        anyhow::ensure!(args.budget.is_finite() && args.budget > 0.0 && args.budget <= 86_400.0, "--budget must be in (0, 86400] s");
+        anyhow::ensure!(
+            args.budget.is_finite() && args.budget > 0.0 && args.budget <= 86_400.0,
+            "--budget must be in (0, 86400] s"
+        );
     }
     let cfg = args.net.domain_config()?;
     if safety::is_exposed(&cfg) {
@@ -177,14 +182,22 @@ fn run_target(args: RunArgs) -> Result<ExitCode> {
     let progress = Progress::new(args.quiet, args.fuzz.then(|| args.budget.ceil() as u64));
     progress.say("connecting");
     let mut target = connect(&args.net, args.connect_timeout, args.fuzz, args.allow_robot_fuzz)?;
-    let participant = target
-        .remote_endpoints()
-        .ok()
-        .and_then(|eps| eps.into_iter().find(|e| e.topic_name == "rt/lowstate").map(|e| e.participant_guid.iter().map(|b| format!("{b:02x}")).collect::<String>()));
-    let seed = args.seed.unwrap_or_else(|| std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(1, |d| d.as_secs()));
+    let participant = target.remote_endpoints().ok().and_then(|eps| {
+        eps.into_iter()
+            .find(|e| e.topic_name == "rt/lowstate")
+            .map(|e| e.participant_guid.iter().map(|b| format!("{b:02x}")).collect::<String>())
+    });
+    let seed = args.seed.unwrap_or_else(|| {
+        std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(1, |d| d.as_secs())
+    });
     let mut report = Report {
         schema_version: REPORT_SCHEMA_VERSION,
-        target: TargetInfo { robot: args.robot.clone(), domain: cfg.domain, interface: cfg.interface.clone(), participant },
+        target: TargetInfo {
+            robot: args.robot.clone(),
+            domain: cfg.domain,
+            interface: cfg.interface.clone(),
+            participant,
+        },
         settings: Settings {
             mode: if args.fuzz { "fuzz".into() } else { "checks".into() },
             expected_state_rate_hz: args.state_rate,
@@ -202,7 +215,10 @@ fn run_target(args: RunArgs) -> Result<ExitCode> {
         let outcome = fuzz::run(&mut target, &opts, &mut |p| {
             if let Some(b) = &progress.bar {
                 b.set_position(p.elapsed_s.min(p.budget_s) as u64);
-                b.set_message(format!("{} executions, best disturbance {:.2}, {}", p.executions, p.best_score, p.phase));
+                b.set_message(format!(
+                    "{} executions, best disturbance {:.2}, {}",
+                    p.executions, p.best_score, p.phase
+                ));
             }
         })?;
         progress.finish();
@@ -212,18 +228,36 @@ fn run_target(args: RunArgs) -> Result<ExitCode> {
             report.reproducers.push(format!("reproducers/{name}"));
             files.push((out_dir.join("reproducers").join(&name), rep.to_json()));
             report.results.push(
-                CheckResult::new(&format!("fuzz_failure_{k}"), Group::Fuzz, Status::Fail, format!("{} ({} step(s){})", rep.predicate_text, rep.steps.len(), if rep.minimized { ", minimised" } else { ", budget ran out before minimisation finished" }))
-                    .with("steps", rep.steps.iter().map(|s| format!("x{} {}", s.repeat, s.notes.join(", "))).collect::<Vec<_>>())
-                    .with("observed", &rep.observed)
-                    .with("reproducer", out_dir.join("reproducers").join(&name).display().to_string()),
+                CheckResult::new(
+                    &format!("fuzz_failure_{k}"),
+                    Group::Fuzz,
+                    Status::Fail,
+                    format!(
+                        "{} ({} step(s){})",
+                        rep.predicate_text,
+                        rep.steps.len(),
+                        if rep.minimized { ", minimised" } else { ", budget ran out before minimisation finished" }
+                    ),
+                )
+                .with(
+                    "steps",
+                    rep.steps.iter().map(|s| format!("x{} {}", s.repeat, s.notes.join(", "))).collect::<Vec<_>>(),
+                )
+                .with("observed", &rep.observed)
+                .with("reproducer", out_dir.join("reproducers").join(&name).display().to_string()),
             );
         }
         if outcome.failures.is_empty() {
             report.results.push(
-                CheckResult::new("fuzz", Group::Fuzz, Status::Pass, format!("no failure in {} sequence executions over {:.0} s", outcome.executions, outcome.elapsed_s))
-                    .with("executions", outcome.executions)
-                    .with("best_score", f64::from(outcome.best_score))
-                    .with("most_disturbing_sequence", outcome.best_notes),
+                CheckResult::new(
+                    "fuzz",
+                    Group::Fuzz,
+                    Status::Pass,
+                    format!("no failure in {} sequence executions over {:.0} s", outcome.executions, outcome.elapsed_s),
+                )
+                .with("executions", outcome.executions)
+                .with("best_score", f64::from(outcome.best_score))
+                .with("most_disturbing_sequence", outcome.best_notes),
             );
         }
         report.settings.mode = "fuzz".into();

@@ -144,9 +144,11 @@ fn load_model(robot: &str) -> Result<RobotModel> {
 
 /// A policy spec as a controller factory (loaded once, cloned per episode and engine).
 fn policy_factory(spec: &Path) -> Result<(String, Box<ControllerFactory>)> {
-    let pc = policy_runtime::PolicyController::load(spec).with_context(|| format!("loading policy spec {}", spec.display()))?;
+    let pc = policy_runtime::PolicyController::load(spec)
+        .with_context(|| format!("loading policy spec {}", spec.display()))?;
     let name = policy_runtime::Controller::name(&pc).to_string();
-    let f: Box<ControllerFactory> = Box::new(move |_s: &Scenario| Ok(Box::new(pc.clone()) as Box<dyn policy_runtime::Controller>));
+    let f: Box<ControllerFactory> =
+        Box::new(move |_s: &Scenario| Ok(Box::new(pc.clone()) as Box<dyn policy_runtime::Controller>));
     Ok((name, f))
 }
 
@@ -218,7 +220,13 @@ fn diff(a: RunArgs) -> Result<ExitCode> {
     }
     let s = setup(&a.common)?;
     let scenarios: Vec<Scenario> = (0..a.episodes as u64)
-        .map(|i| if s.is_policy { Scenario::policy(a.seed + i, a.seconds) } else { Scenario::excitation(a.seed + i, a.seconds) })
+        .map(|i| {
+            if s.is_policy {
+                Scenario::policy(a.seed + i, a.seconds)
+            } else {
+                Scenario::excitation(a.seed + i, a.seconds)
+            }
+        })
         .collect();
     let episodes = scenarios
         .par_iter()
@@ -226,7 +234,15 @@ fn diff(a: RunArgs) -> Result<ExitCode> {
         .collect::<Result<Vec<_>, _>>()
         .context("running episodes")?;
     let allow = AllowList::builtin().context("allow-list")?;
-    let an = Analysis { model: &s.model, factories: &s.factories, controller: s.ctrl.as_ref(), controller_name: &s.ctrl_name, cfg: &s.cfg, allow: &allow, minimize_limit: a.minimize };
+    let an = Analysis {
+        model: &s.model,
+        factories: &s.factories,
+        controller: s.ctrl.as_ref(),
+        controller_name: &s.ctrl_name,
+        cfg: &s.cfg,
+        allow: &allow,
+        minimize_limit: a.minimize,
+    };
     let (report, repros) = analyse(&an, &episodes).context("analysing")?;
     write_outputs(&out, &report, &repros, &episodes).with_context(|| format!("writing {}", out.display()))?;
     Ok(summarize(&out, &report, a.fail_on_bug))
@@ -244,7 +260,8 @@ fn read_corpus(dir: &Path) -> Result<Vec<Scenario>> {
         let text = std::fs::read_to_string(&f).with_context(|| format!("reading {}", f.display()))?;
         // Corpus files hold either a scenario or a corpus entry (with its feedback).
         let v: serde_json::Value = serde_json::from_str(&text).with_context(|| format!("parsing {}", f.display()))?;
-        let sc: Scenario = serde_json::from_value(v.get("scenario").cloned().unwrap_or(v)).with_context(|| format!("{} is not a scenario", f.display()))?;
+        let sc: Scenario = serde_json::from_value(v.get("scenario").cloned().unwrap_or(v))
+            .with_context(|| format!("{} is not a scenario", f.display()))?;
         sc.validate().with_context(|| format!("{}", f.display()))?;
         out.push(sc);
     }
@@ -261,17 +278,36 @@ fn fuzz(a: FuzzArgs) -> Result<ExitCode> {
     }
     let s = setup(&a.common)?;
     let seeds: Vec<Scenario> = match &a.corpus {
-        Some(d) => read_corpus(d)?.into_iter().map(|mut x| {
-            x.seconds = a.seconds;
-            x
-        }).collect(),
-        None => (0..2u64).map(|i| if s.is_policy { Scenario::policy(a.seed + i, a.seconds) } else { Scenario::excitation(a.seed + i, a.seconds) }).collect(),
+        Some(d) => read_corpus(d)?
+            .into_iter()
+            .map(|mut x| {
+                x.seconds = a.seconds;
+                x
+            })
+            .collect(),
+        None => (0..2u64)
+            .map(|i| {
+                if s.is_policy {
+                    Scenario::policy(a.seed + i, a.seconds)
+                } else {
+                    Scenario::excitation(a.seed + i, a.seconds)
+                }
+            })
+            .collect(),
     };
     let bar = indicatif::ProgressBar::new(a.iterations.max(seeds.len()) as u64);
-    bar.set_style(indicatif::ProgressStyle::with_template("fuzz {bar:40} {pos}/{len} inputs {elapsed}").unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()));
-    let fcfg = engine_diff::fuzz::FuzzConfig { iterations: a.iterations, batch: rayon::current_num_threads().max(1) * 2, seed: a.seed };
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("fuzz {bar:40} {pos}/{len} inputs {elapsed}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let fcfg = engine_diff::fuzz::FuzzConfig {
+        iterations: a.iterations,
+        batch: rayon::current_num_threads().max(1) * 2,
+        seed: a.seed,
+    };
     let progress = |n: usize| bar.set_position(n as u64);
-    let outcome = engine_diff::fuzz::fuzz(&s.model, &s.factories, s.ctrl.as_ref(), &s.cfg, &fcfg, seeds, &progress).context("fuzzing")?;
+    let outcome = engine_diff::fuzz::fuzz(&s.model, &s.factories, s.ctrl.as_ref(), &s.cfg, &fcfg, seeds, &progress)
+        .context("fuzzing")?;
     bar.finish_and_clear();
     let corpus_dir = a.out.join("corpus");
     std::fs::create_dir_all(&corpus_dir).with_context(|| format!("creating {}", corpus_dir.display()))?;
@@ -288,15 +324,25 @@ fn fuzz(a: FuzzArgs) -> Result<ExitCode> {
         outcome.corpus.first().map(|c| c.score).unwrap_or(0.0)
     );
     let allow = AllowList::builtin().context("allow-list")?;
-    let an = Analysis { model: &s.model, factories: &s.factories, controller: s.ctrl.as_ref(), controller_name: &s.ctrl_name, cfg: &s.cfg, allow: &allow, minimize_limit: a.minimize };
+    let an = Analysis {
+        model: &s.model,
+        factories: &s.factories,
+        controller: s.ctrl.as_ref(),
+        controller_name: &s.ctrl_name,
+        cfg: &s.cfg,
+        allow: &allow,
+        minimize_limit: a.minimize,
+    };
     let (report, repros) = analyse(&an, &outcome.episodes).context("analysing")?;
-    write_outputs(&a.out, &report, &repros, &outcome.episodes).with_context(|| format!("writing {}", a.out.display()))?;
+    write_outputs(&a.out, &report, &repros, &outcome.episodes)
+        .with_context(|| format!("writing {}", a.out.display()))?;
     Ok(summarize(&a.out, &report, a.fail_on_bug))
 }
 
 fn replay(a: ReplayArgs) -> Result<ExitCode> {
     let text = std::fs::read_to_string(&a.file).with_context(|| format!("reading {}", a.file.display()))?;
-    let r: engine_diff::repro::Reproducer = serde_json::from_str(&text).with_context(|| format!("parsing reproducer {}", a.file.display()))?;
+    let r: engine_diff::repro::Reproducer =
+        serde_json::from_str(&text).with_context(|| format!("parsing reproducer {}", a.file.display()))?;
     let model = load_model(&a.robot)?;
     let o = r.replay(&model).context("replaying")?;
     println!(
@@ -321,10 +367,22 @@ fn bench(a: BenchArgs) -> Result<ExitCode> {
     }
     let s = setup(&a.common)?;
     let threads = a.common.jobs.unwrap_or_else(rayon::current_num_threads);
-    let rows = engine_diff::bench::run(&s.model, &s.factories, s.ctrl.as_ref(), &s.cfg, a.seconds, a.rollouts, threads).context("benchmark")?;
-    println!("{:<52} {:>7} {:>9} {:>12} {:>12} {:>14}", "rollout", "threads", "rollouts", "rollouts/s", "steps/s", "outside engine");
+    let rows = engine_diff::bench::run(&s.model, &s.factories, s.ctrl.as_ref(), &s.cfg, a.seconds, a.rollouts, threads)
+        .context("benchmark")?;
+    println!(
+        "{:<52} {:>7} {:>9} {:>12} {:>12} {:>14}",
+        "rollout", "threads", "rollouts", "rollouts/s", "steps/s", "outside engine"
+    );
     for r in rows {
-        println!("{:<52} {:>7} {:>9} {:>12.3} {:>12.0} {:>13.1}%", format!("{} ({} s, {})", r.what, r.seconds_per_rollout, s.ctrl_name), r.threads, r.rollouts, r.rollouts_per_s, r.steps_per_s, 100.0 * r.outside_engine);
+        println!(
+            "{:<52} {:>7} {:>9} {:>12.3} {:>12.0} {:>13.1}%",
+            format!("{} ({} s, {})", r.what, r.seconds_per_rollout, s.ctrl_name),
+            r.threads,
+            r.rollouts,
+            r.rollouts_per_s,
+            r.steps_per_s,
+            100.0 * r.outside_engine
+        );
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -9,8 +9,8 @@
 //! - `ulab gap bench [--trials N] [--seed S] [--duration S] [--out DIR] [--policy SPEC.toml]... [--floating]`
 use anyhow::{bail, Context, Result};
 use gap_diagnosis::bench::{self, BenchOptions, RealConfig};
-use gap_diagnosis::plant::{joint_groups, EngineChoice, GROUPS};
 use gap_diagnosis::diagnose::PlantChoice;
+use gap_diagnosis::plant::{joint_groups, EngineChoice, GROUPS};
 use gap_diagnosis::{effects::Scope, DiagnoseOptions, EffectKind, Outcome, RobotLog};
 
 /// Exit code of `ulab gap diagnose` when the log fails the rig-assumption check (not from a suspended robot):
@@ -164,7 +164,9 @@ fn write_log(path: &Path, log: &RobotLog, model: &RobotModel, force: bool) -> Re
 fn read_log(path: &Path, model: &RobotModel) -> Result<RobotLog> {
     // A directory: the CSV pair `ulab log export` writes (rt_lowcmd.csv, rt_lowstate.csv).
     let log = if path.is_dir() {
-        let read = |name: &str| std::fs::read_to_string(path.join(name)).with_context(|| format!("reading {}", path.join(name).display()));
+        let read = |name: &str| {
+            std::fs::read_to_string(path.join(name)).with_context(|| format!("reading {}", path.join(name).display()))
+        };
         RobotLog::from_export_csv(&read("rt_lowcmd.csv")?, &read("rt_lowstate.csv")?, model)
     } else {
         let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
@@ -181,7 +183,15 @@ fn diagnose(a: DiagnoseArgs) -> Result<ExitCode> {
     }
     let log = read_log(&a.log, &model)?;
     let plant = PlantChoice::parse(&a.plant).context("--plant")?;
-    let opts = DiagnoseOptions { engine, window_s: a.window, max_windows: a.max_windows.map(|n| n.max(4)), block_s: a.block, seed: a.seed, plant, ..Default::default() };
+    let opts = DiagnoseOptions {
+        engine,
+        window_s: a.window,
+        max_windows: a.max_windows.map(|n| n.max(4)),
+        block_s: a.block,
+        seed: a.seed,
+        plant,
+        ..Default::default()
+    };
     let report = gap_diagnosis::diagnose(&model, &log, &opts).context("diagnosing")?;
     gap_diagnosis::report::write_all(&report, &a.out).context("writing the report")?;
     let violated = report.outcome == Outcome::RigAssumptionViolated;
@@ -192,17 +202,32 @@ fn diagnose(a: DiagnoseArgs) -> Result<ExitCode> {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
         if !violated {
-            let why = if report.rig_check.suspended { "the log passes the rig-assumption check" } else { "the log is not from a suspended robot" };
+            let why = if report.rig_check.suspended {
+                "the log passes the rig-assumption check"
+            } else {
+                "the log is not from a suspended robot"
+            };
             println!(
                 "plant {} ({why}); {} training + {} held-out windows{}{}",
                 report.plant.name(),
                 report.windows_train,
                 report.windows_held_out,
-                if report.windows_unsettled > 0 { format!(" ({} starts in touchdown transients dropped)", report.windows_unsettled) } else { String::new() },
-                if report.windows_down > 0 { format!(" ({} windows with the robot down dropped)", report.windows_down) } else { String::new() }
+                if report.windows_unsettled > 0 {
+                    format!(" ({} starts in touchdown transients dropped)", report.windows_unsettled)
+                } else {
+                    String::new()
+                },
+                if report.windows_down > 0 {
+                    format!(" ({} windows with the robot down dropped)", report.windows_down)
+                } else {
+                    String::new()
+                }
             );
         }
-        println!("baseline held-out gap metric {:.3} [{:.3}, {:.3}]", report.baseline_metric.value, report.baseline_metric.lo, report.baseline_metric.hi);
+        println!(
+            "baseline held-out gap metric {:.3} [{:.3}, {:.3}]",
+            report.baseline_metric.value, report.baseline_metric.lo, report.baseline_metric.hi
+        );
         if report.unexplained {
             println!("no effect clears the noise floor: the gap is unexplained (abstention)");
         }
@@ -250,7 +275,8 @@ fn parse_effect(text: &str, model: &RobotModel, fx: &mut gap_diagnosis::plant::E
     let kind = EffectKind::parse(kind).with_context(|| {
         format!("--effect {text:?}: unknown kind (one of {})", EffectKind::ALL.map(|k| k.name()).join(", "))
     })?;
-    let value: f64 = value.parse().ok().filter(|v: &f64| v.is_finite()).with_context(|| format!("--effect {text:?}: bad value"))?;
+    let value: f64 =
+        value.parse().ok().filter(|v: &f64| v.is_finite()).with_context(|| format!("--effect {text:?}: bad value"))?;
     let (lo, hi, _) = kind.range();
     let internal = if kind == EffectKind::Latency { value / 2.0 } else { value };
     if !kind.identifiable_suspended() {
@@ -263,7 +289,10 @@ fn parse_effect(text: &str, model: &RobotModel, fx: &mut gap_diagnosis::plant::E
     match kind.scope() {
         Scope::Global => kind.set(fx, 0, internal),
         Scope::Imu => {
-            let axis = ["imu_x", "imu_y", "imu_z"].iter().position(|a| *a == unit).with_context(|| format!("--effect {text:?}: unit must be imu_x|imu_y|imu_z"))?;
+            let axis = ["imu_x", "imu_y", "imu_z"]
+                .iter()
+                .position(|a| *a == unit)
+                .with_context(|| format!("--effect {text:?}: unit must be imu_x|imu_y|imu_z"))?;
             kind.set(fx, axis, internal);
         }
         Scope::Joint | Scope::Group => {
@@ -290,7 +319,13 @@ fn simulate(a: SimulateArgs) -> Result<ExitCode> {
     }
     let log = bench::generate_log(&model, &cfg).context("running the reference plant")?;
     write_log(&a.out, &log, &model, a.force)?;
-    eprintln!("{}: {:.1} s, {} commands, {} states", a.out.display(), log.duration(), log.commands.len(), log.states.len());
+    eprintln!(
+        "{}: {:.1} s, {} commands, {} states",
+        a.out.display(),
+        log.duration(),
+        log.commands.len(),
+        log.states.len()
+    );
     Ok(ExitCode::SUCCESS)
 }
 
@@ -311,17 +346,26 @@ fn bench_cmd(a: BenchArgs) -> Result<ExitCode> {
         .policy
         .iter()
         .map(|p| {
-            let spec = policy_runtime::PolicySpec::load(p).with_context(|| format!("loading policy spec {}", p.display()))?;
-            spec.check_robot(&model).with_context(|| format!("policy spec {} does not fit {}", p.display(), a.robot))?;
+            let spec =
+                policy_runtime::PolicySpec::load(p).with_context(|| format!("loading policy spec {}", p.display()))?;
+            spec.check_robot(&model)
+                .with_context(|| format!("policy spec {} does not fit {}", p.display(), a.robot))?;
             // Fail now rather than mid-benchmark when the model file is missing or unsupported.
-            policy_runtime::PolicyController::from_spec(spec.clone()).with_context(|| format!("loading the policy of {}", p.display()))?;
+            policy_runtime::PolicyController::from_spec(spec.clone())
+                .with_context(|| format!("loading the policy of {}", p.display()))?;
             Ok(spec)
         })
         .collect::<Result<Vec<_>>>()?;
     if a.floating && policies.is_empty() {
         bail!("--floating needs at least one --policy (the walking controller)");
     }
-    let opts = BenchOptions { trials: a.trials, seed: a.seed, duration: a.duration, diagnose: DiagnoseOptions { seed: a.seed, ..Default::default() }, policies };
+    let opts = BenchOptions {
+        trials: a.trials,
+        seed: a.seed,
+        duration: a.duration,
+        diagnose: DiagnoseOptions { seed: a.seed, ..Default::default() },
+        policies,
+    };
     let mut scores = Vec::new();
     let mut seals = Vec::new();
     let started = std::time::Instant::now();
@@ -329,28 +373,38 @@ fn bench_cmd(a: BenchArgs) -> Result<ExitCode> {
         // Each generated log goes to disk as MCAP and is read back: the diagnosis sees exactly what a recording gives.
         let mut via_mcap = |i: usize, log: &RobotLog| -> Result<RobotLog, gap_diagnosis::GapError> {
             let p = dir.join(format!("trial_{i:03}.mcap"));
-            let f = std::fs::File::create(&p).map_err(|e| gap_diagnosis::GapError::Io(format!("{}: {e}", p.display())))?;
+            let f =
+                std::fs::File::create(&p).map_err(|e| gap_diagnosis::GapError::Io(format!("{}: {e}", p.display())))?;
             log.write_mcap(std::io::BufWriter::new(f), &model)?;
             let bytes = std::fs::read(&p).map_err(|e| gap_diagnosis::GapError::Io(format!("{}: {e}", p.display())))?;
             RobotLog::from_mcap(&bytes, &model)
         };
         let (seal, score, report) = if a.floating {
             // The seal is written before the diagnosis runs.
-            let mut via_mcap_sealed = |i: usize, log: &RobotLog, seal: &bench::Seal| -> Result<RobotLog, gap_diagnosis::GapError> {
-                let p = dir.join(format!("trial_{i:03}.seal.json"));
-                let json = serde_json::to_string_pretty(seal).map_err(|e| gap_diagnosis::GapError::Io(e.to_string()))?;
-                std::fs::write(&p, json).map_err(|e| gap_diagnosis::GapError::Io(format!("{}: {e}", p.display())))?;
-                via_mcap(i, log)
-            };
+            let mut via_mcap_sealed =
+                |i: usize, log: &RobotLog, seal: &bench::Seal| -> Result<RobotLog, gap_diagnosis::GapError> {
+                    let p = dir.join(format!("trial_{i:03}.seal.json"));
+                    let json =
+                        serde_json::to_string_pretty(seal).map_err(|e| gap_diagnosis::GapError::Io(e.to_string()))?;
+                    std::fs::write(&p, json)
+                        .map_err(|e| gap_diagnosis::GapError::Io(format!("{}: {e}", p.display())))?;
+                    via_mcap(i, log)
+                };
             bench::run_floating_trial(&model, i, &opts, &mut via_mcap_sealed).with_context(|| format!("trial {i}"))?
         } else {
             bench::run_trial(&model, i, &opts, &mut via_mcap).with_context(|| format!("trial {i}"))?
         };
-        gap_diagnosis::report::write_all(&report, &dir.join(format!("trial_{i:03}"))).context("writing a trial report")?;
+        gap_diagnosis::report::write_all(&report, &dir.join(format!("trial_{i:03}")))
+            .context("writing a trial report")?;
         eprintln!(
             "trial {i} ({}): injected [{}] -> ranked [{}] ({:.1} s{})",
             score.policy.as_deref().unwrap_or("excitation plan"),
-            score.injected.iter().map(|x| format!("{}@{}={:.3}", x.kind.name(), x.unit, x.value)).collect::<Vec<_>>().join(", "),
+            score
+                .injected
+                .iter()
+                .map(|x| format!("{}@{}={:.3}", x.kind.name(), x.unit, x.value))
+                .collect::<Vec<_>>()
+                .join(", "),
             score.ranked.iter().map(|k| k.name()).collect::<Vec<_>>().join(", "),
             score.diagnose_s,
             match (score.plant, score.redraws) {

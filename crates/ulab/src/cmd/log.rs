@@ -1,9 +1,9 @@
 //! `ulab log`: look into MCAP recordings. `export --format csv` writes one row per message with
 //! one named column per field (`motor_state[3].q`), decoded by our codec.
 
+use anyhow::{bail, Context, Result};
 use recording::columns::{column_names, decode_flat};
 use recording::{channel_type_name, kind_of};
-use anyhow::{bail, Context, Result};
 use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -73,9 +73,7 @@ fn export(a: ExportArgs) -> Result<ExitCode> {
     for m in mcap::MessageStream::new(&bytes).context("not an MCAP file")? {
         let m = m.context("reading the MCAP file")?;
         let ty = channel_type_name(&m.channel);
-        topics
-            .entry(m.channel.topic.clone())
-            .or_insert_with(|| ty.unwrap_or_default());
+        topics.entry(m.channel.topic.clone()).or_insert_with(|| ty.unwrap_or_default());
     }
     if let Some(t) = &a.topic {
         topics.retain(|k, _| k == t);
@@ -91,10 +89,7 @@ fn export(a: ExportArgs) -> Result<ExitCode> {
         None
     } else {
         let d = a.out.clone().unwrap_or_else(|| {
-            let stem = a
-                .file
-                .file_stem()
-                .map_or_else(|| "log".into(), |s| s.to_string_lossy().into_owned());
+            let stem = a.file.file_stem().map_or_else(|| "log".into(), |s| s.to_string_lossy().into_owned());
             a.file.with_file_name(format!("{stem}_csv"))
         });
         std::fs::create_dir_all(&d).with_context(|| format!("creating {}", d.display()))?;
@@ -120,11 +115,7 @@ fn export(a: ExportArgs) -> Result<ExitCode> {
             columns.push("cdr_hex".into());
         }
         let mut t = Table { out, columns, rows: 0 };
-        writeln!(
-            t.out,
-            "{}",
-            t.columns.iter().map(|c| csv_field(c)).collect::<Vec<_>>().join(",")
-        )?;
+        writeln!(t.out, "{}", t.columns.iter().map(|c| csv_field(c)).collect::<Vec<_>>().join(","))?;
         if let Some(p) = path {
             eprintln!("{topic} -> {}", p.display());
         }
@@ -136,11 +127,7 @@ fn export(a: ExportArgs) -> Result<ExitCode> {
             continue;
         };
         let ty = topics.get(&m.channel.topic).cloned().unwrap_or_default();
-        let mut row = vec![
-            m.log_time.to_string(),
-            m.publish_time.to_string(),
-            m.sequence.to_string(),
-        ];
+        let mut row = vec![m.log_time.to_string(), m.publish_time.to_string(), m.sequence.to_string()];
         match kind_of(&ty) {
             Some(kind) => match decode_flat(kind, &m.data) {
                 Ok((cols, crc)) => {
@@ -160,11 +147,7 @@ fn export(a: ExportArgs) -> Result<ExitCode> {
                 row.push(m.data.iter().map(|b| format!("{b:02x}")).collect());
             }
         }
-        writeln!(
-            t.out,
-            "{}",
-            row.iter().map(|c| csv_field(c)).collect::<Vec<_>>().join(",")
-        )?;
+        writeln!(t.out, "{}", row.iter().map(|c| csv_field(c)).collect::<Vec<_>>().join(","))?;
         t.rows += 1;
     }
     for (topic, t) in tables.iter_mut() {

@@ -144,32 +144,34 @@ fn inspect(a: InspectArgs) -> Result<ExitCode> {
     let model = load(&a.robot)?;
     let c = coords(&model, &a.q)?;
     let nv = model.nv();
-    let (engine_name, version, method, com, m): (String, String, String, [f64; 3], Vec<f64>) = if a.engine == "reference" {
-        let m = model.mass_matrix(&c, a.armature).context("reference mass matrix")?;
-        let com = model.com(&c).context("reference COM")?;
-        (
-            "reference".into(),
-            robot_model::RigidBodyDynamics::NAME.into(),
-            "RNEA unit-acceleration columns".into(),
-            [com.x, com.y, com.z],
-            m.transpose().as_slice().to_vec(),
-        )
-    } else {
-        let kind = parse_engine(&a.engine)?;
-        // Contact-free, undamped: only the configuration and (optionally) armature matter for M.
-        let common = CommonSettings { armature: a.armature, ..CommonSettings::rigid_body_only() };
-        let mut e: Box<dyn Engine> = make_engine(kind, &model, &common).with_context(|| format!("building engine {}", kind.name()))?;
-        e.reset(&State::at_rest(c.clone())).context("reset")?;
-        let com = e.com();
-        let (m, method) = match e.mass_matrix() {
-            Some(m) => (m, "engine's own mass matrix".to_string()),
-            None => {
-                let m = mass_matrix_from_accelerations(e.as_mut(), nv).context("mass matrix from accelerations")?;
-                (m.transpose().as_slice().to_vec(), "from accelerations under unit generalized forces".to_string())
-            }
+    let (engine_name, version, method, com, m): (String, String, String, [f64; 3], Vec<f64>) =
+        if a.engine == "reference" {
+            let m = model.mass_matrix(&c, a.armature).context("reference mass matrix")?;
+            let com = model.com(&c).context("reference COM")?;
+            (
+                "reference".into(),
+                robot_model::RigidBodyDynamics::NAME.into(),
+                "RNEA unit-acceleration columns".into(),
+                [com.x, com.y, com.z],
+                m.transpose().as_slice().to_vec(),
+            )
+        } else {
+            let kind = parse_engine(&a.engine)?;
+            // Contact-free, undamped: only the configuration and (optionally) armature matter for M.
+            let common = CommonSettings { armature: a.armature, ..CommonSettings::rigid_body_only() };
+            let mut e: Box<dyn Engine> =
+                make_engine(kind, &model, &common).with_context(|| format!("building engine {}", kind.name()))?;
+            e.reset(&State::at_rest(c.clone())).context("reset")?;
+            let com = e.com();
+            let (m, method) = match e.mass_matrix() {
+                Some(m) => (m, "engine's own mass matrix".to_string()),
+                None => {
+                    let m = mass_matrix_from_accelerations(e.as_mut(), nv).context("mass matrix from accelerations")?;
+                    (m.transpose().as_slice().to_vec(), "from accelerations under unit generalized forces".to_string())
+                }
+            };
+            (e.name().into(), e.version(), method, com, m)
         };
-        (e.name().into(), e.version(), method, com, m)
-    };
     let rows: Vec<Vec<f64>> = m.chunks(nv).map(|r| r.to_vec()).collect();
     let out = serde_json::json!({
         "robot": model.name,
@@ -193,7 +195,15 @@ fn inspect(a: InspectArgs) -> Result<ExitCode> {
         Format::Json => println!("{}", serde_json::to_string_pretty(&out).context("serialising")?),
         Format::Table => {
             println!("robot {} engine {} ({}) q={}", model.name, out["engine"], out["version"], a.q);
-            println!("nq {} nv {} total mass {:.6} kg COM [{:.6}, {:.6}, {:.6}] m", model.nq(), nv, model.total_mass(), com[0], com[1], com[2]);
+            println!(
+                "nq {} nv {} total mass {:.6} kg COM [{:.6}, {:.6}, {:.6}] m",
+                model.nq(),
+                nv,
+                model.total_mass(),
+                com[0],
+                com[1],
+                com[2]
+            );
             println!("mass matrix ({method}), diagonal:");
             for (i, r) in rows.iter().enumerate() {
                 let label = if i < 6 { format!("base{i}") } else { model.joints[i - 6].name.clone() };

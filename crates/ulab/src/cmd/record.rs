@@ -7,9 +7,9 @@
 //! reported: LowState tick jumps, arrival gaps and one-second windows with a low rate.
 
 use super::recording::{parse_topic, NetArgs, TopicChoice};
-use recording::lowstate_tick;
 use anyhow::{bail, Context, Result};
 use dds_transport::{Participant, ReaderOptions, Sample};
+use recording::lowstate_tick;
 use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::BufWriter;
@@ -61,9 +61,7 @@ struct TopicStats {
 }
 
 fn now_ns() -> u64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_nanos() as u64)
+    std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos() as u64)
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
@@ -73,11 +71,8 @@ pub fn run(args: Args) -> Result<ExitCode> {
             bail!("--duration must be a positive number of seconds");
         }
     }
-    let texts: Vec<String> = if args.topics.is_empty() {
-        vec!["rt/lowcmd".into(), "rt/lowstate".into()]
-    } else {
-        args.topics.clone()
-    };
+    let texts: Vec<String> =
+        if args.topics.is_empty() { vec!["rt/lowcmd".into(), "rt/lowstate".into()] } else { args.topics.clone() };
     let mut choices: Vec<TopicChoice> = Vec::new();
     for t in &texts {
         let c = parse_topic(t, &args.family)?;
@@ -91,20 +86,14 @@ pub fn run(args: Args) -> Result<ExitCode> {
     }
 
     let file = File::create(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
-    let opts = mcap::WriteOptions::new()
-        .library(concat!("ulab ", env!("CARGO_PKG_VERSION")))
-        .chunk_size(Some(256 * 1024));
+    let opts =
+        mcap::WriteOptions::new().library(concat!("ulab ", env!("CARGO_PKG_VERSION"))).chunk_size(Some(256 * 1024));
     let mut writer = opts.create(BufWriter::new(file)).context("starting the MCAP file")?;
     let mut channels = Vec::new();
     for c in choices {
         let id = recording::add_topic(&mut writer, &c.spec.name, &c.spec.type_name)
             .with_context(|| format!("adding the channel of {}", c.spec.name))?;
-        channels.push(Channel {
-            choice: c,
-            id,
-            sequence: 0,
-            stats: TopicStats::default(),
-        });
+        channels.push(Channel { choice: c, id, sequence: 0, stats: TopicStats::default() });
     }
 
     let stop = Arc::new(AtomicBool::new(false));
@@ -122,10 +111,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     for (i, ch) in channels.iter().enumerate() {
         let tx = tx.clone();
         let overflow = overflow.clone();
-        let opts = ReaderOptions {
-            history_depth: 64,
-            ..ReaderOptions::default()
-        };
+        let opts = ReaderOptions { history_depth: 64, ..ReaderOptions::default() };
         let r = participant
             .reader_with_callback(&ch.choice.spec, opts, move |s| {
                 if tx.try_send((i, s)).is_err() {
@@ -139,11 +125,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     if !args.quiet {
         eprintln!(
             "recording {} on domain {} / {} into {} ({})",
-            channels
-                .iter()
-                .map(|c| c.choice.spec.name.as_str())
-                .collect::<Vec<_>>()
-                .join(", "),
+            channels.iter().map(|c| c.choice.spec.name.as_str()).collect::<Vec<_>>().join(", "),
             cfg.domain,
             cfg.interface,
             args.out.display(),
@@ -202,20 +184,13 @@ pub fn run(args: Args) -> Result<ExitCode> {
         }
     }
 
-    let report = Report::build(
-        &channels,
-        overflow.load(Ordering::Relaxed),
-        started.elapsed().as_secs_f64(),
-    );
+    let report = Report::build(&channels, overflow.load(Ordering::Relaxed), started.elapsed().as_secs_f64());
     let mut meta = BTreeMap::new();
     meta.insert("domain".to_owned(), cfg.domain.to_string());
     meta.insert("interface".to_owned(), cfg.interface.clone());
     meta.insert("start_ns".to_owned(), started_ns.to_string());
     meta.insert("report".to_owned(), report.text.clone());
-    let _ = writer.write_metadata(&mcap::records::Metadata {
-        name: "ulab.record".to_owned(),
-        metadata: meta,
-    });
+    let _ = writer.write_metadata(&mcap::records::Metadata { name: "ulab.record".to_owned(), metadata: meta });
     writer.finish().context("finishing the MCAP file")?;
     drop(writer);
     print!("{}", report.text);
@@ -227,26 +202,15 @@ pub fn run(args: Args) -> Result<ExitCode> {
 
 fn store(writer: &mut mcap::Writer<BufWriter<File>>, ch: &mut Channel, s: &Sample) -> Result<()> {
     let log_time = u64::try_from(s.reception_ns).unwrap_or(0);
-    let publish_time = s
-        .source_timestamp_ns
-        .and_then(|t| u64::try_from(t).ok())
-        .unwrap_or(log_time);
+    let publish_time = s.source_timestamp_ns.and_then(|t| u64::try_from(t).ok()).unwrap_or(log_time);
     writer.write_to_known_channel(
-        &mcap::records::MessageHeader {
-            channel_id: ch.id,
-            sequence: ch.sequence,
-            log_time,
-            publish_time,
-        },
+        &mcap::records::MessageHeader { channel_id: ch.id, sequence: ch.sequence, log_time, publish_time },
         &s.data,
     )?;
     ch.sequence = ch.sequence.wrapping_add(1);
     ch.stats.arrivals.push(s.reception_ns);
     if let Some(kind) = ch.choice.kind {
-        if matches!(
-            kind,
-            unitree_idl::MessageType::HgLowState | unitree_idl::MessageType::GoLowState
-        ) {
+        if matches!(kind, unitree_idl::MessageType::HgLowState | unitree_idl::MessageType::GoLowState) {
             match lowstate_tick(kind, &s.data) {
                 Some(t) => ch.stats.ticks.push((s.reception_ns, t)),
                 None => ch.stats.undecodable += 1,
@@ -276,9 +240,7 @@ impl Report {
         let mut t = String::new();
         t.push_str(&format!("recorded {seconds:.2} s\n"));
         if overflow > 0 {
-            t.push_str(&format!(
-                "warning: {overflow} samples lost: the writer could not keep up\n"
-            ));
+            t.push_str(&format!("warning: {overflow} samples lost: the writer could not keep up\n"));
         }
         for ch in channels {
             let st = &ch.stats;
@@ -309,11 +271,7 @@ impl Report {
                 }
             }
             // Tick jumps.
-            let deltas: Vec<i64> = st
-                .ticks
-                .windows(2)
-                .map(|w| i64::from(w[1].1) - i64::from(w[0].1))
-                .collect();
+            let deltas: Vec<i64> = st.ticks.windows(2).map(|w| i64::from(w[1].1) - i64::from(w[0].1)).collect();
             let mut pos: Vec<i64> = deltas.iter().copied().filter(|d| *d > 0).collect();
             if let Some(step) = median(&mut pos) {
                 let mut jumps = 0u64;

@@ -22,9 +22,7 @@ pub struct NetArgs {
 impl NetArgs {
     /// The transport configuration, with the safety rule checked.
     pub fn domain_config(&self) -> Result<DomainConfig> {
-        let cfg = DomainConfig::loopback(self.domain)
-            .interface(self.interface.clone())
-            .allow_robot(self.allow_robot);
+        let cfg = DomainConfig::loopback(self.domain).interface(self.interface.clone()).allow_robot(self.allow_robot);
         match cfg.validate() {
             Ok(()) => Ok(cfg),
             Err(e @ dds_transport::Error::RobotNotAllowed { .. }) => {
@@ -63,14 +61,8 @@ pub fn parse_topic(text: &str, family: &str) -> Result<TopicChoice> {
         bail!("bad topic {text:?}: expected TOPIC=TYPE");
     }
     match MessageType::from_name(&ty) {
-        Ok(kind) => Ok(TopicChoice {
-            spec: TopicSpec::new(name, kind.dds_type_name()),
-            kind: Some(kind),
-        }),
-        Err(_) if ty.contains("::") => Ok(TopicChoice {
-            spec: TopicSpec::new(name, ty),
-            kind: None,
-        }),
+        Ok(kind) => Ok(TopicChoice { spec: TopicSpec::new(name, kind.dds_type_name()), kind: Some(kind) }),
+        Err(_) if ty.contains("::") => Ok(TopicChoice { spec: TopicSpec::new(name, ty), kind: None }),
         Err(e) => Err(e).with_context(|| format!("topic {name:?}")),
     }
 }

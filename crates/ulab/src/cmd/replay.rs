@@ -81,11 +81,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 w
             }
         };
-        msgs.push(Msg {
-            log_time: m.log_time,
-            writer: w,
-            data: m.data,
-        });
+        msgs.push(Msg { log_time: m.log_time, writer: w, data: m.data });
     }
     if msgs.is_empty() {
         bail!("{} holds no messages to replay", args.file.display());

@@ -6,8 +6,8 @@
 use super::recording::NetArgs;
 use anyhow::{Context, Result};
 use dds_transport::{Participant, TopicSpec};
-use diff_physics::{make_engine, CommonSettings, EngineKind, State};
 use diff_physics::mujoco::MujocoSettings;
+use diff_physics::{make_engine, CommonSettings, EngineKind, State};
 use sim_bridge::suspension::{self, SuspendedMujoco};
 use sim_bridge::{BridgeConfig, Protections, SimRobot};
 use std::process::ExitCode;
@@ -84,14 +84,19 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let cfg = args.net.domain_config()?;
     let model = robot_model::builtin(&args.robot).with_context(|| format!("loading robot `{}`", args.robot))?;
     let (engine, initial): (Box<dyn diff_physics::Engine>, State) = if args.hang {
-        anyhow::ensure!(args.engine == EngineKind::Mujoco, "--hang needs the MuJoCo engine (the stand is an applied base wrench)");
-        let engine = SuspendedMujoco::new(&model, args.dt, &MujocoSettings::default()).context("building MuJoCo on the suspension stand")?;
+        anyhow::ensure!(
+            args.engine == EngineKind::Mujoco,
+            "--hang needs the MuJoCo engine (the stand is an applied base wrench)"
+        );
+        let engine = SuspendedMujoco::new(&model, args.dt, &MujocoSettings::default())
+            .context("building MuJoCo on the suspension stand")?;
         let q0 = model.default_q();
         let initial = suspension::state_on_stand(&q0, &vec![0.0; q0.len()]);
         (Box::new(engine), initial)
     } else {
         let common = CommonSettings { timestep: args.dt, ..CommonSettings::default() };
-        let engine = make_engine(args.engine, &model, &common).with_context(|| format!("building the {} engine", args.engine.name()))?;
+        let engine = make_engine(args.engine, &model, &common)
+            .with_context(|| format!("building the {} engine", args.engine.name()))?;
         (engine, State::standing(&model))
     };
     let config = BridgeConfig {
@@ -196,7 +201,13 @@ pub fn run(args: Args) -> Result<ExitCode> {
 }
 
 /// Publishes the robot's LowState when `sim_time` has reached the next publication time.
-fn publish_due(robot: &mut SimRobot, states: &dds_transport::RawWriter, sim_time: f64, next_publish: &mut f64, period: f64) -> Result<()> {
+fn publish_due(
+    robot: &mut SimRobot,
+    states: &dds_transport::RawWriter,
+    sim_time: f64,
+    next_publish: &mut f64,
+    period: f64,
+) -> Result<()> {
     if sim_time + 1e-9 >= *next_publish {
         let bytes = robot.lowstate_bytes().context("building LowState")?;
         if let Err(e) = states.write(&bytes) {

@@ -61,7 +61,12 @@ pub fn run_ulab(args: &[&str], timeout: Duration) -> (Option<i32>, String, Strin
 
 /// Starts the `ulab` binary with `args`, stdout and stderr piped (read them with [`wait_with_timeout`]).
 pub fn spawn_ulab(args: &[&str]) -> Child {
-    Command::new(env!("CARGO_BIN_EXE_ulab")).args(args).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("start ulab")
+    Command::new(env!("CARGO_BIN_EXE_ulab"))
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start ulab")
 }
 
 /// The last 2000 characters of a long text, for failure messages.
