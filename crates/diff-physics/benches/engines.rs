@@ -124,7 +124,7 @@ fn summary() {
         let s0 = start(&model, zero_g);
         let mut raw_e = mujoco(&model, zero_g);
         let mut engines: Vec<(String, Box<dyn Engine>)> = Vec::new();
-        for k in EngineKind::ALL {
+        for k in EngineKind::available() {
             if let Ok(e) = make_engine(k, &model, &scenario(zero_g)) {
                 engines.push((format!("{} (Engine layer)", k.name()), e));
             }

@@ -34,27 +34,68 @@ pub enum EngineError {
     Model(#[from] robot_model::ModelError),
 }
 
-/// Engines known to the project.
+/// Engines known to the project. Every kind exists in every build; [`EngineKind::available`] lists the ones
+/// whose cargo feature is compiled in (the others give [`EngineError::Unavailable`] from `make_engine`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum EngineKind {
+    /// MuJoCo (generalized coordinates, soft contacts), feature `mujoco`.
     Mujoco,
+    /// Rapier reduced-coordinate multibody, feature `rapier`.
     RapierMultibody,
+    /// Rapier rigid bodies held by impulse joints, feature `rapier`.
     RapierImpulse,
+    /// Bullet's Featherstone `btMultiBody` in double precision, feature `bullet`.
+    Bullet,
+    /// DART (Featherstone articulated bodies, LCP contacts), feature `dart`.
+    Dart,
+    /// PhysX reduced-coordinate articulation (f32), feature `physx`.
+    Physx,
 }
 
 impl EngineKind {
-    pub const ALL: [EngineKind; 3] = [EngineKind::Mujoco, EngineKind::RapierMultibody, EngineKind::RapierImpulse];
+    /// Every engine the project knows, compiled in or not.
+    pub const ALL: [EngineKind; 6] = [
+        EngineKind::Mujoco,
+        EngineKind::RapierMultibody,
+        EngineKind::RapierImpulse,
+        EngineKind::Bullet,
+        EngineKind::Dart,
+        EngineKind::Physx,
+    ];
     /// Command-line name.
     pub fn name(self) -> &'static str {
         match self {
             EngineKind::Mujoco => "mujoco",
             EngineKind::RapierMultibody => "rapier_multibody",
             EngineKind::RapierImpulse => "rapier_impulse",
+            EngineKind::Bullet => "bullet",
+            EngineKind::Dart => "dart",
+            EngineKind::Physx => "physx",
         }
     }
+    /// Parses a command-line name (`rapier_multibody` and `rapier-multibody` alike).
     pub fn parse(s: &str) -> Option<Self> {
         Self::ALL.into_iter().find(|k| k.name() == s || k.name().replace('_', "-") == s)
+    }
+    /// Whether this build contains the engine (its cargo feature of `diff-physics` is on).
+    pub fn is_available(self) -> bool {
+        match self {
+            EngineKind::Mujoco => cfg!(feature = "mujoco"),
+            EngineKind::RapierMultibody | EngineKind::RapierImpulse => cfg!(feature = "rapier"),
+            EngineKind::Bullet => cfg!(feature = "bullet"),
+            EngineKind::Dart => cfg!(feature = "dart"),
+            EngineKind::Physx => cfg!(feature = "physx"),
+        }
+    }
+    /// The engines compiled into this build, in [`EngineKind::ALL`] order: the default set of every command
+    /// that runs "every engine".
+    pub fn available() -> Vec<EngineKind> {
+        Self::ALL.into_iter().filter(|k| k.is_available()).collect()
+    }
+    /// Comma-separated names of [`EngineKind::available`], for help texts and error messages.
+    pub fn available_names() -> String {
+        Self::available().iter().map(|k| k.name()).collect::<Vec<_>>().join(", ")
     }
 }
 

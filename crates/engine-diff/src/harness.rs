@@ -39,7 +39,7 @@ pub fn builtin_factories(names: &[String]) -> Result<Vec<Arc<dyn EngineFactory>>
         .iter()
         .map(|n| {
             EngineKind::parse(n.trim()).map(|k| Arc::new(BuiltinEngine(k)) as Arc<dyn EngineFactory>).ok_or_else(|| {
-                DiffError::Input(format!("unknown engine {n:?} (mujoco, rapier_multibody, rapier_impulse)"))
+                DiffError::Input(format!("unknown engine {n:?} (this build has: {})", EngineKind::available_names()))
             })
         })
         .collect()

@@ -49,9 +49,9 @@ struct Common {
     /// Policy spec TOML (robots/h1_2/policies/*.toml); default: the built-in excitation input.
     #[arg(long)]
     policy: Option<PathBuf>,
-    /// Engines, lead first (comma-separated).
-    #[arg(long, default_value = "mujoco,rapier-multibody,rapier-impulse")]
-    engines: String,
+    /// Engines, lead first (comma-separated); default: every engine of this build, MuJoCo first.
+    #[arg(long)]
+    engines: Option<String>,
     /// Steps per divergence window (k of the k-step divergence).
     #[arg(long, default_value_t = 50)]
     window: usize,
@@ -173,7 +173,14 @@ fn setup(c: &Common) -> Result<Setup> {
         bail!("--window must be in 1..=10000 steps");
     }
     let model = load_model(&c.robot)?;
-    let names: Vec<String> = c.engines.split(',').map(|s| s.trim().to_string()).filter(|s| !s.is_empty()).collect();
+    let names: Vec<String> = c
+        .engines
+        .clone()
+        .unwrap_or_else(default_engines)
+        .split(',')
+        .map(|s| s.trim().to_string())
+        .filter(|s| !s.is_empty())
+        .collect();
     if names.len() < 2 {
         bail!("--engines needs at least two engines (the first is the lead)");
     }
@@ -385,4 +392,9 @@ fn bench(a: BenchArgs) -> Result<ExitCode> {
         );
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Every engine compiled into this build, MuJoCo (the lead) first.
+fn default_engines() -> String {
+    diff_physics::EngineKind::available().iter().map(|k| k.name()).collect::<Vec<_>>().join(",")
 }

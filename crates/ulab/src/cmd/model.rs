@@ -39,7 +39,7 @@ struct CheckArgs {
     /// Built-in robot name, or a path to a sidecar TOML (the URDF it names is read beside it).
     #[arg(long, default_value = "h1_2")]
     robot: String,
-    /// Engines to check (mujoco, rapier_multibody, rapier_impulse); default: all.
+    /// Engines to check; default: every engine of this build.
     #[arg(long = "engine")]
     engines: Vec<String>,
     #[arg(long, value_enum, default_value = "table")]
@@ -100,13 +100,14 @@ fn load(robot: &str) -> Result<RobotModel> {
 }
 
 fn parse_engine(s: &str) -> Result<EngineKind> {
-    EngineKind::parse(s).with_context(|| format!("unknown engine {s:?} (mujoco, rapier_multibody, rapier_impulse)"))
+    EngineKind::parse(s)
+        .with_context(|| format!("unknown engine {s:?} (this build has: {})", EngineKind::available_names()))
 }
 
 fn check(a: CheckArgs) -> Result<ExitCode> {
     let model = load(&a.robot)?;
     let kinds = if a.engines.is_empty() {
-        EngineKind::ALL.to_vec()
+        EngineKind::available()
     } else {
         a.engines.iter().map(|s| parse_engine(s)).collect::<Result<Vec<_>>>()?
     };

@@ -22,7 +22,7 @@ pub struct Args {
     /// Robot model (built in): h1_2.
     #[arg(long, default_value = "h1_2")]
     pub robot: String,
-    /// Physics engine: mujoco, rapier-multibody or rapier-impulse.
+    /// Physics engine (see `ulab model check` for those of this build): mujoco, rapier-multibody, rapier-impulse, ...
     #[arg(long, default_value = "mujoco", value_parser = parse_engine)]
     pub engine: EngineKind,
     /// LowState publish rate (Hz); the real robot publishes about 500 Hz.
@@ -75,7 +75,8 @@ pub struct Args {
 }
 
 fn parse_engine(s: &str) -> Result<EngineKind, String> {
-    EngineKind::parse(s).ok_or_else(|| format!("unknown engine `{s}` (mujoco, rapier-multibody, rapier-impulse)"))
+    EngineKind::parse(s)
+        .ok_or_else(|| format!("unknown engine `{s}` (this build has: {})", EngineKind::available_names()))
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
