@@ -6,7 +6,10 @@
 //! - joint vectors in motor-slot order (`model.joints` order);
 //! - base linear velocity: velocity of the pelvis ORIGIN, WORLD frame; base angular velocity: PELVIS (body) frame
 //!   (MuJoCo's free-joint convention; every other engine converts inside).
-#![forbid(unsafe_code)]
+// Unsafe code is forbidden, except in the one FFI module of each C++ engine (`bullet::ffi`, ...), which allows it
+// locally and states its invariants; with such an engine compiled in, the crate-wide level is `deny`.
+#![cfg_attr(not(any(feature = "bullet", feature = "dart", feature = "physx")), forbid(unsafe_code))]
+#![cfg_attr(any(feature = "bullet", feature = "dart", feature = "physx"), deny(unsafe_code))]
 
 pub mod engine;
 pub mod oracle;
@@ -23,6 +26,9 @@ pub mod rapier_common;
 pub mod rapier_impulse;
 #[cfg(feature = "rapier")]
 pub mod rapier_multibody;
+
+#[cfg(feature = "bullet")]
+pub mod bullet;
 
 pub use engine::{CommonSettings, Contact, Energy, Engine, EngineError, EngineKind, LinkPose, State};
 pub use pd::{pd_torques, PdTarget};
@@ -47,6 +53,8 @@ pub fn make_engine(
         EngineKind::RapierImpulse => {
             Ok(Box::new(rapier_impulse::RapierImpulseEngine::new(model, common, &Default::default())?))
         }
+        #[cfg(feature = "bullet")]
+        EngineKind::Bullet => Ok(Box::new(bullet::BulletEngine::new(model, common, &Default::default())?)),
         #[allow(unreachable_patterns)]
         other => Err(EngineError::Unavailable(other.name().to_string())),
     }
