@@ -7,7 +7,8 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/env.sh
 
-APT_PACKAGES=(cmake make g++ libclang-dev clang pkg-config cyclonedds-dev cyclonedds-tools)
+APT_PACKAGES=(cmake make g++ libclang-dev clang pkg-config cyclonedds-dev cyclonedds-tools
+  libbullet-dev)  # Bullet 3.24 with the double-precision build (bullet-float64.pc): the `bullet` engine
 missing=()
 for p in "${APT_PACKAGES[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

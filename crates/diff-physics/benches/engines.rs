@@ -8,9 +8,10 @@
 //! - `zero_gravity`: no gravity, no ground (no contacts), same PD hold.
 //!
 //! Loops: `engine` = `Engine::state()` + `pd_torques` + `Engine::step()`; `raw` = read `qpos`/`qvel` from
-//! `MjData` + the same PD + write `ctrl` + `mj_step` (no layer).
+//! `MjData` + the same PD + write `ctrl` + `mj_step` (no layer). Bullet (feature `bullet`) also has a raw loop:
+//! joint state straight from the btMultiBody + the same PD and the viscous damping the layer adds + one world step.
 //!
-//! Run: `source scripts/env.sh && CARGO_TARGET_DIR=target-model cargo bench -p diff-physics --bench engines`
+//! Run: `source scripts/env.sh && CARGO_TARGET_DIR=target-model cargo bench -p diff-physics --features bullet --bench engines`
 use criterion::{criterion_group, Criterion};
 use diff_physics::mujoco::{MujocoEngine, MujocoSettings};
 use diff_physics::pd::pd_torques_into;
@@ -90,6 +91,47 @@ fn run_raw(e: &mut MujocoEngine, model: &RobotModel, s0: &State, iters: u64) -> 
     total
 }
 
+/// The same loop on Bullet's raw joint state and step (link order; the damping torque the layer adds is added
+/// here too so that both loops simulate the same thing). The engine is only used to reset, outside the timing.
+#[cfg(feature = "bullet")]
+fn run_raw_bullet(e: &mut diff_physics::bullet::BulletEngine, model: &RobotModel, s0: &State, iters: u64) -> Duration {
+    let target = PdTarget::hold_standing(model);
+    let joint = e.joint_of_link();
+    let pick = |v: &[f64]| joint.iter().map(|&j| v[j]).collect::<Vec<f64>>();
+    let link_target = PdTarget {
+        q_des: pick(&target.q_des),
+        dq_des: pick(&target.dq_des),
+        kp: pick(&target.kp),
+        kd: pick(&target.kd),
+        tau_ff: pick(&target.tau_ff),
+    };
+    let limits: Vec<f64> = joint.iter().map(|&j| model.joints[j].torque_limit).collect();
+    let damping: Vec<f64> = joint.iter().map(|&j| model.joints[j].damping).collect();
+    let mut tau = vec![0.0; joint.len()];
+    let mut total = Duration::ZERO;
+    let mut done = 0;
+    while done < iters {
+        if e.reset(s0).is_err() {
+            return Duration::MAX;
+        }
+        let n = RESET_EVERY.min(iters - done);
+        let t0 = Instant::now();
+        for _ in 0..n {
+            let (q, dq) = e.raw_joint_state();
+            pd_torques_into(&link_target, &q, &dq, &limits, &mut tau);
+            for (t, (d, v)) in tau.iter_mut().zip(damping.iter().zip(&dq)) {
+                *t -= d * v;
+            }
+            if e.step_raw(&tau).is_err() {
+                return Duration::MAX;
+            }
+        }
+        total += t0.elapsed();
+        done += n;
+    }
+    total
+}
+
 fn mujoco(model: &RobotModel, zero_g: bool) -> MujocoEngine {
     MujocoEngine::new(model, &scenario(zero_g), &MujocoSettings::default()).expect("MuJoCo engine builds")
 }
@@ -129,11 +171,18 @@ fn summary() {
                 engines.push((format!("{} (Engine layer)", k.name()), e));
             }
         }
+        #[cfg(feature = "bullet")]
+        let mut bullet_raw = diff_physics::bullet::BulletEngine::new(&model, &scenario(zero_g), &Default::default())
+            .expect("Bullet engine builds");
+        #[cfg(feature = "bullet")]
+        let mut bullet_raw_rates = Vec::new();
         let mut raw_rates = Vec::new();
         let mut rates: Vec<Vec<f64>> = vec![Vec::new(); engines.len()];
         for _ in 0..5 {
             let t = run_raw(&mut raw_e, &model, &s0, steps).as_secs_f64();
             raw_rates.push(steps as f64 / t);
+            #[cfg(feature = "bullet")]
+            bullet_raw_rates.push(steps as f64 / run_raw_bullet(&mut bullet_raw, &model, &s0, steps).as_secs_f64());
             for (i, (_, e)) in engines.iter_mut().enumerate() {
                 let t = run_engine(e.as_mut(), &model, &s0, steps).as_secs_f64();
                 rates[i].push(steps as f64 / t);
@@ -141,6 +190,11 @@ fn summary() {
         }
         let raw = median(raw_rates);
         println!("| {name} | mujoco raw mujoco-rs | {raw:.0} | 1.000 |");
+        #[cfg(feature = "bullet")]
+        {
+            let r = median(bullet_raw_rates);
+            println!("| {name} | bullet raw btMultiBody | {r:.0} | {:.3} |", r / raw);
+        }
         for ((label, _), r) in engines.iter().zip(rates) {
             let r = median(r);
             println!("| {name} | {label} | {r:.0} | {:.3} |", r / raw);

@@ -164,64 +164,105 @@ pub fn oracle_findings(result: &EpisodeResult, allow: &AllowList) -> Vec<harness
 
 /// The whole check of the `engine_divergence` cargo-fuzz target, kept here so that `cargo test` replays the
 /// saved inputs (`corpus/regressions/engine_divergence/`, `corpus/fuzz/engine_divergence/`) through exactly
-/// what the fuzzer runs. Engines are built once per ground friction and reset per input
-/// (`Engine::reset` is a true reset), because building them dominates a 40 ms rollout.
+/// what the fuzzer runs. The input chooses the pair of engines ([`oracle_pair`]). Engines are built once per
+/// kind and ground friction and reset per input (`Engine::reset` is a true reset), because building them
+/// dominates a 40 ms rollout.
 pub struct DivergenceOracle {
     model: RobotModel,
     allow: AllowList,
     ctrl: Box<ControllerFactory>,
-    names: Vec<String>,
     friction_bits: Option<u64>,
-    engines: Vec<Box<dyn diff_physics::Engine>>,
+    engines: BTreeMap<usize, Box<dyn diff_physics::Engine>>,
 }
 
 impl std::fmt::Debug for DivergenceOracle {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("DivergenceOracle").field("engines", &self.names).finish_non_exhaustive()
+        f.debug_struct("DivergenceOracle").field("pairs", &oracle_pairs()).finish_non_exhaustive()
     }
 }
-
-/// Lead engine first: MuJoCo against Rapier multibody (Rapier's Rust code gives the coverage).
-const ORACLE_ENGINES: [diff_physics::EngineKind; 2] =
-    [diff_physics::EngineKind::Mujoco, diff_physics::EngineKind::RapierMultibody];
 
 /// Rollout length per input: two 50 Hz control ticks.
 pub const ORACLE_SECONDS: f64 = 0.04;
 
-fn oracle_engines(m: &RobotModel) -> Result<Vec<Box<dyn diff_physics::Engine>>, DiffError> {
-    ORACLE_ENGINES
-        .iter()
-        .map(|&k| diff_physics::make_engine(k, m, &diff_physics::CommonSettings::default()).map_err(DiffError::from))
-        .collect()
+/// Every pair of engines of this build, lead first: the lead is the engine earlier in
+/// [`diff_physics::EngineKind::ALL`] (MuJoCo leads every pair it is in, as in `ulab diff`), pairs in
+/// lexicographic order, so the first pair is MuJoCo against Rapier multibody.
+pub fn oracle_pairs() -> Vec<[diff_physics::EngineKind; 2]> {
+    let kinds = diff_physics::EngineKind::available();
+    let mut pairs = Vec::new();
+    for (i, &a) in kinds.iter().enumerate() {
+        for &b in &kinds[i + 1..] {
+            pairs.push([a, b]);
+        }
+    }
+    pairs
+}
+
+/// The pair an input's `engines` byte chooses: `byte % pairs`. Byte 0 is the first pair (MuJoCo against Rapier
+/// multibody), the only pair inputs were run on before the choice existed. `None` with fewer than two engines.
+pub fn oracle_pair(choice: u8) -> Option<[diff_physics::EngineKind; 2]> {
+    let pairs = oracle_pairs();
+    (!pairs.is_empty()).then(|| pairs[usize::from(choice) % pairs.len()])
+}
+
+fn kind_index(k: diff_physics::EngineKind) -> usize {
+    diff_physics::EngineKind::ALL.iter().position(|&x| x == k).unwrap_or(usize::MAX)
 }
 
 impl DivergenceOracle {
     /// The built-in H1-2 under the built-in excitation controller and allow-list.
     pub fn h1_2() -> Result<Self, DiffError> {
+        if oracle_pairs().is_empty() {
+            return Err(DiffError::Input(format!(
+                "the divergence oracle needs two engines; this build has {}",
+                diff_physics::EngineKind::available_names()
+            )));
+        }
         let model = RobotModel::h1_2()?;
         Ok(DivergenceOracle {
             allow: AllowList::builtin()?,
             ctrl: harness::excitation_factory(&model),
-            names: ORACLE_ENGINES.iter().map(|k| k.name().to_string()).collect(),
             friction_bits: None,
-            engines: oracle_engines(&model)?,
+            engines: BTreeMap::new(),
             model,
         })
     }
 
-    /// Runs one perturbation (two windows of 10 steps) and returns the findings that are neither
-    /// allow-listed nor within bounds: each one is a candidate engine bug. An engine error on a valid
-    /// input is returned as the error.
+    /// Runs one perturbation (two windows of 10 steps) on the pair of engines it chooses and returns the
+    /// findings that are neither allow-listed nor within bounds: each one is a candidate engine bug. An engine
+    /// error on a valid input is returned as the error.
     pub fn check(&mut self, p: &crate::scenario::FuzzPerturbation) -> Result<Vec<harness::Finding>, DiffError> {
+        let pair = oracle_pair(p.engines).ok_or_else(|| DiffError::Input("fewer than two engines".into()))?;
+        self.check_pair(p, pair)
+    }
+
+    /// [`DivergenceOracle::check`] on a given pair (lead first), whatever the input's choice.
+    pub fn check_pair(
+        &mut self,
+        p: &crate::scenario::FuzzPerturbation,
+        pair: [diff_physics::EngineKind; 2],
+    ) -> Result<Vec<harness::Finding>, DiffError> {
         let s = p.scenario(ORACLE_SECONDS);
         let m = harness::scenario_model(&self.model, &s);
         let key = s.ground_friction.map(f64::to_bits);
         if key != self.friction_bits {
-            self.engines = oracle_engines(&m)?;
+            self.engines.clear();
             self.friction_bits = key;
         }
+        let mut engines = Vec::with_capacity(2);
+        for k in pair {
+            let e = match self.engines.remove(&kind_index(k)) {
+                Some(e) => e,
+                None => diff_physics::make_engine(k, &m, &diff_physics::CommonSettings::default())?,
+            };
+            engines.push(e);
+        }
+        let names: Vec<String> = pair.iter().map(|k| k.name().to_string()).collect();
         let cfg = HarnessConfig { window_steps: 10, free_runs: false, ..HarnessConfig::default() };
-        let r = harness::run_episode_on(&mut self.engines, &self.names, &m, self.ctrl.as_ref(), &s, &cfg)?;
-        Ok(oracle_findings(&r, &self.allow))
+        let r = harness::run_episode_on(&mut engines, &names, &m, self.ctrl.as_ref(), &s, &cfg);
+        for (k, e) in pair.into_iter().zip(engines) {
+            self.engines.insert(kind_index(k), e);
+        }
+        Ok(oracle_findings(&r?, &self.allow))
     }
 }

@@ -227,6 +227,9 @@ pub struct FuzzPerturbation {
     pub friction: Option<u8>,
     pub jitter: u8,
     pub excitation: u8,
+    /// Which pair of engines runs it ([`crate::fuzz::oracle_pair`]). Last, so that inputs saved before it
+    /// existed still decode every other field as before.
+    pub engines: u8,
 }
 
 impl FuzzPerturbation {

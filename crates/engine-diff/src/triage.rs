@@ -17,6 +17,10 @@ pub struct AllowEntry {
     pub id: String,
     /// Engines (compared with the lead) the entry covers.
     pub engines: Vec<String>,
+    /// Leads the entry covers for the cross-engine kinds (`one_step_bound`, `k_step_bound`); invariants are one
+    /// engine's own and ignore it. Default: MuJoCo, the lead of `ulab diff` and of every fuzz pair it is in.
+    #[serde(default = "default_leads")]
+    pub leads: Vec<String>,
     /// Finding kinds: `one_step_bound`, `k_step_bound`, `invariant`.
     pub kinds: Vec<String>,
     /// Quantities (empty: any).
@@ -30,6 +34,10 @@ pub struct AllowEntry {
     pub rationale: String,
     /// Public documentation or issue threads (URLs).
     pub citation: Vec<String>,
+}
+
+fn default_leads() -> Vec<String> {
+    vec!["mujoco".into()]
 }
 
 #[derive(Debug, Deserialize)]
@@ -59,8 +67,8 @@ impl AllowList {
             if e.id.trim().is_empty() || !ids.insert(e.id.clone()) {
                 return bad("missing or duplicate id");
             }
-            if e.engines.is_empty() || e.kinds.is_empty() {
-                return bad("engines and kinds must not be empty");
+            if e.engines.is_empty() || e.kinds.is_empty() || e.leads.is_empty() {
+                return bad("engines, leads and kinds must not be empty");
             }
             if let Some(k) =
                 e.kinds.iter().find(|k| !["one_step_bound", "k_step_bound", "invariant"].contains(&k.as_str()))
@@ -85,7 +93,9 @@ impl AllowList {
         self.entries.iter().find(|e| {
             let phase_ok = e.phases.is_empty()
                 || e.phases.iter().any(|p| p == &f.phase || (p == "contact" && f.phase != "flight"));
+            let lead_ok = f.kind == "invariant" || e.leads.iter().any(|l| l == &f.lead);
             e.engines.iter().any(|x| x == &f.engine)
+                && lead_ok
                 && e.kinds.iter().any(|k| k == &f.kind)
                 && (e.quantities.is_empty() || e.quantities.iter().any(|q| q == &f.quantity))
                 && phase_ok

@@ -60,12 +60,20 @@ impl EngineChoice {
             "mujoco-rk4" => "RK4",
             "mujoco-euler" => "Euler",
             "mujoco-implicit" => "implicit",
-            "rapier-multibody" | "rapier_multibody" | "rapier-impulse" | "rapier_impulse" => {
-                return Err(GapError::Input(format!(
-                    "engine {s}: the suspension rig needs an applied base wrench, which only the MuJoCo engine exposes; use mujoco, mujoco-rk4, mujoco-euler or mujoco-implicit"
-                )))
+            other => {
+                return Err(match diff_physics::EngineKind::parse(other) {
+                    Some(kind) => GapError::Input(format!(
+                        "engine {}: the plants need MuJoCo (the rig applies its stand as a base wrench through \
+                         MuJoCo's qfrc_applied, and the floating plant's contact effect is MuJoCo's solref); compare \
+                         {} with MuJoCo with `ulab diff`; use mujoco, mujoco-rk4, mujoco-euler or mujoco-implicit",
+                        kind.name(),
+                        kind.name()
+                    )),
+                    None => GapError::Input(format!(
+                        "unknown engine {other:?} (mujoco, mujoco-rk4, mujoco-euler, mujoco-implicit)"
+                    )),
+                })
             }
-            other => return Err(GapError::Input(format!("unknown engine {other:?} (mujoco, mujoco-rk4, mujoco-euler, mujoco-implicit)"))),
         };
         Ok(EngineChoice { integrator: integrator.into() })
     }

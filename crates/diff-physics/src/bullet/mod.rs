@@ -335,8 +335,24 @@ impl BulletEngine {
         Ok(e)
     }
 
-    /// One bare Bullet step with the given per-link torques (no state conversion, no damping): the `Engine`
-    /// layer's overhead is measured against it.
+    /// Joint positions and velocities in Bullet's link order, straight from the multibody (no conversion). With
+    /// [`BulletEngine::joint_of_link`] and [`BulletEngine::step_raw`]: the loop the `Engine` layer's overhead is
+    /// measured against.
+    pub fn raw_joint_state(&self) -> (Vec<f64>, Vec<f64>) {
+        let (_, q, qd) = self.sim.state();
+        (q, qd)
+    }
+
+    /// Slot index of the joint of every Bullet link (link order, base excluded).
+    pub fn joint_of_link(&self) -> Vec<usize> {
+        let mut out = vec![0; self.joint_body.len()];
+        for (ji, &b) in self.joint_body.iter().enumerate() {
+            out[b - 1] = ji;
+        }
+        out
+    }
+
+    /// One bare Bullet step with the given per-link torques (no state conversion, no damping).
     pub fn step_raw(&mut self, tau_links: &[f64]) -> Result<(), EngineError> {
         self.sim.step(tau_links).map_err(EngineError::Diverged)?;
         self.time += self.common.timestep;

@@ -49,8 +49,7 @@ struct Common {
     /// Policy spec TOML (robots/h1_2/policies/*.toml); default: the built-in excitation input.
     #[arg(long)]
     policy: Option<PathBuf>,
-    /// Engines, lead first (comma-separated); default: every engine of this build, MuJoCo first.
-    #[arg(long)]
+    #[arg(long, help = super::engines_help("Engines, lead first (comma-separated); default: every engine of this build, MuJoCo first:"))]
     engines: Option<String>,
     /// Steps per divergence window (k of the k-step divergence).
     #[arg(long, default_value_t = 50)]

@@ -47,7 +47,9 @@ struct DiagnoseArgs {
     /// Built-in robot name or a sidecar TOML.
     #[arg(long, default_value = "h1_2")]
     robot: String,
-    /// Diagnosing simulator: mujoco (implicitfast), mujoco-rk4, mujoco-euler, mujoco-implicit.
+    /// Diagnosing simulator: mujoco (implicitfast), mujoco-rk4, mujoco-euler, mujoco-implicit. Only MuJoCo: the
+    /// rig applies its stand as a base wrench through MuJoCo's qfrc_applied and the floating plant's contact
+    /// effect is MuJoCo's solref; the other engines are compared with MuJoCo by `ulab diff`.
     #[arg(long, default_value = "mujoco")]
     engine: String,
     /// Plant: rig (suspended robot), floating (standing/walking on flat ground, base state estimated from the log),

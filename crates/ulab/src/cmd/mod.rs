@@ -9,3 +9,9 @@ pub mod record;
 pub mod recording;
 pub mod replay;
 pub mod sim;
+
+/// A help line ending in the engines compiled into this build (they depend on `diff-physics` features), for every
+/// flag that names an engine.
+pub(crate) fn engines_help(lead: &str) -> String {
+    format!("{lead} {}", diff_physics::EngineKind::available_names())
+}

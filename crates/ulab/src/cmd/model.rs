@@ -39,8 +39,7 @@ struct CheckArgs {
     /// Built-in robot name, or a path to a sidecar TOML (the URDF it names is read beside it).
     #[arg(long, default_value = "h1_2")]
     robot: String,
-    /// Engines to check; default: every engine of this build.
-    #[arg(long = "engine")]
+    #[arg(long = "engine", help = super::engines_help("Engines to check (repeat the flag); default: all of"))]
     engines: Vec<String>,
     #[arg(long, value_enum, default_value = "table")]
     format: Format,
@@ -59,8 +58,7 @@ struct CheckArgs {
 struct InspectArgs {
     #[arg(long, default_value = "h1_2")]
     robot: String,
-    /// mujoco | rapier_multibody | rapier_impulse | reference (robot-model's own RNEA/CRBA)
-    #[arg(long, default_value = "mujoco")]
+    #[arg(long, default_value = "mujoco", help = super::engines_help("Engine, or `reference` (robot-model's own RNEA/CRBA); one of"))]
     engine: String,
     /// zero | default | random:SEED
     #[arg(long, default_value = "default")]

@@ -22,8 +22,8 @@ pub struct Args {
     /// Robot model (built in): h1_2.
     #[arg(long, default_value = "h1_2")]
     pub robot: String,
-    /// Physics engine (see `ulab model check` for those of this build): mujoco, rapier-multibody, rapier-impulse, ...
-    #[arg(long, default_value = "mujoco", value_parser = parse_engine)]
+    #[arg(long, default_value = "mujoco", value_parser = parse_engine,
+          help = super::engines_help("Physics engine (`-` and `_` alike), one of"))]
     pub engine: EngineKind,
     /// LowState publish rate (Hz); the real robot publishes about 500 Hz.
     #[arg(long, default_value_t = 500.0)]
