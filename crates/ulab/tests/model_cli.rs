@@ -75,6 +75,7 @@ fn bad_arguments_are_errors() {
     assert!(err.contains("random:SEED"), "{err}");
     let (code, _, err) = ulab(&["model", "inspect", "--robot", "nope", "--engine", "mujoco"]);
     assert_eq!(code, 2, "{err}");
-    let (code, _, err) = ulab(&["model", "check", "--engine", "bullet"]);
+    let (code, _, err) = ulab(&["model", "check", "--engine", "bogus"]);
     assert_eq!(code, 2, "{err}");
+    assert!(err.contains("unknown engine"), "{err}");
 }
