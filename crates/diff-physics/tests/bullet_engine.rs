@@ -237,3 +237,31 @@ fn feet_do_not_creep_with_two_friction_directions() {
     assert!(drift[0] > 0.02, "expected Bullet's single-direction creep, got {}", drift[0]);
     assert!(drift[1] < 1e-3, "feet slid with two friction directions: {}", drift[1]);
 }
+
+/// Joint limits hold (btMultiBodyJointLimitConstraint, solved because every link has a collider, also with
+/// collisions off): a joint pushed hard towards its upper limit stops there, in zero gravity without contacts.
+#[test]
+fn joint_limits_stop_a_pushed_joint() {
+    let m = model();
+    let common = CommonSettings { gravity: [0.0; 3], joint_limits: true, armature: true, ..CommonSettings::rigid_body_only() };
+    let j = m.joint_index("left_elbow_joint").unwrap_or(m.nj() - 3);
+    let upper = m.joints[j].upper;
+    let mut e = bullet(&m, &common, &BulletSettings::default());
+    let mut s = State::standing(&m);
+    s.q[j] = upper - 0.05;
+    e.reset(&s).unwrap();
+    let mut tau = vec![0.0; m.nj()];
+    tau[j] = 10.0;
+    let mut worst: f64 = 0.0;
+    for _ in 0..250 {
+        e.step(&tau).unwrap();
+        worst = worst.max(e.state().q[j] - upper);
+    }
+    let fin = e.state().q[j];
+    println!("elbow pushed with 10 N·m: worst overrun {worst:.2e} rad, final {:.2e} rad from the limit", fin - upper);
+    // Reached the limit (10 N·m on ~0.1 kg·m² covers 0.05 rad in ~0.03 s) and stays within the Baumgarte
+    // correction's overrun: one step of approach speed (≲ 1 rad/s × 2 ms) = 2e-3 rad; 5e-3 bound.
+    assert!((fin - upper).abs() < 5e-3 && worst < 5e-3, "final {fin}, upper {upper}, worst overrun {worst}");
+    let lim = e.joint_limits();
+    assert_eq!(lim[j], (m.joints[j].lower, upper));
+}

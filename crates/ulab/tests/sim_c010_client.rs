@@ -1,6 +1,6 @@
 //! `ulab sim` driven by a controller on Cyclone DDS **0.10.2** (Debian's libddsc, the version
 //! inside Unitree's C++ SDK and on the robots), written in C against idlc-generated hg types
-//! (tests/clients/c010/sim_client.c), on loopback, with MuJoCo:
+//! (tests/clients/c010/sim_client.c), on loopback, with MuJoCo and with Bullet (an engine with its own C++ layer):
 //! * the 0.10.2 participant, configured like Unitree SDK2 (interface only), discovers the bridge;
 //! * every LowState has a CRC valid by a C implementation of Unitree's CRC over the idlc C struct,
 //!   finite values, increasing ticks spaced by the state period of the robot's clock (2 ms); the
@@ -66,6 +66,15 @@ fn counter(line: &str, key: &str) -> u64 {
 
 #[test]
 fn cyclone_0_10_2_client_drives_mujoco() {
+    check_engine("mujoco");
+}
+
+#[test]
+fn cyclone_0_10_2_client_drives_bullet() {
+    check_engine("bullet");
+}
+
+fn check_engine(engine: &str) {
     let client_bin = client_binary();
     let _slot = RealtimeSlot::acquire();
     let domain = lease_domain();
@@ -73,7 +82,7 @@ fn cyclone_0_10_2_client_drives_mujoco() {
         .args([
             "sim",
             "--engine",
-            "mujoco",
+            engine,
             "--domain",
             &domain.arg(),
             // Generous: a loaded machine may pause the client; the default 0.1 s would test the scheduler.
@@ -129,7 +138,7 @@ fn cyclone_0_10_2_client_drives_mujoco() {
 
     // The robot must still stand for joint tracking to mean anything.
     let rpy: Vec<f64> = r["rpy"].as_array().expect("rpy").iter().map(|v| v.as_f64().unwrap_or(f64::NAN)).collect();
-    assert!(rpy.iter().all(|a| a.abs() < 0.3), "robot fell: rpy {rpy:?}");
+    assert!(rpy.iter().all(|a| a.abs() < 0.3), "{engine}: robot fell: rpy {rpy:?}");
     // Left elbow, kp 120: steady-state error from gravity and friction stays below ~0.05 rad.
     let m = &r["move"];
     let (start, target, fin) = (
@@ -137,7 +146,7 @@ fn cyclone_0_10_2_client_drives_mujoco() {
         m["target"].as_f64().expect("target"),
         m["final"].as_f64().expect("final"),
     );
-    assert!((fin - target).abs() < 0.08, "elbow ended at {fin:.3}, target {target:.3} (start {start:.3})");
+    assert!((fin - target).abs() < 0.08, "{engine}: elbow ended at {fin:.3}, target {target:.3} (start {start:.3})");
     let c = &r["corrupted"];
     let (held, bad, fin) = (
         c["held_target"].as_f64().expect("held"),
@@ -146,7 +155,7 @@ fn cyclone_0_10_2_client_drives_mujoco() {
     );
     assert!(
         (fin - held).abs() < 0.08 && (fin - bad).abs() > 0.5,
-        "corrupted-CRC command moved the elbow to {fin:.3} (held {held:.3}, corrupt {bad:.3})"
+        "{engine}: corrupted-CRC command moved the elbow to {fin:.3} (held {held:.3}, corrupt {bad:.3})"
     );
 
     // The bridge's own account: one state per period of simulated time; the C-sealed commands were
@@ -173,7 +182,7 @@ fn cyclone_0_10_2_client_drives_mujoco() {
     assert!(bad_crc > 0 && bad_crc <= corrupt, "bad-crc {bad_crc} of {corrupt} corrupted commands: {summary}");
     assert_eq!((counter(summary, "rejected"), counter(summary, "malformed")), (0, 0), "{summary}");
     eprintln!(
-        "0.10.2 client: {rate:.1} Hz wall, {states} states, elbow {start:.3} -> {target:.3} reached {:.3}; accepted {:.0} % of valid, {:.0} % of corrupted counted; {summary}",
+        "{engine}, 0.10.2 client: {rate:.1} Hz wall, {states} states, elbow {start:.3} -> {target:.3} reached {:.3}; accepted {:.0} % of valid, {:.0} % of corrupted counted; {summary}",
         m["final"],
         100.0 * accepted as f64 / valid.max(1) as f64,
         100.0 * bad_crc as f64 / corrupt.max(1) as f64

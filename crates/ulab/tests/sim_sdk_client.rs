@@ -180,3 +180,8 @@ fn python_sdk_drives_rapier_multibody() {
 fn python_sdk_drives_rapier_impulse() {
     check_engine("rapier-impulse", true);
 }
+
+#[test]
+fn python_sdk_drives_bullet() {
+    check_engine("bullet", false);
+}
