@@ -6,7 +6,9 @@
 //! - joint vectors in motor-slot order (`model.joints` order);
 //! - base linear velocity: velocity of the pelvis ORIGIN, WORLD frame; base angular velocity: PELVIS (body) frame
 //!   (MuJoCo's free-joint convention; every other engine converts inside).
-#![forbid(unsafe_code)]
+// `deny`, not `forbid`: the only unsafe code is each foreign engine's FFI module (e.g. `dart::ffi`), which allows
+// it locally and states its invariants; every other module keeps `#![forbid(unsafe_code)]` semantics.
+#![deny(unsafe_code)]
 
 pub mod engine;
 pub mod oracle;
@@ -23,6 +25,10 @@ pub mod rapier_common;
 pub mod rapier_impulse;
 #[cfg(feature = "rapier")]
 pub mod rapier_multibody;
+
+// DART 6.12 through a C++ layer (cpp/dart_glue.cpp), feature `dart`.
+#[cfg(feature = "dart")]
+pub mod dart;
 
 pub use engine::{CommonSettings, Contact, Energy, Engine, EngineError, EngineKind, LinkPose, State};
 pub use pd::{pd_torques, PdTarget};
@@ -47,6 +53,8 @@ pub fn make_engine(
         EngineKind::RapierImpulse => {
             Ok(Box::new(rapier_impulse::RapierImpulseEngine::new(model, common, &Default::default())?))
         }
+        #[cfg(feature = "dart")]
+        EngineKind::Dart => Ok(Box::new(dart::DartEngine::new(model, common, &dart::DartSettings::default())?)),
         #[allow(unreachable_patterns)]
         other => Err(EngineError::Unavailable(other.name().to_string())),
     }

@@ -113,6 +113,10 @@ pub fn known_difference(engine: &str, check: &str) -> Option<&'static str> {
     if engine == "rapier_impulse" {
         return crate::rapier_impulse::known_difference(check);
     }
+    #[cfg(feature = "dart")]
+    if engine == "dart" {
+        return crate::dart::known_difference(check);
+    }
     let _ = (engine, check);
     None
 }
