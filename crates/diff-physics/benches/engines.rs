@@ -1,6 +1,7 @@
 //! MuJoCo steps per second at dt = 2 ms, single thread, and the overhead of the `Engine` layer over raw
 //! mujoco-rs calls; then one summary run that times every compiled-in engine in the same process and prints
-//! the ratios (for BENCHMARKS.md).
+//! the ratios (for BENCHMARKS.md). With feature `dart`, DART's raw loop too (the C glue's state read and
+//! `World::step`, PD in DART's own dof order: what a caller of DART without our layer would do).
 //!
 //! Scenarios (PD law computed outside the engine every step, from the state the loop reads):
 //! - `standing`: full robot on the ground holding the standing pose with the default gains (contacts on). The
@@ -11,6 +12,7 @@
 //! `MjData` + the same PD + write `ctrl` + `mj_step` (no layer).
 //!
 //! Run: `source scripts/env.sh && CARGO_TARGET_DIR=target-model cargo bench -p diff-physics --bench engines`
+//! (add `--features dart` for DART).
 use criterion::{criterion_group, Criterion};
 use diff_physics::mujoco::{MujocoEngine, MujocoSettings};
 use diff_physics::pd::pd_torques_into;
@@ -90,6 +92,46 @@ fn run_raw(e: &mut MujocoEngine, model: &RobotModel, s0: &State, iters: u64) -> 
     total
 }
 
+/// The same loop on DART's own coordinates through the glue (the engine is only used to reset, untimed).
+#[cfg(feature = "dart")]
+fn run_dart_raw(e: &mut diff_physics::dart::DartEngine, model: &RobotModel, s0: &State, iters: u64) -> Duration {
+    let target = PdTarget::hold_standing(model);
+    let dofs = e.dof_of_joint().to_vec();
+    // The PD law with its vectors permuted once into DART's link order.
+    let mut t = target.clone();
+    let mut limits = vec![0.0; model.nj()];
+    for (ji, &d) in dofs.iter().enumerate() {
+        let l = d - 6;
+        t.q_des[l] = target.q_des[ji];
+        t.dq_des[l] = target.dq_des[ji];
+        t.kp[l] = target.kp[ji];
+        t.kd[l] = target.kd[ji];
+        t.tau_ff[l] = target.tau_ff[ji];
+        limits[l] = model.joints[ji].torque_limit;
+    }
+    let mut forces = vec![0.0; model.nv()];
+    let mut total = Duration::ZERO;
+    let mut done = 0;
+    while done < iters {
+        if e.reset(s0).is_err() {
+            return Duration::MAX;
+        }
+        let w = e.raw_world();
+        let n = RESET_EVERY.min(iters - done);
+        let t0 = Instant::now();
+        for _ in 0..n {
+            let Ok(s) = w.state() else { return Duration::MAX };
+            pd_torques_into(&t, &s.q, &s.vel[6..], &limits, &mut forces[6..]);
+            if w.step(&forces).is_err() {
+                return Duration::MAX;
+            }
+        }
+        total += t0.elapsed();
+        done += n;
+    }
+    total
+}
+
 fn mujoco(model: &RobotModel, zero_g: bool) -> MujocoEngine {
     MujocoEngine::new(model, &scenario(zero_g), &MujocoSettings::default()).expect("MuJoCo engine builds")
 }
@@ -105,6 +147,19 @@ fn bench(c: &mut Criterion) {
         let mut e = mujoco(&model, zero_g);
         g.bench_function("raw", |b| b.iter_custom(|n| run_raw(&mut e, &model, &s0, n)));
         g.finish();
+        #[cfg(feature = "dart")]
+        {
+            let mut g = c.benchmark_group(format!("dart/{name}"));
+            let dart = || {
+                diff_physics::dart::DartEngine::new(&model, &scenario(zero_g), &Default::default())
+                    .expect("DART engine builds")
+            };
+            let mut e = dart();
+            g.bench_function("engine", |b| b.iter_custom(|n| run_engine(&mut e, &model, &s0, n)));
+            let mut e = dart();
+            g.bench_function("raw", |b| b.iter_custom(|n| run_dart_raw(&mut e, &model, &s0, n)));
+            g.finish();
+        }
     }
 }
 
@@ -129,11 +184,18 @@ fn summary() {
                 engines.push((format!("{} (Engine layer)", k.name()), e));
             }
         }
+        #[cfg(feature = "dart")]
+        let mut dart_raw =
+            diff_physics::dart::DartEngine::new(&model, &scenario(zero_g), &Default::default()).expect("DART builds");
+        #[cfg(feature = "dart")]
+        let mut dart_raw_rates = Vec::new();
         let mut raw_rates = Vec::new();
         let mut rates: Vec<Vec<f64>> = vec![Vec::new(); engines.len()];
         for _ in 0..5 {
             let t = run_raw(&mut raw_e, &model, &s0, steps).as_secs_f64();
             raw_rates.push(steps as f64 / t);
+            #[cfg(feature = "dart")]
+            dart_raw_rates.push(steps as f64 / run_dart_raw(&mut dart_raw, &model, &s0, steps).as_secs_f64());
             for (i, (_, e)) in engines.iter_mut().enumerate() {
                 let t = run_engine(e.as_mut(), &model, &s0, steps).as_secs_f64();
                 rates[i].push(steps as f64 / t);
@@ -141,6 +203,11 @@ fn summary() {
         }
         let raw = median(raw_rates);
         println!("| {name} | mujoco raw mujoco-rs | {raw:.0} | 1.000 |");
+        #[cfg(feature = "dart")]
+        {
+            let r = median(dart_raw_rates);
+            println!("| {name} | dart raw (C glue, DART coordinates) | {r:.0} | {:.3} |", r / raw);
+        }
         for ((label, _), r) in engines.iter().zip(rates) {
             let r = median(r);
             println!("| {name} | {label} | {r:.0} | {:.3} |", r / raw);

@@ -373,3 +373,20 @@ fn standing_tracks_mujoco() {
     assert!(angle < 2e-3 && dq < 5e-3, "{angle} {dq}");
     assert!(dload < 0.02, "{load:?}");
 }
+
+#[test]
+#[ignore]
+fn time_reset_and_step() {
+    let model = model();
+    let mut e = engine(&CommonSettings::default());
+    let s = State::standing(&model);
+    let t0 = std::time::Instant::now();
+    for _ in 0..200 {
+        e.reset(&s).unwrap();
+    }
+    let reset = t0.elapsed().as_secs_f64() / 200.0;
+    let t0 = std::time::Instant::now();
+    run(&mut e, &model, 500);
+    let step = t0.elapsed().as_secs_f64() / 500.0;
+    println!("reset {:.1} us, step {:.1} us", reset * 1e6, step * 1e6);
+}

@@ -1,6 +1,6 @@
 //! `ulab sim` driven by a controller on Cyclone DDS **0.10.2** (Debian's libddsc, the version
 //! inside Unitree's C++ SDK and on the robots), written in C against idlc-generated hg types
-//! (tests/clients/c010/sim_client.c), on loopback, with MuJoCo:
+//! (tests/clients/c010/sim_client.c), on loopback, with MuJoCo and with DART:
 //! * the 0.10.2 participant, configured like Unitree SDK2 (interface only), discovers the bridge;
 //! * LowState arrives at >= 90 % of the set rate, every CRC valid by a C implementation of
 //!   Unitree's CRC over the idlc C struct, every value finite, ticks increasing;
@@ -23,8 +23,8 @@ use std::time::Duration;
 /// One simulator at a time: the 2-core machines cannot run two in real time.
 static SERIAL: Mutex<()> = Mutex::new(());
 
-/// DDS domain of this test (distinct from every other test's).
-const DOMAIN: u32 = 71;
+/// DDS domain of the MuJoCo test (distinct from every other test's; the DART test leases its own).
+const DOMAIN_MUJOCO: u32 = 71;
 const STATE_RATE: f64 = 500.0;
 /// How long the bridge runs; the client needs about 8 s after discovery.
 const SIM_SECONDS: u32 = 13;
@@ -68,15 +68,27 @@ fn counter(line: &str, key: &str) -> u64 {
 
 #[test]
 fn cyclone_0_10_2_client_drives_mujoco() {
+    drive("mujoco", DOMAIN_MUJOCO);
+}
+
+#[test]
+fn cyclone_0_10_2_client_drives_dart() {
+    let domain = test_support::lease_domain();
+    let _slot = test_support::RealtimeSlot::acquire();
+    drive("dart", domain.id());
+}
+
+/// Runs `ulab sim --engine <engine>` on `domain` and the 0.10.2 client against it, and checks both sides.
+fn drive(engine: &str, domain: u32) {
     let _guard = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let client_bin = client_binary();
     let sim = Command::new(env!("CARGO_BIN_EXE_ulab"))
         .args([
             "sim",
             "--engine",
-            "mujoco",
+            engine,
             "--domain",
-            &DOMAIN.to_string(),
+            &domain.to_string(),
             "--duration",
             &SIM_SECONDS.to_string(),
             "--quiet",
@@ -88,7 +100,7 @@ fn cyclone_0_10_2_client_drives_mujoco() {
     let mut sim = KillOnDrop(Some(sim));
 
     let client = Command::new(&client_bin)
-        .args([&DOMAIN.to_string(), "lo"])
+        .args([&domain.to_string(), "lo"])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
@@ -102,7 +114,7 @@ fn cyclone_0_10_2_client_drives_mujoco() {
     // Let the bridge finish its --duration: it must exit 0 and report its counters.
     let sim_child = sim.0.take().expect("sim child");
     let (sim_status, _, sim_err) = wait_with_timeout(sim_child, Duration::from_secs(u64::from(SIM_SECONDS) + 20));
-    assert!(sim_status.is_some_and(|s| s.success()), "ulab sim failed ({sim_status:?}):\n{sim_err}");
+    assert!(sim_status.is_some_and(|s| s.success()), "{engine}: ulab sim failed ({sim_status:?}):\n{sim_err}");
     assert!(!sim_err.contains("panicked"), "{sim_err}");
 
     let line =
@@ -112,7 +124,7 @@ fn cyclone_0_10_2_client_drives_mujoco() {
     assert_eq!(r["version"], "0.10.2", "the client must run on Cyclone DDS 0.10.2");
 
     let rate = r["rate_hz"].as_f64().expect("rate_hz");
-    assert!(rate >= 0.9 * STATE_RATE, "LowState at {rate:.1} Hz, set {STATE_RATE}");
+    assert!(rate >= 0.9 * STATE_RATE, "{engine}: LowState at {rate:.1} Hz, set {STATE_RATE}");
     let states = r["states"].as_i64().expect("states");
     assert!(states > 0);
     assert_eq!(r["crc_ok"].as_i64(), Some(states), "LowState CRCs rejected by the C implementation of Unitree's CRC");
@@ -124,7 +136,7 @@ fn cyclone_0_10_2_client_drives_mujoco() {
 
     // The robot must still stand for joint tracking to mean anything.
     let rpy: Vec<f64> = r["rpy"].as_array().expect("rpy").iter().map(|v| v.as_f64().unwrap_or(f64::NAN)).collect();
-    assert!(rpy.iter().all(|a| a.abs() < 0.3), "robot fell: rpy {rpy:?}");
+    assert!(rpy.iter().all(|a| a.abs() < 0.3), "{engine}: robot fell: rpy {rpy:?}");
     // Left elbow, kp 120: steady-state error from gravity and friction stays below ~0.05 rad.
     let m = &r["move"];
     let (start, target, fin) = (
@@ -132,7 +144,7 @@ fn cyclone_0_10_2_client_drives_mujoco() {
         m["target"].as_f64().expect("target"),
         m["final"].as_f64().expect("final"),
     );
-    assert!((fin - target).abs() < 0.08, "elbow ended at {fin:.3}, target {target:.3} (start {start:.3})");
+    assert!((fin - target).abs() < 0.08, "{engine}: elbow ended at {fin:.3}, target {target:.3} (start {start:.3})");
     let c = &r["corrupted"];
     let (held, bad, fin) = (
         c["held_target"].as_f64().expect("held"),
@@ -165,7 +177,7 @@ fn cyclone_0_10_2_client_drives_mujoco() {
     );
     assert_eq!((counter(summary, "rejected"), counter(summary, "malformed")), (0, 0), "{summary}");
     eprintln!(
-        "0.10.2 client: {rate:.1} Hz, {states} states, elbow {start:.3} -> {target:.3} reached {:.3}; {summary}",
+        "{engine}, 0.10.2 client: {rate:.1} Hz, {states} states, elbow {start:.3} -> {target:.3} reached {:.3}; {summary}",
         m["final"]
     );
 }

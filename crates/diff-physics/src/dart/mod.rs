@@ -37,8 +37,9 @@
 //!   selectable ([`DartCollisionDetector`]).
 //! - **LCP solver: Dantzig** (`DantzigBoxedLcpSolver`, the pivoting boxed-LCP solver from ODE) with DART's PGS
 //!   fallback when it fails: DART's and the dartsim plugin's default. Contacts are hard (velocity-level
-//!   complementarity, 2 friction directions = friction pyramid, coefficient = min of the pair), penetration is
-//!   corrected by DART's error reduction (process-wide statics, defaults kept: ERP 0.01 capped at 1 mm/s).
+//!   complementarity, 2 friction directions = friction pyramid; robot shapes and ground both carry the model's
+//!   friction and restitution, so any combination rule gives the model's values), penetration is corrected by
+//!   DART's error reduction (process-wide statics, defaults kept: ERP 0.01 capped at 1 mm/s).
 //!
 //! # Divergence
 //! Debian builds DART with its assertions on, and DART asserts on any non-finite transform or inertia: a
@@ -158,10 +159,10 @@ pub struct DartEngine {
 /// Checks a DART state against the bounds within which a step cannot overflow (see the module docs).
 fn within_bounds(r: &RawState) -> Result<(), String> {
     let pos = r.base_pose[0..3].iter().chain(&r.q);
-    if let Some(x) = pos.into_iter().find(|x| !(x.abs() <= MAX_COORDINATE)) {
+    if let Some(x) = pos.into_iter().find(|x| !x.is_finite() || x.abs() > MAX_COORDINATE) {
         return Err(format!("coordinate {x} beyond ±{MAX_COORDINATE}"));
     }
-    if let Some(v) = r.vel.iter().find(|v| !(v.abs() <= MAX_SPEED)) {
+    if let Some(v) = r.vel.iter().find(|v| !v.is_finite() || v.abs() > MAX_SPEED) {
         return Err(format!("speed {v} beyond ±{MAX_SPEED}"));
     }
     if r.base_pose[3..7].iter().any(|x| !x.is_finite()) {
@@ -171,7 +172,7 @@ fn within_bounds(r: &RawState) -> Result<(), String> {
 }
 
 fn check_forces(f: &[f64]) -> Result<(), EngineError> {
-    match f.iter().find(|x| !(x.abs() <= MAX_FORCE)) {
+    match f.iter().find(|x| !x.is_finite() || x.abs() > MAX_FORCE) {
         Some(x) => {
             Err(EngineError::Input(format!("generalized force {x} beyond ±{MAX_FORCE} (DART aborts on overflow)")))
         }
@@ -336,7 +337,7 @@ impl DartEngine {
     }
 
     /// DART coordinates -> interface state.
-    fn from_raw(&self, r: &RawState) -> State {
+    fn state_of_raw(&self, r: &RawState) -> State {
         let p = &r.base_pose;
         let rot = quat([p[3], p[4], p[5], p[6]]);
         let v_w = rot * Vector3::new(r.vel[3], r.vel[4], r.vel[5]);
@@ -421,10 +422,10 @@ impl DartEngine {
         Ok(())
     }
 
-    /// One bare `World::step` with the given DART-coordinate forces (no conversion, no checks): for measuring
-    /// the overhead of the `Engine` layer only.
-    pub fn step_raw(&mut self, forces_dart: &[f64]) -> Result<(), EngineError> {
-        self.world.step(forces_dart).map_err(EngineError::Diverged)
+    /// The DART world itself, in DART's coordinates (no conversion, no checks): for measuring the overhead of
+    /// the `Engine` layer only. Stepping it past the bounds of the module docs can abort the process.
+    pub fn raw_world(&mut self) -> &mut World {
+        &mut self.world
     }
 
     /// DART's own `Skeleton::computePotentialEnergy`, which (DART 6.12) takes `−m g·p` at each body's frame
@@ -465,7 +466,7 @@ impl Engine for DartEngine {
             "formulation": "reduced coordinates, Featherstone articulated-body algorithm",
             "integrator": "semi-implicit Euler: ABA accelerations (joint damping implicit), velocity update, boxed-LCP impulses (contacts, limits, joint friction) detected at the step's start pose, then position update",
             "collision_filtering": "robot-ground only unless the model enables self-collision (then adjacent bodies excluded)",
-            "contact_model": "hard contacts, velocity-level boxed LCP, 2 friction directions per point (pyramid), pair friction = min, restitution = product",
+            "contact_model": "hard contacts, velocity-level boxed LCP, 2 friction directions per point (pyramid); every shape and the ground carry the model's friction and restitution",
             "contact_params_in_force": {"error_allowance": p[0], "error_reduction": p[1], "max_error_reduction_velocity": p[2], "constraint_force_mixing": p[3]},
             "joint_limits": if self.common.joint_limits { "Joint::setLimitEnforcement(true): JointLimitConstraint rows in the LCP (DART's default is off)" } else { "off (DART's default)" },
             "joint_limit_params_in_force": {"error_allowance": p[4], "error_reduction": p[5], "max_error_reduction_velocity": p[6], "constraint_force_mixing": p[7]},
@@ -514,13 +515,13 @@ impl Engine for DartEngine {
             self.diverged = Some(why.clone());
             return Err(EngineError::Diverged(why));
         }
-        self.quat_ref = self.from_raw(&after).base_quat;
+        self.quat_ref = self.state_of_raw(&after).base_quat;
         Ok(())
     }
 
     fn state(&self) -> State {
         match self.world.state() {
-            Ok(r) => self.from_raw(&r),
+            Ok(r) => self.state_of_raw(&r),
             Err(_) => {
                 let nj = self.model.nj();
                 State {
