@@ -29,6 +29,9 @@ pub mod rapier_multibody;
 
 #[cfg(feature = "bullet")]
 pub mod bullet;
+// DART 6.12 through a C++ layer (cpp/dart_glue.cpp), feature `dart`.
+#[cfg(feature = "dart")]
+pub mod dart;
 
 pub use engine::{CommonSettings, Contact, Energy, Engine, EngineError, EngineKind, LinkPose, State};
 pub use pd::{pd_torques, PdTarget};
@@ -55,6 +58,8 @@ pub fn make_engine(
         }
         #[cfg(feature = "bullet")]
         EngineKind::Bullet => Ok(Box::new(bullet::BulletEngine::new(model, common, &Default::default())?)),
+        #[cfg(feature = "dart")]
+        EngineKind::Dart => Ok(Box::new(dart::DartEngine::new(model, common, &dart::DartSettings::default())?)),
         #[allow(unreachable_patterns)]
         other => Err(EngineError::Unavailable(other.name().to_string())),
     }

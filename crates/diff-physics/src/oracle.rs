@@ -117,6 +117,10 @@ pub fn known_difference(engine: &str, check: &str) -> Option<&'static str> {
     if engine == "bullet" {
         return crate::bullet::known_difference(check);
     }
+    #[cfg(feature = "dart")]
+    if engine == "dart" {
+        return crate::dart::known_difference(check);
+    }
     let _ = (engine, check);
     None
 }

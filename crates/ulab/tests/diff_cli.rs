@@ -105,6 +105,32 @@ fn builtin_input_report_and_bit_exact_replay() {
 }
 
 #[test]
+fn dart_runs_in_diff_and_replays_bit_for_bit() {
+    // DART against MuJoCo; every reproducer is replayed in a fresh process: DART's results must not depend on
+    // anything but the inputs (no collision-order or allocation-dependent state).
+    let out = tmp("dart");
+    let o = out.to_string_lossy().to_string();
+    let (code, stdout, err) = ulab(&[
+        "diff", "--robot", "h1_2", "--engines", "mujoco,dart", "--episodes", "1", "--seconds", "0.3", "--seed", "5",
+        "--window", "25", "--minimize", "2", "--out", &o,
+    ]);
+    assert_eq!(code, Some(0), "{}\n{}", stdout, tail(&err));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).expect("report.json")).expect("json");
+    let names: Vec<&str> =
+        json["engines"].as_array().expect("engines").iter().filter_map(|e| e["name"].as_str()).collect();
+    assert_eq!(names, ["mujoco", "dart"], "{}", json["engines"]);
+    let repros = reproducers(&out);
+    for r in &repros {
+        let (code, stdout, err) = ulab(&["diff", "replay", &r.to_string_lossy()]);
+        assert_eq!(code, Some(0), "{}: {stdout}\n{}", r.display(), tail(&err));
+        assert!(stdout.contains("identical"), "{stdout}");
+    }
+    eprintln!("mujoco vs dart: {} reproducers replayed identically", repros.len());
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+#[test]
 fn fuzz_writes_corpus_and_triaged_report() {
     let out = tmp("fuzz");
     let o = out.to_string_lossy().to_string();

@@ -31,6 +31,46 @@ fn check_mujoco_passes_and_reports_errors_and_tolerances() {
 }
 
 #[test]
+fn check_dart_passes_and_reports_its_settings() {
+    let (code, out, err) =
+        ulab(&["model", "check", "--robot", "h1_2", "--engine", "dart", "--format", "json", "--samples", "2"]);
+    assert_eq!(code, 0, "{out}\n{err}");
+    let r = json(&out);
+    assert_eq!(r["engines"][0]["name"], "dart");
+    assert_eq!(r["engines"][0]["settings"]["dart"]["collision_detector"], "ode");
+    assert_eq!(r["engines"][0]["settings"]["dart"]["lcp_solver"], "dantzig");
+    let checks = r["checks"].as_array().expect("checks");
+    assert!(checks.len() > 20);
+    for c in checks {
+        assert_eq!(c["passed"], true, "{c}");
+    }
+}
+
+#[test]
+fn inspect_dart_equals_the_reference_mass_matrix() {
+    let m = |engine: &str| {
+        let (code, out, err) =
+            ulab(&["model", "inspect", "--robot", "h1_2", "--engine", engine, "--q", "random:5", "--format", "json"]);
+        assert_eq!(code, 0, "{err}");
+        json(&out)
+    };
+    let (a, b) = (m("dart"), m("reference"));
+    let flat = |v: &serde_json::Value| -> Vec<f64> {
+        v["mass_matrix"]
+            .as_array()
+            .expect("rows")
+            .iter()
+            .flat_map(|r| r.as_array().expect("row").iter().map(|x| x.as_f64().expect("f64")))
+            .collect()
+    };
+    let (ma, mb) = (flat(&a), flat(&b));
+    assert_eq!(ma.len(), 33 * 33);
+    let norm = mb.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let diff = ma.iter().zip(&mb).map(|(x, y)| (x - y) * (x - y)).sum::<f64>().sqrt();
+    assert!(diff / norm < 1e-9, "DART vs reference mass matrix: {}", diff / norm);
+}
+
+#[test]
 fn inspect_mujoco_equals_the_reference_mass_matrix() {
     let m = |engine: &str| {
         let (code, out, err) =

@@ -1,6 +1,6 @@
 //! `ulab sim` driven by a controller on Cyclone DDS **0.10.2** (Debian's libddsc, the version
 //! inside Unitree's C++ SDK and on the robots), written in C against idlc-generated hg types
-//! (tests/clients/c010/sim_client.c), on loopback, with MuJoCo and with Bullet (an engine with its own C++ layer):
+//! (tests/clients/c010/sim_client.c), on loopback, with MuJoCo, Bullet and DART (engines with their own C++ layers):
 //! * the 0.10.2 participant, configured like Unitree SDK2 (interface only), discovers the bridge;
 //! * every LowState has a CRC valid by a C implementation of Unitree's CRC over the idlc C struct,
 //!   finite values, increasing ticks spaced by the state period of the robot's clock (2 ms); the
@@ -72,6 +72,11 @@ fn cyclone_0_10_2_client_drives_mujoco() {
 #[test]
 fn cyclone_0_10_2_client_drives_bullet() {
     check_engine("bullet");
+}
+
+#[test]
+fn cyclone_0_10_2_client_drives_dart() {
+    check_engine("dart");
 }
 
 fn check_engine(engine: &str) {

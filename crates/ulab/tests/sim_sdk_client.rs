@@ -185,3 +185,8 @@ fn python_sdk_drives_rapier_impulse() {
 fn python_sdk_drives_bullet() {
     check_engine("bullet", false);
 }
+
+#[test]
+fn python_sdk_drives_dart() {
+    check_engine("dart", false);
+}
