@@ -6,7 +6,9 @@
 //! - joint vectors in motor-slot order (`model.joints` order);
 //! - base linear velocity: velocity of the pelvis ORIGIN, WORLD frame; base angular velocity: PELVIS (body) frame
 //!   (MuJoCo's free-joint convention; every other engine converts inside).
-#![forbid(unsafe_code)]
+// `deny`, not `forbid`: the FFI module of each foreign engine (one per library, e.g. `physx::ffi`) allows unsafe
+// code locally and states its invariants; everything else stays safe.
+#![deny(unsafe_code)]
 
 pub mod engine;
 pub mod oracle;
@@ -23,6 +25,10 @@ pub mod rapier_common;
 pub mod rapier_impulse;
 #[cfg(feature = "rapier")]
 pub mod rapier_multibody;
+
+// PhysX 5 reduced-coordinate articulation (f32), feature `physx`.
+#[cfg(feature = "physx")]
+pub mod physx;
 
 pub use engine::{CommonSettings, Contact, Energy, Engine, EngineError, EngineKind, LinkPose, State};
 pub use pd::{pd_torques, PdTarget};
@@ -47,6 +53,8 @@ pub fn make_engine(
         EngineKind::RapierImpulse => {
             Ok(Box::new(rapier_impulse::RapierImpulseEngine::new(model, common, &Default::default())?))
         }
+        #[cfg(feature = "physx")]
+        EngineKind::Physx => Ok(Box::new(physx::PhysxEngine::new(model, common, &physx::PhysxSettings::default())?)),
         #[allow(unreachable_patterns)]
         other => Err(EngineError::Unavailable(other.name().to_string())),
     }
