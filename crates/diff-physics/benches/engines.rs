@@ -8,7 +8,9 @@
 //! - `zero_gravity`: no gravity, no ground (no contacts), same PD hold.
 //!
 //! Loops: `engine` = `Engine::state()` + `pd_torques` + `Engine::step()`; `raw` = read `qpos`/`qvel` from
-//! `MjData` + the same PD + write `ctrl` + `mj_step` (no layer).
+//! `MjData` + the same PD + write `ctrl` + `mj_step` (no layer). With the `physx` feature, `physx raw` = read joint
+//! positions/velocities from the articulation cache + the same PD (gains permuted to PhysX's DoF order once) +
+//! `jointForce` + `simulate`/`fetchResults` (no state conversion, no damping torque, no root read-back).
 //!
 //! Run: `source scripts/env.sh && CARGO_TARGET_DIR=target-model cargo bench -p diff-physics --bench engines`
 use criterion::{criterion_group, Criterion};
@@ -90,6 +92,45 @@ fn run_raw(e: &mut MujocoEngine, model: &RobotModel, s0: &State, iters: u64) -> 
     total
 }
 
+/// The same loop on PhysX's raw cache access (the engine is only used to reset, outside the timing).
+#[cfg(feature = "physx")]
+fn run_physx_raw(e: &mut diff_physics::physx::PhysxEngine, model: &RobotModel, s0: &State, iters: u64) -> Duration {
+    let slot = e.dof_joints().to_vec();
+    let t = PdTarget::hold_standing(model);
+    let perm = |v: &[f64]| slot.iter().map(|&j| v[j]).collect::<Vec<f64>>();
+    let target = PdTarget {
+        q_des: perm(&t.q_des),
+        dq_des: perm(&t.dq_des),
+        kp: perm(&t.kp),
+        kd: perm(&t.kd),
+        tau_ff: perm(&t.tau_ff),
+    };
+    let limits: Vec<f64> = slot.iter().map(|&j| model.joints[j].torque_limit).collect();
+    let nj = model.nj();
+    let (mut q, mut dq, mut tau) = (vec![0.0; nj], vec![0.0; nj], vec![0.0; nj]);
+    let mut total = Duration::ZERO;
+    let mut done = 0;
+    while done < iters {
+        if e.reset(s0).is_err() {
+            return Duration::MAX;
+        }
+        let n = RESET_EVERY.min(iters - done);
+        let t0 = Instant::now();
+        for _ in 0..n {
+            if e.raw_joints(&mut q, &mut dq).is_err() {
+                return Duration::MAX;
+            }
+            pd_torques_into(&target, &q, &dq, &limits, &mut tau);
+            if e.raw_step(&tau).is_err() {
+                return Duration::MAX;
+            }
+        }
+        total += t0.elapsed();
+        done += n;
+    }
+    total
+}
+
 fn mujoco(model: &RobotModel, zero_g: bool) -> MujocoEngine {
     MujocoEngine::new(model, &scenario(zero_g), &MujocoSettings::default()).expect("MuJoCo engine builds")
 }
@@ -131,9 +172,16 @@ fn summary() {
         }
         let mut raw_rates = Vec::new();
         let mut rates: Vec<Vec<f64>> = vec![Vec::new(); engines.len()];
+        #[cfg(feature = "physx")]
+        let mut physx_raw_e = diff_physics::physx::PhysxEngine::new(&model, &scenario(zero_g), &Default::default())
+            .expect("PhysX engine builds");
+        #[cfg(feature = "physx")]
+        let mut physx_raw_rates = Vec::new();
         for _ in 0..5 {
             let t = run_raw(&mut raw_e, &model, &s0, steps).as_secs_f64();
             raw_rates.push(steps as f64 / t);
+            #[cfg(feature = "physx")]
+            physx_raw_rates.push(steps as f64 / run_physx_raw(&mut physx_raw_e, &model, &s0, steps).as_secs_f64());
             for (i, (_, e)) in engines.iter_mut().enumerate() {
                 let t = run_engine(e.as_mut(), &model, &s0, steps).as_secs_f64();
                 rates[i].push(steps as f64 / t);
@@ -141,6 +189,11 @@ fn summary() {
         }
         let raw = median(raw_rates);
         println!("| {name} | mujoco raw mujoco-rs | {raw:.0} | 1.000 |");
+        #[cfg(feature = "physx")]
+        {
+            let r = median(physx_raw_rates);
+            println!("| {name} | physx raw (articulation cache) | {r:.0} | {:.3} |", r / raw);
+        }
         for ((label, _), r) in engines.iter().zip(rates) {
             let r = median(r);
             println!("| {name} | {label} | {r:.0} | {:.3} |", r / raw);

@@ -36,8 +36,11 @@ fn run(e: &mut dyn Engine, model: &RobotModel, steps: usize) -> State {
 #[test]
 fn physx_passes_all_oracles() {
     let model = model();
-    let report =
-        run_checks(&model, &[EngineKind::Mujoco, EngineKind::Physx], &CheckOptions { samples: 3, ..Default::default() });
+    let report = run_checks(
+        &model,
+        &[EngineKind::Mujoco, EngineKind::Physx],
+        &CheckOptions { samples: 3, ..Default::default() },
+    );
     println!("{}", report.table());
     assert!(report.checks.iter().filter(|c| c.engine == "physx").count() >= 29);
     assert!(report.checks.iter().any(|c| c.engine == "mujoco vs physx"), "no cross-engine check ran");
@@ -78,7 +81,8 @@ fn state_round_trips_and_contacts_are_on_the_soles() {
     let r = e.state();
     // Joint values are rounded to f32 once: |δ| <= u·|x| <= 6e-8 · 3 rad. Base linear velocity goes to the COM
     // and back (v ± ω × Rc, |Rc| ≈ 0.05 m) in f32: <= a few u·(|v| + |ω||Rc|) ≈ 1e-6. Tolerance 1e-6.
-    let worst = r.qpos().iter().zip(s.qpos()).chain(r.v().iter().zip(s.v())).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+    let worst =
+        r.qpos().iter().zip(s.qpos()).chain(r.v().iter().zip(s.v())).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
     assert!(worst < 1e-6, "state round trip off by {worst}");
 
     e.reset(&State::standing(&model)).unwrap();

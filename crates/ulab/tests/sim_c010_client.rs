@@ -1,6 +1,6 @@
 //! `ulab sim` driven by a controller on Cyclone DDS **0.10.2** (Debian's libddsc, the version
 //! inside Unitree's C++ SDK and on the robots), written in C against idlc-generated hg types
-//! (tests/clients/c010/sim_client.c), on loopback, with MuJoCo:
+//! (tests/clients/c010/sim_client.c), on loopback, with MuJoCo and with PhysX:
 //! * the 0.10.2 participant, configured like Unitree SDK2 (interface only), discovers the bridge;
 //! * LowState arrives at >= 90 % of the set rate, every CRC valid by a C implementation of
 //!   Unitree's CRC over the idlc C struct, every value finite, ticks increasing;
@@ -66,17 +66,17 @@ fn counter(line: &str, key: &str) -> u64 {
         .unwrap_or_else(|| panic!("`{key}` value in {line:?}"))
 }
 
-#[test]
-fn cyclone_0_10_2_client_drives_mujoco() {
+/// One run of the 0.10.2 client against `ulab sim --engine <engine>` on `domain`.
+fn drive(engine: &str, domain: u32) {
     let _guard = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let client_bin = client_binary();
     let sim = Command::new(env!("CARGO_BIN_EXE_ulab"))
         .args([
             "sim",
             "--engine",
-            "mujoco",
+            engine,
             "--domain",
-            &DOMAIN.to_string(),
+            &domain.to_string(),
             "--duration",
             &SIM_SECONDS.to_string(),
             "--quiet",
@@ -88,7 +88,7 @@ fn cyclone_0_10_2_client_drives_mujoco() {
     let mut sim = KillOnDrop(Some(sim));
 
     let client = Command::new(&client_bin)
-        .args([&DOMAIN.to_string(), "lo"])
+        .args([&domain.to_string(), "lo"])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
@@ -165,7 +165,19 @@ fn cyclone_0_10_2_client_drives_mujoco() {
     );
     assert_eq!((counter(summary, "rejected"), counter(summary, "malformed")), (0, 0), "{summary}");
     eprintln!(
-        "0.10.2 client: {rate:.1} Hz, {states} states, elbow {start:.3} -> {target:.3} reached {:.3}; {summary}",
+        "{engine}, 0.10.2 client: {rate:.1} Hz, {states} states, elbow {start:.3} -> {target:.3} reached {:.3}; {summary}",
         m["final"]
     );
+}
+
+#[test]
+fn cyclone_0_10_2_client_drives_mujoco() {
+    drive("mujoco", DOMAIN);
+}
+
+#[test]
+fn cyclone_0_10_2_client_drives_physx() {
+    let domain = test_support::lease_domain();
+    let _slot = test_support::RealtimeSlot::acquire();
+    drive("physx", domain.id());
 }

@@ -134,3 +134,10 @@ fn python_sdk_drives_rapier_multibody() {
 fn python_sdk_drives_rapier_impulse() {
     check_engine("rapier-impulse", 63, true);
 }
+
+#[test]
+fn python_sdk_drives_physx() {
+    let domain = test_support::lease_domain();
+    let _slot = test_support::RealtimeSlot::acquire();
+    check_engine("physx", domain.id(), false);
+}

@@ -397,8 +397,6 @@ impl World {
     /// Builds the scene and the articulation.
     pub fn new(desc: &WorldDesc) -> Result<World, String> {
         let physics = sdk()?;
-        let _g = sdk_lock();
-        let _ = check("before build"); // drop stale errors of this thread
         let sink = Box::new(Mutex::new(ContactSink {
             ground: 0,
             links: Vec::new(),
@@ -420,6 +418,19 @@ impl World {
             low_level: Vec::new(),
             ndofs: 0,
         };
+        let built = {
+            let _g = sdk_lock();
+            let _ = check("before build"); // drop stale errors of this thread
+            w.build(physics, desc)
+        };
+        // On error `w` is dropped here, after the lock guard (Drop takes the lock again).
+        built?;
+        Ok(w)
+    }
+
+    /// Creates every PhysX object of the world (under SDK_LOCK, held by the caller).
+    fn build(&mut self, physics: *mut px::PxPhysics, desc: &WorldDesc) -> Result<(), String> {
+        let w = self;
         // SAFETY: `physics` is valid for the process; every object created is stored in `w` at once so that
         // Drop releases it on any early return.
         unsafe {
@@ -651,7 +662,7 @@ impl World {
             }
             check("cache")?;
         }
-        Ok(w)
+        Ok(())
     }
 
     fn cache(&self) -> &px::PxArticulationCache {
@@ -734,6 +745,28 @@ impl World {
             q: self.dof.iter().map(|&d| q[d]).collect(),
             dq: self.dof.iter().map(|&d| dq[d]).collect(),
         })
+    }
+
+    /// Joint positions and velocities only (`links[1..]` order), into caller buffers (no allocation).
+    pub fn joints_into(&mut self, q: &mut [f64], dq: &mut [f64]) -> Result<(), String> {
+        if q.len() != self.ndofs || dq.len() != self.ndofs {
+            return Err(format!("buffers of {} / {} for {} DoFs", q.len(), dq.len(), self.ndofs));
+        }
+        let flags = px::PxArticulationCacheFlags::Position | px::PxArticulationCacheFlags::Velocity;
+        // SAFETY: no simulation is in flight outside `step`; per-DoF arrays have ndofs entries.
+        unsafe { px::PxArticulationReducedCoordinate_copyInternalStateToCache(self.articulation, self.cache, flags) };
+        let c = *self.cache();
+        let (pq, pv) = unsafe {
+            (
+                std::slice::from_raw_parts(c.jointPosition, self.ndofs),
+                std::slice::from_raw_parts(c.jointVelocity, self.ndofs),
+            )
+        };
+        for (i, &d) in self.dof.iter().enumerate() {
+            q[i] = f64::from(pq[d]);
+            dq[i] = f64::from(pv[d]);
+        }
+        Ok(())
     }
 
     /// Sets the joint forces (link order, `links[1..]`) applied from now on (PhysX keeps them until changed).

@@ -35,6 +35,23 @@
 //!
 //! Reset: the scene is rebuilt (articulation, shapes, broad phase, contact manifolds, friction anchors), so
 //! nothing of the previous run survives.
+//!
+//! PhysX behaviours that differ from textbook rigid-body dynamics (read in the PhysX 5.1.3 source while building
+//! this engine; candidates for what a policy trained in PhysX may rely on):
+//! - **Root momentum re-projection.** After integrating the joint (internal) forces, PhysX rescales the root's
+//!   velocity so that the articulation's linear momentum and the *magnitude* of its angular momentum equal their
+//!   values before that step (`computeLinkInternalAcceleration`, DyFeatherstoneForwardDynamic.cpp). The
+//!   continuous dynamics conserve both anyway; the projection changes the discrete base motion. Consistent with
+//!   it, the base acceleration measured from one PhysX step deviates from the reference by an amount growing
+//!   linearly with the step while the joint accelerations do not (see [`PhysxSettings::acceleration_probe_dt`]).
+//! - **Speed clamps as damping.** A link faster than `max_link_angular_velocity` / `max_link_linear_velocity`
+//!   gets a braking force in the articulation's dynamics (computeZ); Isaac Lab's 1000 deg/s is 17.45 rad/s.
+//! - **Joint friction** (`frictionCoefficient`) scales with the force transmitted through the joint (see above),
+//!   and drive force limits are impulses per step unless eDRIVE_LIMITS_ARE_FORCES is set.
+//! - **Floating-base gravity compensation** (`computeGeneralizedGravityForce`) includes the gyroscopic term of
+//!   the root's current angular velocity (computeZ uses the link velocities; only joint velocities are dropped),
+//!   so it is "purely gravity" only with a non-rotating root (measured 1.6e-3 of the gravity torques at
+//!   |ω| <= 1.7 rad/s; 1.7e-7 at rest). Not used in stepping.
 mod ffi;
 
 use crate::engine::{CommonSettings, Contact, Energy, Engine, EngineError, LinkPose, State};
@@ -117,11 +134,11 @@ pub struct PhysxSettings {
     /// [`Engine::generalized_acceleration`] splits `a(f) = a(0) + M⁻¹f` (exact: the dynamics are affine in the
     /// applied force) and measures both parts with contact-free probe steps of PhysX itself. `a(0)` (velocity
     /// terms, gravity, damping) comes from one step of this length (s) from the current state. Two errors
-    /// compete: the f32 rounding of `(v₁ − v₀)/dt`, ~u·|v|/dt, and an O(dt) term from PhysX's update of the
-    /// floating root, which is not one explicit evaluation (after the joint-force step PhysX re-projects the
-    /// root velocity to keep the linear momentum and the magnitude of the angular momentum,
-    /// `computeLinkInternalAcceleration`). Measured on the H1-2 with armature (relative error of
-    /// accelerations): 8e-5 at 1e-5 s, 3e-6 at 3e-4 s, 1e-4 at 1e-2 s.
+    /// compete: the f32 rounding of `(v₁ − v₀)/dt`, ~u·|v|/dt, and an O(dt) term in the floating root's update,
+    /// which is not one explicit evaluation (the joint accelerations of the same step match the reference to
+    /// f32 precision; PhysX re-projects the root velocity after the joint-force step, see the module docs).
+    /// Measured on the H1-2 with armature (relative error of accelerations): 8e-5 at 1e-5 s, 3e-6 at 3e-4 s,
+    /// 1e-4 at 1e-2 s.
     pub acceleration_probe_dt: f64,
     /// `M⁻¹f` comes from one step of this length (s) from the current configuration AT REST without gravity:
     /// `v₀ = 0`, so the f32 rounding is relative (no cancellation) and a short step removes the configuration
@@ -230,6 +247,8 @@ pub struct PhysxEngine {
     raw: RawState,
     /// Joint index (slot) of each PhysX DoF (`model.links[1..]` order).
     joint_of_dof: Vec<usize>,
+    /// Root COM in the root link frame as PhysX stores it (f32, widened): every world of this engine has it.
+    root_com: Vector3<f64>,
     time: f64,
     /// Contact-free twins for generalized accelerations (built lazily): with the scene's gravity, and without.
     probe: Option<(World, World)>,
@@ -310,6 +329,7 @@ impl PhysxEngine {
             return Err(EngineError::Build("every joint must be the inbound joint of exactly one link".into()));
         }
         let world = World::new(&desc).map_err(build_err)?;
+        let root_com = world.mass_props().first().map(|m| v3(m.mass_frame.p)).unwrap_or_else(Vector3::zeros);
         let raw = RawState {
             root: desc.links[0].pose,
             root_lin_vel: [0.0; 3],
@@ -325,6 +345,7 @@ impl PhysxEngine {
             world,
             raw,
             joint_of_dof,
+            root_com,
             time: 0.0,
             probe: None,
         };
@@ -337,23 +358,36 @@ impl PhysxEngine {
         &self.settings
     }
 
-    /// One bare PhysX step with the joint forces of the previous [`Engine::step`] (they persist in PhysX), no
-    /// state conversion. For measuring the overhead of the `Engine` layer only.
-    pub fn step_raw(&mut self) -> Result<(), EngineError> {
+    /// Raw access for benchmarks (the `Engine` layer's overhead is measured against it): joint positions and
+    /// velocities in PhysX's DoF order ([`PhysxEngine::dof_joints`] gives each DoF's slot), straight from the
+    /// articulation cache. Use with [`PhysxEngine::raw_step`] only.
+    pub fn raw_joints(&mut self, q: &mut [f64], dq: &mut [f64]) -> Result<(), EngineError> {
+        self.world.joints_into(q, dq).map_err(sim_err)
+    }
+
+    /// Raw access for benchmarks: applies joint torques (PhysX DoF order) as they are (no damping) and steps,
+    /// without reading the state back. [`Engine::state`] is stale until the next [`Engine::step`] or reset.
+    pub fn raw_step(&mut self, tau_dof: &[f64]) -> Result<(), EngineError> {
+        self.world.set_joint_forces(tau_dof).map_err(sim_err)?;
         self.world.step(self.common.timestep).map_err(sim_err)?;
         self.time += self.common.timestep;
         Ok(())
     }
 
-    /// Interface state -> PhysX state (with this world's COM offset of the root).
-    fn to_raw(&self, s: &State, world: &World) -> RawState {
+    /// Joint (slot) of each PhysX DoF.
+    pub fn dof_joints(&self) -> &[usize] {
+        &self.joint_of_dof
+    }
+
+    /// Interface state -> PhysX state.
+    fn to_raw(&self, s: &State) -> RawState {
         let r = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
             s.base_quat[0],
             s.base_quat[1],
             s.base_quat[2],
             s.base_quat[3],
         ));
-        let c = v3(world.mass_props()[0].mass_frame.p);
+        let c = self.root_com;
         let w_world = r * v3(s.base_ang_vel);
         let v_com = v3(s.base_lin_vel) + w_world.cross(&(r * c));
         RawState {
@@ -366,10 +400,10 @@ impl PhysxEngine {
     }
 
     /// PhysX state -> interface state.
-    fn from_raw(&self, raw: &RawState, root_com: &Vector3<f64>) -> State {
+    fn from_raw(&self, raw: &RawState) -> State {
         let r = quat_of(&raw.root);
         let w_world = v3(raw.root_ang_vel);
-        let v_o = v3(raw.root_lin_vel) - w_world.cross(&(r * root_com));
+        let v_o = v3(raw.root_lin_vel) - w_world.cross(&(r * self.root_com));
         let nj = self.model.nj();
         let mut q = vec![0.0; nj];
         let mut dq = vec![0.0; nj];
@@ -387,14 +421,10 @@ impl PhysxEngine {
         }
     }
 
-    fn root_com(&self) -> Vector3<f64> {
-        v3(self.world.mass_props()[0].mass_frame.p)
-    }
-
     fn set_world_state(&mut self, s: &State) -> Result<(), EngineError> {
         s.validate(&self.model)?;
-        let raw = self.to_raw(s, &self.world);
-        self.world.set_state(&raw).map_err(|e| EngineError::Input(e))?;
+        let raw = self.to_raw(s);
+        self.world.set_state(&raw).map_err(EngineError::Input)?;
         self.raw = self.world.state().map_err(sim_err)?;
         Ok(())
     }
@@ -416,7 +446,7 @@ impl PhysxEngine {
     fn velocity_map(&self) -> DMatrix<f64> {
         let nv = self.model.nv();
         let r = quat_of(&self.raw.root).to_rotation_matrix().into_inner();
-        let rc = r * self.root_com();
+        let rc = r * self.root_com;
         let skew = Matrix3::new(0.0, -rc.z, rc.y, rc.z, 0.0, -rc.x, -rc.y, rc.x, 0.0);
         let blk = -skew * r;
         let mut t = DMatrix::zeros(nv, nv);
@@ -488,7 +518,8 @@ impl PhysxEngine {
     }
 
     /// Builds the two probe worlds: contact-free (no ground, collisions, limits or dry friction) with PhysX's
-    /// speed clamps lifted (the probes measure the smooth dynamics), with the scene's gravity and without.
+    /// speed clamps and stabilisation lifted (the probes measure the smooth dynamics), with the scene's gravity
+    /// and without.
     fn build_probes(&self) -> Result<(World, World), EngineError> {
         let common = CommonSettings {
             ground: false,
@@ -501,6 +532,8 @@ impl PhysxEngine {
             max_link_linear_velocity: 1e7,
             max_link_angular_velocity: 1e7,
             max_joint_velocity: 1e7,
+            // Stabilisation acts on bodies below a kinetic-energy threshold, as a probe from rest is.
+            enable_stabilization: false,
             ..self.settings.clone()
         };
         let with_g = World::new(&world_desc(&self.model, &common, &settings)?).map_err(build_err)?;
@@ -520,14 +553,14 @@ impl PhysxEngine {
         wrench: &[f64],
         dt: f64,
     ) -> Result<Vec<f64>, EngineError> {
-        let raw = self.to_raw(state, probe);
+        let raw = self.to_raw(state);
         probe.set_state(&raw).map_err(EngineError::Input)?;
         let v0 = probe.state().map_err(sim_err)?;
         probe.set_joint_forces(joint_forces).map_err(sim_err)?;
         // Force through the pelvis origin (world) and moment about it (pelvis frame) -> force at the root COM
         // and world torque about the COM.
         let r = quat_of(&v0.root);
-        let rc = r * v3(probe.mass_props()[0].mass_frame.p);
+        let rc = r * self.root_com;
         let force = Vector3::new(wrench[0], wrench[1], wrench[2]);
         let torque = r * Vector3::new(wrench[3], wrench[4], wrench[5]) + (-rc).cross(&force);
         probe.add_root_wrench(arr(&force), arr(&torque)).map_err(sim_err)?;
@@ -713,7 +746,7 @@ impl Engine for PhysxEngine {
             "sleeping": "disabled (sleep threshold 0)",
             "stabilization_threshold": self.world.stabilization_threshold(),
             "mass_matrix_method": "Σ Jᵀ diag(m, I) J over links with PhysX's dense Jacobian (computeDenseJacobian) and stored inertias, + stored armature; mapped to interface coordinates",
-            "acceleration_method": "finite differences of contact-free PhysX probe steps (no ground/collisions/limits/dry friction, speed clamps lifted), a(f) = a(0) + M⁻¹f: a(0) from the current state over acceleration_probe_dt, M⁻¹f from the configuration at rest without gravity over force_probe_dt; differentiated in PhysX coordinates, mapped analytically",
+            "acceleration_method": "finite differences of contact-free PhysX probe steps (no ground/collisions/limits/dry friction, speed clamps and stabilisation lifted), a(f) = a(0) + M⁻¹f: a(0) from the current state over acceleration_probe_dt, M⁻¹f from the configuration at rest without gravity over force_probe_dt; differentiated in PhysX coordinates, mapped analytically",
         })
     }
     fn common(&self) -> &CommonSettings {
@@ -748,7 +781,7 @@ impl Engine for PhysxEngine {
     }
 
     fn state(&self) -> State {
-        self.from_raw(&self.raw, &self.root_com())
+        self.from_raw(&self.raw)
     }
 
     fn time(&self) -> f64 {
