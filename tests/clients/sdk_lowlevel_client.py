@@ -2,15 +2,22 @@
 to check that a simulator bridge behaves like the robot. It only uses the SDK's public API:
 ChannelFactoryInitialize, ChannelSubscriber/ChannelPublisher, the IDL classes and its CRC.
 
-  python sdk_lowlevel_client.py --domain D [--seconds-rate 2] [--state-rate 500]
+  python sdk_lowlevel_client.py --domain D [--seconds-rate 2] [--dump N]
 
-Prints one JSON object: LowState rate and CRC validity (checked with the SDK's own CRC code),
-joints commanded to targets and where they ended, and what a corrupted-CRC command did.
-Every wait is bounded; exit code 0 unless the SDK itself failed.
+Prints one JSON object: the LowState stream (CRC validity checked with the SDK's own CRC code,
+ticks, the spacing of ticks in simulated milliseconds), joints commanded to targets and where
+they ended, and what a corrupted-CRC command did.
+
+Every phase that needs the robot to move lasts a span of SIMULATED time, read from the LowState
+tick (milliseconds of the robot's clock), not of wall time: on a loaded machine a simulator may
+run slower than real time, and the outcome must not depend on that. Every wait is bounded by a
+generous wall-clock limit that only turns a stalled peer into an error, never decides a result.
+Exit code 0 unless the SDK itself failed.
 """
 import argparse
 import dataclasses
 import json
+import math
 import platform
 import sys
 import threading
@@ -86,13 +93,18 @@ class Client:
             cmd.crc ^= 0x1
         return cmd
 
-    def drive(self, send, seconds, period=0.002):
-        end = time.monotonic() + seconds
+    def drive(self, send, sim_seconds, period=0.002, wall_limit=120.0):
+        """Calls send() every `period` of wall time until the robot's clock (LowState tick) has
+        advanced by `sim_seconds`. Returns the simulated seconds covered (less only if the peer
+        stalled past `wall_limit`)."""
+        tick0 = self.latest()[2]
+        give_up = time.monotonic() + wall_limit
         nxt = time.monotonic()
-        while time.monotonic() < end:
+        while (self.latest()[2] - tick0) < sim_seconds * 1000.0 and time.monotonic() < give_up:
             send()
             nxt += period
             time.sleep(max(0.0, nxt - time.monotonic()))
+        return (self.latest()[2] - tick0) / 1000.0
 
 
 def main():
@@ -105,7 +117,7 @@ def main():
     out = {}
     c = Client(args.domain)
 
-    # 1. State stream: wait for the first sample, then measure rate and CRC over a window.
+    # 1. State stream: wait for the first sample, then collect a window of samples.
     deadline = time.monotonic() + args.connect_timeout
     while c.latest() is None and time.monotonic() < deadline:
         time.sleep(0.01)
@@ -120,11 +132,19 @@ def main():
     with c.lock:
         window = c.states[n0:]
     elapsed = time.monotonic() - t0
+    # Wall-clock rate: a benchmark figure (reported, never judged).
     out["rate_hz"] = len(window) / elapsed
     out["states"] = len(window)
     out["crc_ok"] = sum(1 for s in window if c.crc.Crc(s[1]) == s[1].crc)
     ticks = [s[2] for s in window]
     out["ticks_increasing"] = all(b > a for a, b in zip(ticks, ticks[1:]))
+    # The spacing of states on the robot's clock: with one state per period and none lost, every
+    # delta is the period; lost samples give multiples of it. Their gcd is the publication period
+    # in simulated milliseconds, whatever the machine's speed.
+    deltas = [b - a for a, b in zip(ticks, ticks[1:])]
+    out["tick_gcd_ms"] = math.gcd(*deltas) if deltas else None
+    out["tick_min_ms"] = min(deltas) if deltas else None
+    out["tick_span_ms"] = ticks[-1] - ticks[0] if ticks else 0
     mode_machine = c.latest()[4]
     out["mode_machine"] = mode_machine
     if args.dump:
@@ -137,7 +157,7 @@ def main():
     for slot, delta in MOVES.items():
         targets[slot] = start_q[slot] + delta
     hold = c.make_command(targets, mode_machine)
-    c.drive(lambda: c.pub.Write(hold), 2.5)
+    out["hold_sim_seconds"] = c.drive(lambda: c.pub.Write(hold), 2.5)
     final_q = c.latest()[3]
     out["rpy_after_moves"] = list(c.latest()[1].imu_state.rpy)
     out["moves"] = [{"slot": s, "start": start_q[s], "target": targets[s], "final": final_q[s]} for s in MOVES]
@@ -153,7 +173,7 @@ def main():
         c.pub.Write(hold)
         c.pub.Write(corrupt)
 
-    c.drive(both, 1.5, period=0.004)
+    out["corrupt_sim_seconds"] = c.drive(both, 1.5, period=0.004)
     out["corrupted"] = {"slot": 16, "held_target": targets[16], "corrupt_target": bad[16], "final": c.latest()[3][16]}
     # Received octet arrays come back as bytes: print them as lists of integers.
     print(json.dumps(out, default=list), flush=True)

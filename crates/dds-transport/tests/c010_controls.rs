@@ -16,11 +16,13 @@ use std::time::Duration;
 #[test]
 fn default_discovery_settings_do_not_find_a_010_peer() {
     let peer_bin = build_c010_peer();
-    let cfg =
-        DomainConfig::loopback(162).participant_index(ParticipantIndex::CycloneDefault).peers(Vec::<String>::new());
+    let domain = lease_domain();
+    let cfg = DomainConfig::loopback(domain.id())
+        .participant_index(ParticipantIndex::CycloneDefault)
+        .peers(Vec::<String>::new());
     let p = Participant::new(cfg).expect("participant");
     let w = p.writer(&TopicSpec::lowcmd(Family::Hg)).expect("writer");
-    let peer = Proc::spawn(Command::new(&peer_bin).arg("162").arg("lo").arg("4"));
+    let peer = Proc::spawn(Command::new(&peer_bin).arg(domain.arg()).arg("lo").arg("4"));
     assert!(!w.wait_for_readers(1, Duration::from_secs(3)).expect("status"), "matched without the discovery settings");
     let _ = peer.wait(Duration::from_secs(10));
 }
@@ -30,22 +32,25 @@ fn default_discovery_settings_do_not_find_a_010_peer() {
 #[test]
 fn typed_cyclone11_writer_crashes_a_010_peer() {
     let peer_bin = build_c010_peer();
+    let domain = lease_domain();
     // The peer is expected to crash: no core file (`ulimit -c 0`).
-    let peer = Proc::spawn(
-        Command::new("sh").arg("-c").arg("ulimit -c 0; exec \"$0\" \"$@\"").arg(&peer_bin).args(["163", "lo", "20"]),
-    );
-    std::thread::sleep(Duration::from_millis(300));
-    let (_ok, _o, _e) = run_with_timeout(
-        Command::new(python()).arg(crate_dir().join("tests/peers/py11/peer.py")).args([
-            "pub-lowcmd",
-            "--domain",
-            "163",
-            "--count",
-            "200",
-        ]),
-        Duration::from_secs(20),
-    );
-    let (code, out, err) = peer.wait(Duration::from_secs(15));
+    let peer = Proc::spawn(Command::new("sh").arg("-c").arg("ulimit -c 0; exec \"$0\" \"$@\"").arg(&peer_bin).args([
+        domain.arg().as_str(),
+        "lo",
+        "60",
+    ]));
+    // The typed writer waits (up to a minute) for the peer's reader, so discovery happens whatever the load; the
+    // peer crashes on the writer's discovery data or lives out its 60 s (then the control fails).
+    let _writer = Proc::spawn(Command::new(python()).arg(crate_dir().join("tests/peers/py11/peer.py")).args([
+        "pub-lowcmd",
+        "--domain",
+        &domain.arg(),
+        "--count",
+        "6000",
+        "--match-timeout",
+        "60",
+    ]));
+    let (code, out, err) = peer.wait(Duration::from_secs(90));
     let all = format!("{out}\n{err}");
     assert!(code != Some(0) || all.contains("invalid type object"), "0.10.2 peer survived a typed 11.x writer:\n{all}");
 }

@@ -14,26 +14,19 @@ use std::process::Command;
 use std::time::{Duration, Instant};
 use unitree_idl::hg;
 
-const DOMAIN: u32 = 161;
-
 #[test]
 fn c010_peer_exchanges_lowcmd_and_lowstate_both_ways() {
     let peer_bin = build_c010_peer();
-    let p = Participant::new(DomainConfig::loopback(DOMAIN)).expect("participant");
+    let domain = lease_domain();
+    let p = Participant::new(DomainConfig::loopback(domain.id())).expect("participant");
     let cmd_w = p.writer(&TopicSpec::lowcmd(Family::Hg)).expect("writer");
     let state_r = p.reader(&TopicSpec::lowstate(Family::Hg)).expect("reader");
 
     let discovery = p.discovery().expect("discovery");
-    let mut peer = Proc::spawn(Command::new(&peer_bin).arg(DOMAIN.to_string()).arg("lo").arg("30"));
+    let mut peer = Proc::spawn(Command::new(&peer_bin).arg(domain.arg()).arg("lo").arg("120"));
 
-    assert!(
-        cmd_w.wait_for_readers(1, Duration::from_secs(15)).expect("status"),
-        "0.10.2 reader never matched our writer"
-    );
-    assert!(
-        state_r.wait_for_writers(1, Duration::from_secs(15)).expect("status"),
-        "0.10.2 writer never matched our reader"
-    );
+    assert!(cmd_w.wait_for_readers(1, PATIENCE).expect("status"), "0.10.2 reader never matched our writer");
+    assert!(state_r.wait_for_writers(1, PATIENCE).expect("status"), "0.10.2 writer never matched our reader");
 
     // Send commands with a distinctive pattern until the peer echoes them back in LowState.
     // A command built and sealed by our codec; the peer checks the CRC with Unitree's algorithm.
@@ -47,7 +40,7 @@ fn c010_peer_exchanges_lowcmd_and_lowstate_both_ways() {
     lowlevel_codec::seal(&mut c);
     let sealed_crc = c.crc;
     let cmd = lowlevel_codec::encode(&c, Encoding::UNITREE);
-    let deadline = Instant::now() + Duration::from_secs(15);
+    let deadline = Instant::now() + PATIENCE;
     let mut states = 0usize;
     let mut last_tick = None;
     let mut echoed = None;
@@ -79,7 +72,7 @@ fn c010_peer_exchanges_lowcmd_and_lowstate_both_ways() {
     // What the 0.10.2 peer (default QoS, like Unitree's SDK) announces in discovery.
     let find = |kind: EndpointKind, topic: &str| {
         discovery
-            .wait_for(Duration::from_secs(5), |e| e.alive && !e.local && e.kind == kind && e.topic_name == topic)
+            .wait_for(PATIENCE, |e| e.alive && !e.local && e.kind == kind && e.topic_name == topic)
             .expect("endpoints")
             .unwrap_or_else(|| panic!("0.10.2 {kind:?} on {topic} not in discovery"))
     };
@@ -93,12 +86,12 @@ fn c010_peer_exchanges_lowcmd_and_lowstate_both_ways() {
     assert!(peer_writer.has_type_information);
 
     // Ask the peer to exit (best effort: repeat until it has).
-    let deadline = Instant::now() + Duration::from_secs(10);
+    let deadline = Instant::now() + PATIENCE;
     while Instant::now() < deadline && !peer.has_exited() {
         cmd_w.write(&hg_lowcmd_shutdown()).expect("write");
         std::thread::sleep(Duration::from_millis(50));
     }
-    let (code, out, err) = peer.wait(Duration::from_secs(5));
+    let (code, out, err) = peer.wait(Duration::from_secs(30));
     let all = format!("{out}\n{err}");
     assert!(!all.contains("invalid type object"), "0.10.2 peer rejected type information:\n{all}");
     assert_eq!(code, Some(0), "0.10.2 peer did not exit cleanly:\n{all}");
@@ -109,20 +102,23 @@ fn c010_peer_exchanges_lowcmd_and_lowstate_both_ways() {
 
 /// The 0.10.2 peer as a Unitree-style low-level controller, our transport as the robot: it reads
 /// our LowState (CRC and ticks checked in C), drives one joint, and its sealed LowCmd decodes and
-/// verifies with our codec.
+/// verifies with our codec. The toy robot runs until the controller has ended (10 s of its own time,
+/// discovery included), so a loaded machine only makes it slower; the controller's wall-clock state rate
+/// is printed, never judged.
 #[test]
 fn c010_controller_drives_a_robot_on_our_transport() {
     const JOINT: usize = 3;
     const TARGET: f32 = 0.4;
     let peer_bin = build_c010_peer();
-    let domain = 176;
-    let p = Participant::new(DomainConfig::loopback(domain)).expect("participant");
+    let domain = lease_domain();
+    let _slot = RealtimeSlot::acquire();
+    let p = Participant::new(DomainConfig::loopback(domain.id())).expect("participant");
     let state_w = p.writer(&TopicSpec::lowstate(Family::Hg)).expect("writer");
     let cmd_r = p.reader(&TopicSpec::lowcmd(Family::Hg)).expect("reader");
-    let peer = Proc::spawn(Command::new(&peer_bin).args([
-        &domain.to_string(),
+    let mut peer = Proc::spawn(Command::new(&peer_bin).args([
+        domain.arg().as_str(),
         "lo",
-        "3",
+        "10",
         "controller",
         "3",
         "0.4",
@@ -136,7 +132,7 @@ fn c010_controller_drives_a_robot_on_our_transport() {
     let (mut cmds, mut bad_crc) = (0u32, 0u32);
     let start = Instant::now();
     let mut next = start;
-    while start.elapsed() < Duration::from_secs(4) {
+    while !peer.has_exited() && start.elapsed() < Duration::from_secs(120) {
         while let Some(s) = cmd_r.try_take() {
             match lowlevel_codec::decode::<hg::LowCmd_>(&s.data) {
                 Ok(d) if lowlevel_codec::verify(&d.value) => {
@@ -164,10 +160,11 @@ fn c010_controller_drives_a_robot_on_our_transport() {
         .find_map(|l| serde_json::from_str(l).ok())
         .unwrap_or_else(|| panic!("no report:\n{out}\n{err}"));
     let states = report["states"].as_u64().expect("states");
-    assert!(states > 500, "{report}");
+    assert!(states > 200, "{report}");
     assert_eq!(report["crc_ok"].as_u64(), Some(states), "our LowState CRCs verified in C: {report}");
     assert_eq!(report["ticks_increasing"], true);
-    assert!(report["rate_hz"].as_f64().unwrap_or(0.0) > 400.0, "{report}");
+    // The joint converged: 0.98^n of the way left after n applied commands, so at least ~185 reached the robot.
     assert!((report["last_q"].as_f64().unwrap_or(0.0) - f64::from(TARGET)).abs() < 0.01, "{report}");
-    assert!(cmds > 500 && bad_crc == 0, "commands {cmds}, bad CRC {bad_crc}");
+    assert!(cmds > 200 && bad_crc == 0, "commands {cmds}, bad CRC {bad_crc}");
+    eprintln!("0.10.2 controller: {states} states at {} Hz wall, {cmds} commands", report["rate_hz"]);
 }

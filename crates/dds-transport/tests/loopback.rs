@@ -3,14 +3,16 @@
 use dds_transport::{topics::Family, DomainConfig, Error, Participant, ReaderOptions, TopicSpec};
 use std::sync::mpsc;
 use std::time::Duration;
+use test_support::{lease_domain, PATIENCE};
 
 #[test]
 fn raw_bytes_round_trip_in_process() {
-    let p = Participant::new(DomainConfig::loopback(171)).expect("participant");
+    let domain = lease_domain();
+    let p = Participant::new(DomainConfig::loopback(domain.id())).expect("participant");
     let topic = TopicSpec::lowstate(Family::Hg);
     let r = p.reader_with(&topic, ReaderOptions { queue_capacity: 64, ..ReaderOptions::default() }).expect("reader");
     let w = p.writer(&topic).expect("writer");
-    assert!(w.wait_for_readers(1, Duration::from_secs(5)).expect("status"));
+    assert!(w.wait_for_readers(1, PATIENCE).expect("status"));
     // Arbitrary bytes, including a large fragmented one and garbage behind a valid header.
     let payloads: Vec<Vec<u8>> = vec![
         vec![0, 1, 0, 0],
@@ -20,7 +22,7 @@ fn raw_bytes_round_trip_in_process() {
     ];
     for pl in &payloads {
         w.write(pl).expect("write");
-        let s = r.take(Duration::from_secs(2)).expect("sample");
+        let s = r.take(PATIENCE).expect("sample");
         assert_eq!(&s.data, pl);
         assert!(s.reception_ns > 0);
         let ts = s.source_timestamp_ns.expect("source timestamp");
@@ -31,7 +33,8 @@ fn raw_bytes_round_trip_in_process() {
 
 #[test]
 fn callback_reader_receives() {
-    let p = Participant::new(DomainConfig::loopback(172)).expect("participant");
+    let domain = lease_domain();
+    let p = Participant::new(DomainConfig::loopback(domain.id())).expect("participant");
     let topic = TopicSpec::lowcmd(Family::Go);
     let (tx, rx) = mpsc::channel();
     let r = p
@@ -40,9 +43,9 @@ fn callback_reader_receives() {
         })
         .expect("reader");
     let w = p.writer(&topic).expect("writer");
-    assert!(w.wait_for_readers(1, Duration::from_secs(5)).expect("status"));
+    assert!(w.wait_for_readers(1, PATIENCE).expect("status"));
     w.write(&[0, 1, 0, 0, 9, 9]).expect("write");
-    assert_eq!(rx.recv_timeout(Duration::from_secs(2)).expect("callback"), vec![0, 1, 0, 0, 9, 9]);
+    assert_eq!(rx.recv_timeout(PATIENCE).expect("callback"), vec![0, 1, 0, 0, 9, 9]);
     assert!(r.take(Duration::from_millis(1)).is_none());
     assert_eq!(r.received(), 1);
     drop(r);
@@ -52,22 +55,25 @@ fn callback_reader_receives() {
 fn safety_rule_enforced() {
     assert!(matches!(Participant::new(DomainConfig::loopback(0)), Err(Error::RobotNotAllowed { .. })));
     // Same domain, different configuration in one process: refused.
-    let _a = Participant::new(DomainConfig::loopback(173)).expect("participant");
-    let b = Participant::new(DomainConfig::loopback(173).peers(Vec::<String>::new()));
-    assert!(matches!(b, Err(Error::DomainConfigConflict { domain: 173 })));
+    let lease = lease_domain();
+    let d = lease.id();
+    let _a = Participant::new(DomainConfig::loopback(d)).expect("participant");
+    let b = Participant::new(DomainConfig::loopback(d).peers(Vec::<String>::new()));
+    assert!(matches!(b, Err(Error::DomainConfigConflict { domain }) if domain == d));
     // Same configuration: shared.
-    let _c = Participant::new(DomainConfig::loopback(173)).expect("second participant");
+    let _c = Participant::new(DomainConfig::loopback(d)).expect("second participant");
 }
 
 #[test]
 fn discovery_shows_our_endpoints_without_type_information() {
     use dds_transport::{Durability, EndpointKind, Reliability};
-    let p = Participant::new(DomainConfig::loopback(174)).expect("participant");
+    let domain = lease_domain();
+    let p = Participant::new(DomainConfig::loopback(domain.id())).expect("participant");
     let mon = p.discovery().expect("discovery");
     let _w = p.writer(&TopicSpec::lowstate(Family::Hg)).expect("writer");
     let _r = p.reader(&TopicSpec::lowcmd(Family::Hg)).expect("reader");
     let w = mon
-        .wait_for(Duration::from_secs(3), |e| e.kind == EndpointKind::Publication && e.topic_name == "rt/lowstate")
+        .wait_for(PATIENCE, |e| e.kind == EndpointKind::Publication && e.topic_name == "rt/lowstate")
         .expect("read")
         .expect("our writer is announced");
     assert!(w.local && w.alive);
@@ -78,7 +84,7 @@ fn discovery_shows_our_endpoints_without_type_information() {
         (Some(Reliability::Reliable), Some(1), Some(Durability::Volatile))
     );
     let r = mon
-        .wait_for(Duration::from_secs(3), |e| e.kind == EndpointKind::Subscription && e.topic_name == "rt/lowcmd")
+        .wait_for(PATIENCE, |e| e.kind == EndpointKind::Subscription && e.topic_name == "rt/lowcmd")
         .expect("read")
         .expect("our reader is announced");
     assert!(!r.has_type_information);

@@ -23,15 +23,15 @@ fn echo_round_trip(domain: u32, sdk_config: bool) {
     let cmd_w = p.writer(&TopicSpec::lowcmd(Family::Hg)).expect("writer");
     let state_r = p.reader(&TopicSpec::lowstate(Family::Hg)).expect("reader");
     let mut cmd = py_peer();
-    cmd.args(["echo", "--domain", &domain.to_string(), "--seconds", "30"]);
+    cmd.args(["echo", "--domain", &domain.to_string(), "--seconds", "120"]);
     if sdk_config {
         cmd.arg("--sdk");
     }
     let peer = Proc::spawn(&mut cmd);
-    assert!(cmd_w.wait_for_readers(1, Duration::from_secs(20)).expect("status"), "Python reader never matched");
+    assert!(cmd_w.wait_for_readers(1, PATIENCE).expect("status"), "Python reader never matched");
     let q = |i: usize| -1.0 + i as f32 * 0.03125;
     let payload = hg_lowcmd(q, 7.0, 77);
-    let deadline = Instant::now() + Duration::from_secs(15);
+    let deadline = Instant::now() + PATIENCE;
     let mut echoed = None;
     while Instant::now() < deadline && echoed.is_none() {
         cmd_w.write(&payload).expect("write");
@@ -52,30 +52,40 @@ fn echo_round_trip(domain: u32, sdk_config: bool) {
 
 #[test]
 fn py11_peer_decodes_our_lowcmd_and_we_receive_its_lowstate() {
-    echo_round_trip(164, false);
+    echo_round_trip(lease_domain().id(), false);
 }
 
 /// The Python peer configured exactly as unitree_sdk2py's ChannelFactoryInitialize(D, "lo") does.
 #[test]
 fn py11_peer_with_unitree_sdk_config_is_discovered() {
-    echo_round_trip(165, true);
+    echo_round_trip(lease_domain().id(), true);
 }
 
 #[test]
 fn py11_typed_writer_to_our_reader() {
-    let domain = 166;
-    let p = Participant::new(DomainConfig::loopback(domain)).expect("participant");
+    let domain = lease_domain();
+    let p = Participant::new(DomainConfig::loopback(domain.id())).expect("participant");
     let r = p.reader(&TopicSpec::lowcmd(Family::Hg)).expect("reader");
-    let peer =
-        Proc::spawn(py_peer().args(["pub-lowcmd", "--domain", &domain.to_string(), "--count", "50", "--rate", "100"]));
+    // The Python writer waits (up to a minute) for our reader before it publishes.
+    let peer = Proc::spawn(py_peer().args([
+        "pub-lowcmd",
+        "--domain",
+        &domain.arg(),
+        "--count",
+        "50",
+        "--rate",
+        "100",
+        "--match-timeout",
+        "60",
+    ]));
     let mut got = Vec::new();
-    let deadline = Instant::now() + Duration::from_secs(10);
+    let deadline = Instant::now() + Duration::from_secs(120);
     while Instant::now() < deadline && got.len() < 20 {
         if let Some(s) = r.take(Duration::from_millis(50)) {
             got.push(s);
         }
     }
-    let (code, out, err) = peer.wait(Duration::from_secs(15));
+    let (code, out, err) = peer.wait(Duration::from_secs(120));
     assert_eq!(code, Some(0), "python peer failed:\n{out}\n{err}");
     assert!(json_lines(&out).iter().any(|v| v["event"] == "done"));
     assert!(got.len() >= 20, "received only {} samples", got.len());
@@ -94,13 +104,14 @@ fn py11_typed_writer_to_our_reader() {
 /// information, while its own typed control writer does carry type information.
 #[test]
 fn our_endpoints_advertise_unitree_qos_and_no_type_information() {
-    let domain = 168;
+    let lease = lease_domain();
+    let domain = lease.id();
     let p = Participant::new(DomainConfig::loopback(domain)).expect("participant");
     let _w = p.writer(&TopicSpec::lowcmd(Family::Hg)).expect("writer");
     let _r = p.reader(&TopicSpec::lowstate(Family::Hg)).expect("reader");
     let (ok, out, err) = run_with_timeout(
-        py_peer().args(["discover", "--domain", &domain.to_string(), "--seconds", "3"]),
-        Duration::from_secs(20),
+        py_peer().args(["discover", "--domain", &domain.to_string(), "--seconds", "10"]),
+        Duration::from_secs(120),
     );
     assert!(ok, "{out}\n{err}");
     let eps: Vec<serde_json::Value> = json_lines(&out).into_iter().filter(|v| v["event"] == "endpoint").collect();
@@ -130,14 +141,22 @@ fn our_endpoints_advertise_unitree_qos_and_no_type_information() {
 #[test]
 fn discovery_monitor_sees_remote_type_information() {
     use dds_transport::{EndpointKind, Reliability};
-    let domain = 169;
+    let lease = lease_domain();
+    let domain = lease.id();
     let p = Participant::new(DomainConfig::loopback(domain)).expect("participant");
     let mon = p.discovery().expect("discovery");
     let _r = p.reader(&TopicSpec::lowcmd(Family::Hg)).expect("reader");
-    let peer =
-        Proc::spawn(py_peer().args(["pub-lowcmd", "--domain", &domain.to_string(), "--count", "300", "--rate", "100"]));
+    let peer = Proc::spawn(py_peer().args([
+        "pub-lowcmd",
+        "--domain",
+        &domain.to_string(),
+        "--count",
+        "3000",
+        "--rate",
+        "100",
+    ]));
     let w = mon
-        .wait_for(Duration::from_secs(20), |e| {
+        .wait_for(PATIENCE, |e| {
             e.alive && !e.local && e.kind == EndpointKind::Publication && e.topic_name == "rt/lowcmd"
         })
         .expect("read");

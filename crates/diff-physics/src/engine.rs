@@ -20,7 +20,7 @@ use thiserror::Error;
 /// Errors from engines.
 #[derive(Debug, Error)]
 pub enum EngineError {
-    #[error("engine {0} is not compiled into this build")]
+    #[error("engine {0} is not compiled into this build (this build has: {names})", names = EngineKind::available_names())]
     Unavailable(String),
     #[error("model cannot be built in the engine: {0}")]
     Build(String),
@@ -77,6 +77,17 @@ impl EngineKind {
     /// Parses a command-line name (`rapier_multibody` and `rapier-multibody` alike).
     pub fn parse(s: &str) -> Option<Self> {
         Self::ALL.into_iter().find(|k| k.name() == s || k.name().replace('_', "-") == s)
+    }
+    /// Parses an engine named by a user into one compiled into this build: an unknown name or an engine this build
+    /// lacks is an error that lists the engines it has.
+    pub fn parse_available(s: &str) -> Result<Self, EngineError> {
+        let kind = Self::parse(s).ok_or_else(|| {
+            EngineError::Input(format!("unknown engine {s:?} (this build has: {})", Self::available_names()))
+        })?;
+        if !kind.is_available() {
+            return Err(EngineError::Unavailable(kind.name().to_string()));
+        }
+        Ok(kind)
     }
     /// Whether this build contains the engine (its cargo feature of `diff-physics` is on).
     pub fn is_available(self) -> bool {

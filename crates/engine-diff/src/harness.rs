@@ -38,9 +38,9 @@ pub fn builtin_factories(names: &[String]) -> Result<Vec<Arc<dyn EngineFactory>>
     names
         .iter()
         .map(|n| {
-            EngineKind::parse(n.trim()).map(|k| Arc::new(BuiltinEngine(k)) as Arc<dyn EngineFactory>).ok_or_else(|| {
-                DiffError::Input(format!("unknown engine {n:?} (this build has: {})", EngineKind::available_names()))
-            })
+            EngineKind::parse_available(n.trim())
+                .map(|k| Arc::new(BuiltinEngine(k)) as Arc<dyn EngineFactory>)
+                .map_err(|e| DiffError::Input(e.to_string()))
         })
         .collect()
 }

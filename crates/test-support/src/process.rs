@@ -64,3 +64,9 @@ pub fn tail(s: &str) -> &str {
     let start = (start..s.len()).find(|&i| s.is_char_boundary(i)).unwrap_or(s.len());
     &s[start..]
 }
+
+/// Asks a child to stop as Ctrl-C would (SIGINT through `kill -INT`, so that no unsafe signal code is needed here),
+/// so that it can print its final account; returns whether the signal was delivered.
+pub fn interrupt(child: &Child) -> bool {
+    std::process::Command::new("kill").args(["-INT", &child.id().to_string()]).status().is_ok_and(|s| s.success())
+}

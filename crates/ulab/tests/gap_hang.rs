@@ -3,19 +3,22 @@
 //! plays a short `ulab gap excite` plan to it, then `ulab gap diagnose` on the recorded MCAP. The hung simulator
 //! and the diagnosing plant are the same model on the same stand, so the log must pass the rig-assumption check
 //! and no effect may be named: the only gap is DDS and scheduling timing.
+//!
+//! Nothing depends on the machine's speed (issue 21): the replay starts once both the simulator and the recorder
+//! subscribe to rt/lowcmd, and the recorder and simulator are stopped as Ctrl-C would once the replay is done.
 mod common;
-use common::{run_ulab, spawn_ulab, tail, wait_with_timeout, KillOnDrop};
+use common::{interrupt, lease_domain, run_ulab, spawn_ulab, tail, wait_with_timeout, KillOnDrop, RealtimeSlot};
 use std::path::Path;
 use std::time::Duration;
-
-const DOMAIN: &str = "184";
 
 fn spawn(args: &[&str]) -> KillOnDrop {
     KillOnDrop(Some(spawn_ulab(args)))
 }
 
+/// Stops a child as Ctrl-C would and collects its exit code and output.
 fn finish(mut p: KillOnDrop, timeout: Duration) -> (Option<i32>, String, String) {
     let child = p.0.take().expect("child");
+    interrupt(&child);
     let (status, out, err) = wait_with_timeout(child, timeout);
     (status.and_then(|s| s.code()), out, err)
 }
@@ -32,15 +35,21 @@ fn hung_sim_recording_is_diagnosed_without_a_confident_effect() {
         run_ulab(&["gap", "excite", "--duration", "6", "--rate", "100", "--out", &s(&plan)], Duration::from_secs(30));
     assert_eq!(code, Some(0), "excite failed:\n{o}\n{e}");
 
-    let sim = spawn(&["sim", "--hang", "--on-time-state", "--domain", DOMAIN, "--duration", "30", "--quiet"]);
-    let recorder = spawn(&["record", "--domain", DOMAIN, "--duration", "9", "--quiet", "--out", &s(&rec)]);
-    std::thread::sleep(Duration::from_millis(1000));
-    let (code, o, e) =
-        run_ulab(&["replay", &s(&plan), "--domain", DOMAIN, "--topics", "rt/lowcmd"], Duration::from_secs(30));
+    let _slot = RealtimeSlot::acquire();
+    let domain = lease_domain();
+    let d = domain.arg();
+    let sim = spawn(&["sim", "--hang", "--on-time-state", "--domain", &d, "--quiet"]);
+    let recorder = spawn(&["record", "--domain", &d, "--quiet", "--out", &s(&rec)]);
+    // The replay starts once both the simulator and the recorder subscribe to rt/lowcmd.
+    let (code, o, e) = run_ulab(
+        &["replay", &s(&plan), "--domain", &d, "--topics", "rt/lowcmd", "--min-readers", "2", "--wait-readers", "60"],
+        Duration::from_secs(180),
+    );
     assert_eq!(code, Some(0), "replay failed:\n{o}\n{e}");
-    let (code, o, e) = finish(recorder, Duration::from_secs(20));
+    assert!(!e.contains("publishing anyway"), "the replay started before both subscribers were there:\n{e}");
+    let (code, o, e) = finish(recorder, Duration::from_secs(60));
     assert_eq!(code, Some(0), "record failed:\n{o}\n{e}");
-    drop(sim);
+    drop(finish(sim, Duration::from_secs(60)));
 
     let (code, o, e) = run_ulab(
         &["gap", "diagnose", "--log", &s(&rec), "--out", &s(&out), "--format", "json", "--block", "0.5"],

@@ -75,8 +75,9 @@ fn bad_arguments_are_errors() {
     assert!(err.contains("random:SEED"), "{err}");
     let (code, _, err) = ulab(&["model", "inspect", "--robot", "nope", "--engine", "mujoco"]);
     assert_eq!(code, 2, "{err}");
-    let (code, _, err) = ulab(&["model", "check", "--engine", "bullet"]);
+    let (code, _, err) = ulab(&["model", "check", "--engine", "bogus"]);
     assert_eq!(code, 2, "{err}");
+    assert!(err.contains("unknown engine"), "{err}");
 }
 
 /// Issue 15: `ulab model check` passes on PhysX (f32 tolerances), and `ulab model inspect` shows PhysX's own

@@ -5,14 +5,23 @@
 //!   under a valid CRC (NaN, infinity, absurd gains, targets and torques, unknown mode);
 //! * subscribers (readers and whole participants, best-effort and reliable) joining and leaving.
 //!
-//! Throughout, our own reader checks that the bridge keeps publishing LowState at >= 90 % of
-//! the set rate, and that every LowState decodes, has a valid CRC and only finite values. At the
-//! end the bridge must exit 0 by itself (`--duration`), without a panic, and its final counters
-//! (`cmds received N accepted N rejected N bad-crc N malformed N`) must account for what was sent.
+//! Throughout, our own reader checks that the bridge keeps publishing LowState (ticks increasing,
+//! spaced by the 2 ms state period of the robot's clock), and that every LowState decodes, has a
+//! valid CRC and only finite values. At the end the bridge is stopped as Ctrl-C would and must exit
+//! 0 without a panic; its own account (`sim: summary {json}`) must show one state per 2 ms of
+//! simulated time and counters that account for what was sent.
+//!
+//! Nothing here depends on the machine's speed (issue 21): the stream is judged on the robot's
+//! clock and the bridge's counters; wall-clock rates are printed, never judged (they are benchmark
+//! figures: BENCHMARKS.md). Best-effort DDS may drop samples when a loaded machine deschedules the
+//! bridge, so counts are judged as "never more than sent, and at least a share", while the exact
+//! classification of every malformed and unsafe sample is tested transport-free in
+//! `sim-bridge/tests/bridge.rs`. Each test holds the machine-wide real-time slot and leases its
+//! DDS domain.
 
 mod common;
 
-use common::{wait_with_timeout, KillOnDrop};
+use common::{interrupt, lease_domain, sim_summary, wait_with_timeout, KillOnDrop, RealtimeSlot};
 use dds_transport::{DomainConfig, Family, Participant, RawWriter, ReaderOptions, Reliability, TopicSpec};
 use lowlevel_codec::{cdr, crc, validate, Encoding, Endianness, Representation};
 use std::process::{Command, ExitStatus, Stdio};
@@ -21,9 +30,6 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 use unitree_idl::{h1_2, hg};
-
-/// One simulator at a time: the 2-core machines cannot run two in real time.
-static SERIAL: Mutex<()> = Mutex::new(());
 
 const STATE_RATE: f64 = 500.0;
 /// Left elbow: light, so a wrongly applied command moves it quickly and visibly.
@@ -37,19 +43,10 @@ const ELBOW: usize = 16;
 struct Sim(KillOnDrop);
 
 impl Sim {
-    /// Starts `ulab sim --engine mujoco` on `domain` for `seconds` of wall time.
-    fn start(domain: u32, seconds: f64, extra: &[&str]) -> Sim {
+    /// Starts `ulab sim --engine mujoco` on `domain`, until [`Sim::finish`].
+    fn start(domain: u32, extra: &[&str]) -> Sim {
         let child = Command::new(env!("CARGO_BIN_EXE_ulab"))
-            .args([
-                "sim",
-                "--engine",
-                "mujoco",
-                "--domain",
-                &domain.to_string(),
-                "--duration",
-                &seconds.to_string(),
-                "--quiet",
-            ])
+            .args(["sim", "--engine", "mujoco", "--domain", &domain.to_string(), "--quiet"])
             .args(extra)
             .stdout(Stdio::null())
             .stderr(Stdio::piped())
@@ -62,19 +59,21 @@ impl Sim {
         self.0 .0.as_mut().is_some_and(|c| matches!(c.try_wait(), Ok(None)))
     }
 
-    /// Waits (bounded) for the bridge to end its `--duration`; returns its status and stderr.
+    /// Stops the bridge as Ctrl-C would and waits (bounded) for it to end; returns its status and stderr.
     fn finish(mut self, timeout: Duration) -> (Option<ExitStatus>, String) {
         let child = self.0 .0.take().expect("child");
+        interrupt(&child);
         let (status, _, err) = wait_with_timeout(child, timeout);
         (status, err)
     }
 }
 
-/// The bridge's final counters, parsed from its last stderr line.
+/// The bridge's final account (its `sim: summary` line).
 #[derive(Debug, Default)]
 struct Counters {
-    /// LowState the bridge published over its whole run, and that run's wall time (s).
+    /// LowState the bridge published over its whole run, and the simulated and wall time of that run (s).
     states: u64,
+    simulated_s: f64,
     wall_s: f64,
     received: u64,
     accepted: u64,
@@ -84,46 +83,43 @@ struct Counters {
 }
 
 fn counters(stderr: &str) -> Counters {
-    let line = stderr
-        .lines()
-        .rev()
-        .find(|l| l.contains("cmds received"))
-        .unwrap_or_else(|| panic!("no summary line in:\n{stderr}"));
-    let get = |key: &str| -> u64 {
-        let pat = format!(" {key} ");
-        let at = line.find(&pat).unwrap_or_else(|| panic!("`{key}` not in {line:?}")) + pat.len();
-        line[at..]
-            .split_whitespace()
-            .next()
-            .and_then(|n| n.parse().ok())
-            .unwrap_or_else(|| panic!("`{key}` in {line:?}"))
-    };
-    let wall_s = line
-        .split("stopped after ")
-        .nth(1)
-        .and_then(|r| r.split(" s wall").next())
-        .and_then(|w| w.parse().ok())
-        .unwrap_or_else(|| panic!("wall time in {line:?}"));
+    let v = sim_summary(stderr).unwrap_or_else(|| panic!("no summary line in:\n{stderr}"));
+    let c = &v["counters"];
+    let get = |key: &str| c[key].as_u64().unwrap_or_else(|| panic!("`{key}` in {v}"));
     Counters {
-        states: get("states"),
-        wall_s,
+        states: get("states_published"),
+        simulated_s: v["simulated_seconds"].as_f64().unwrap_or_else(|| panic!("simulated_seconds in {v}")),
+        wall_s: v["wall_seconds"].as_f64().unwrap_or_else(|| panic!("wall_seconds in {v}")),
         received: get("received"),
         accepted: get("accepted"),
         rejected: get("rejected"),
-        bad_crc: get("bad-crc"),
+        bad_crc: get("bad_crc"),
         malformed: get("malformed"),
     }
 }
 
-/// Common end-of-run checks: exited 0 by itself, no panic; returns the counters.
+/// Common end-of-run checks: exits 0 when stopped, no panic, one state per period of simulated time; returns the
+/// counters.
 fn finish_ok(sim: Sim, timeout: Duration) -> Counters {
     let (status, err) = sim.finish(timeout);
     assert!(!err.contains("panicked"), "bridge panicked:\n{err}");
-    assert!(status.is_some_and(|s| s.success()), "bridge did not exit 0 after --duration ({status:?}):\n{err}");
+    assert!(status.is_some_and(|s| s.success()), "bridge did not exit 0 when stopped ({status:?}):\n{err}");
     let c = counters(&err);
-    // The bridge's own count over its whole run (our reader's per-second check is above).
-    let rate = c.states as f64 / c.wall_s;
-    assert!(rate >= 0.9 * STATE_RATE, "bridge published {} LowState in {} s ({rate:.1} Hz)", c.states, c.wall_s);
+    let per_simulated_second = c.states as f64 / c.simulated_s;
+    assert!(
+        (per_simulated_second - STATE_RATE).abs() <= 0.01 * STATE_RATE,
+        "bridge published {} LowState in {:.2} s of simulated time ({per_simulated_second:.1} per simulated second)",
+        c.states,
+        c.simulated_s
+    );
+    eprintln!(
+        "bridge: {} LowState in {:.2} s simulated, {:.2} s wall ({:.1} Hz wall, {:.2}x real time)",
+        c.states,
+        c.simulated_s,
+        c.wall_s,
+        c.states as f64 / c.wall_s,
+        c.simulated_s / c.wall_s
+    );
     c
 }
 
@@ -139,6 +135,8 @@ struct Report {
     non_finite: usize,
     /// (arrival, left elbow q) of every LowState.
     elbow: Vec<(Instant, f32)>,
+    /// (arrival, tick) of every LowState.
+    ticks: Vec<(Instant, u32)>,
 }
 
 struct Monitor {
@@ -171,6 +169,7 @@ impl Monitor {
                     r.non_finite += 1;
                 }
                 r.elbow.push((now, d.value.motor_state[ELBOW].q));
+                r.ticks.push((now, d.value.tick));
                 *l.lock().unwrap_or_else(|e| e.into_inner()) = Some(d.value);
             }
             r
@@ -212,29 +211,43 @@ impl Report {
         );
     }
 
-    /// LowState rate in every whole second of [from, to) is at least 90 % of the set rate.
-    fn assert_rate(&self, from: Instant, to: Instant, what: &str) {
-        let mut t = from;
-        let mut windows = Vec::new();
-        while t + Duration::from_secs(1) <= to {
-            let end = t + Duration::from_secs(1);
-            let n = self.arrivals.iter().filter(|&&a| a >= t && a < end).count();
-            windows.push(n);
-            t = end;
-        }
-        assert!(!windows.is_empty(), "{what}: no whole second to measure");
-        eprintln!("{what}: LowState per second {windows:?}");
-        for (i, &n) in windows.iter().enumerate() {
-            assert!(
-                n as f64 >= 0.9 * STATE_RATE,
-                "{what}: second {i}: {n} LowState, set {STATE_RATE} Hz (all: {windows:?})"
-            );
-        }
+    /// The bridge kept publishing over [from, to): LowState arrived, their ticks increase, and they are spaced by
+    /// the state period on the robot's clock (a lost sample gives a multiple of it, a wrong rate another gcd). The
+    /// wall-clock rate is printed only.
+    fn assert_stream(&self, from: Instant, to: Instant, what: &str) {
+        let ticks: Vec<u32> = self.ticks.iter().filter(|(t, _)| *t >= from && *t < to).map(|(_, k)| *k).collect();
+        assert!(ticks.len() >= 10, "{what}: only {} LowState", ticks.len());
+        assert!(ticks.windows(2).all(|w| w[1] > w[0]), "{what}: LowState ticks not increasing");
+        let gcd = ticks.windows(2).map(|w| w[1] - w[0]).fold(0, gcd);
+        let period_ms = (1000.0 / STATE_RATE) as u32;
+        assert_eq!(gcd, period_ms, "{what}: LowState ticks spaced by a gcd of {gcd} ms, period {period_ms} ms");
+        let span = ticks[ticks.len() - 1] - ticks[0];
+        eprintln!(
+            "{what}: {} LowState over {span} ms of simulated time ({:.0} % of the states published), {:.1} Hz wall",
+            ticks.len(),
+            100.0 * (ticks.len() - 1) as f64 / (f64::from(span) / f64::from(period_ms)).max(1.0),
+            ticks.len() as f64 / (to - from).as_secs_f64()
+        );
     }
 
-    /// Largest |elbow q - reference| over LowState that arrived in [from, to).
-    fn elbow_excursion(&self, from: Instant, to: Instant, reference: f32) -> f32 {
-        self.elbow.iter().filter(|(t, _)| *t >= from && *t < to).map(|(_, q)| (q - reference).abs()).fold(0.0, f32::max)
+    /// Largest |elbow q - reference| over LowState that arrived before `to` and describe a time at least
+    /// `settle_ms` of simulated time after the first LowState that arrived at or after `from`.
+    fn elbow_excursion(&self, from: Instant, settle_ms: u32, to: Instant, reference: f32) -> f32 {
+        let Some(&(_, tick0)) = self.ticks.iter().find(|(t, _)| *t >= from) else { return f32::NAN };
+        self.elbow
+            .iter()
+            .zip(&self.ticks)
+            .filter(|((t, _), (_, k))| *t < to && k.wrapping_sub(tick0) >= settle_ms && *k >= tick0)
+            .map(|((_, q), _)| (q - reference).abs())
+            .fold(0.0, f32::max)
+    }
+}
+
+fn gcd(a: u32, b: u32) -> u32 {
+    if b == 0 {
+        a
+    } else {
+        gcd(b, a % b)
     }
 }
 
@@ -268,22 +281,33 @@ fn xcdr1(cmd: &hg::LowCmd_) -> Vec<u8> {
     cdr::encode(cmd, Encoding::UNITREE)
 }
 
-/// Sends `make()` at `rate` Hz for `seconds`, catching up after oversleeping so that the
-/// average rate holds even where the OS sleeps longer than the period. Returns samples sent.
+/// Sends `make(i)` for every i below `rate` x `seconds`, paced at `rate` Hz. It catches up after oversleeping, so
+/// every sample is sent however loaded the machine is; only the wall time it takes varies. Returns samples sent.
 fn send_at(writer: &RawWriter, rate: f64, seconds: f64, mut make: impl FnMut(u64) -> Vec<u8>) -> u64 {
+    let total = (rate * seconds).round() as u64;
     let start = Instant::now();
     let mut sent = 0u64;
-    loop {
-        let elapsed = start.elapsed().as_secs_f64();
-        if elapsed >= seconds {
-            return sent;
-        }
-        let due = (elapsed * rate).floor() as u64 + 1;
+    while sent < total {
+        let due = ((start.elapsed().as_secs_f64() * rate).floor() as u64 + 1).min(total);
         while sent < due {
             writer.write(&make(sent)).expect("write LowCmd");
             sent += 1;
         }
-        std::thread::sleep(Duration::from_secs_f64((due as f64 / rate - start.elapsed().as_secs_f64()).max(0.0)));
+        if sent < total {
+            std::thread::sleep(Duration::from_secs_f64((due as f64 / rate - start.elapsed().as_secs_f64()).max(0.0)));
+        }
+    }
+    sent
+}
+
+/// Sends `bytes` at 500 Hz until the robot's clock (LowState tick) has advanced `sim_ms` past `from_tick`, so that a
+/// bridge running slower than real time on a loaded machine gets the same simulated time to act (bounded by a
+/// generous wall-clock limit that only turns a stalled bridge into a failure).
+fn hold_until_tick(writer: &RawWriter, monitor: &Monitor, bytes: &[u8], from_tick: u32, sim_ms: u32) {
+    let give_up = Instant::now() + Duration::from_secs(120);
+    while monitor.latest().is_some_and(|s| s.tick.wrapping_sub(from_tick) < sim_ms) {
+        assert!(Instant::now() < give_up, "the bridge's clock did not advance {sim_ms} ms in 120 s");
+        send_at(writer, 500.0, 0.02, |_| bytes.to_vec());
     }
 }
 
@@ -293,9 +317,9 @@ fn connect(domain: u32) -> (Participant, Monitor, RawWriter, hg::LowState_) {
     let p = Participant::new(DomainConfig::loopback(domain)).expect("participant");
     let monitor = Monitor::start(&p);
     let writer = p.writer(&TopicSpec::lowcmd(Family::Hg)).expect("LowCmd writer");
-    let first = monitor.first(Duration::from_secs(20));
+    let first = monitor.first(common::PATIENCE);
     assert!(
-        writer.wait_for_readers(1, Duration::from_secs(10)).expect("matched status"),
+        writer.wait_for_readers(1, common::PATIENCE).expect("matched status"),
         "bridge's rt/lowcmd reader never matched"
     );
     (p, monitor, writer, first)
@@ -307,12 +331,12 @@ fn connect(domain: u32) -> (Participant, Monitor, RawWriter, hg::LowState_) {
 /// 5 kHz of valid commands (10x Unitree's 500 Hz control loop) for 3 s.
 #[test]
 fn flood_of_valid_commands_at_10x_rate() {
-    const DOMAIN: u32 = 72;
     const FLOOD_HZ: f64 = 5000.0;
     const FLOOD_S: f64 = 3.0;
-    let _guard = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let mut sim = Sim::start(DOMAIN, 9.0, &[]);
-    let (_p, monitor, writer, first) = connect(DOMAIN);
+    let _slot = RealtimeSlot::acquire();
+    let domain = lease_domain();
+    let mut sim = Sim::start(domain.id(), &[]);
+    let (_p, monitor, writer, first) = connect(domain.id());
 
     // The flood holds the pose but moves the left elbow by +0.3 rad: where the elbow ends
     // shows that the bridge kept applying the flood rather than just surviving it.
@@ -321,35 +345,42 @@ fn flood_of_valid_commands_at_10x_rate() {
     q[ELBOW] = elbow_target;
     let bytes = xcdr1(&hold_command(&q, first.mode_machine));
     let t0 = Instant::now();
+    let tick0 = monitor.latest().map_or(first.tick, |s| s.tick);
     let sent = send_at(&writer, FLOOD_HZ, FLOOD_S, |_| bytes.clone());
     let t1 = Instant::now();
     let achieved = sent as f64 / (t1 - t0).as_secs_f64();
+    // At least 1.5 s of simulated time since the flood began, for the elbow to get there (kp 120: ~0.3 s).
+    hold_until_tick(&writer, &monitor, &bytes, tick0, 1500);
     let elbow_end = monitor.latest().map(|s| s.motor_state[ELBOW].q).unwrap_or(f32::NAN);
     assert!(sim.alive(), "bridge died during the flood");
     let report = monitor.stop();
 
-    assert!(achieved >= 0.9 * FLOOD_HZ, "the test only reached {achieved:.0} commands/s");
+    // `send_at` catches up after oversleeping, so the count is FLOOD_HZ x FLOOD_S whatever the machine's load;
+    // the achieved wall rate is printed only.
+    assert!(sent as f64 >= FLOOD_HZ * FLOOD_S, "the flood sent only {sent} commands");
     report.assert_clean();
-    report.assert_rate(t0, t1, "during a 5 kHz flood");
+    report.assert_stream(t0, t1, "during a 5 kHz flood");
     assert!((elbow_end - elbow_target).abs() < 0.08, "elbow at {elbow_end:.3}, flood target {elbow_target:.3}");
 
     let c = finish_ok(sim, Duration::from_secs(20));
     eprintln!("flood: sent {sent} at {achieved:.0}/s; bridge {c:?}");
-    // Only valid commands were sent: none may be rejected; most must be taken (loopback and the
-    // bridge's best-effort reader may drop some of a 5 kHz stream, which the protocol allows).
+    // Only valid commands were sent: none may be rejected; they were taken (the elbow reached the flood's
+    // target above), never more than sent (the bridge's best-effort reader may drop some of a 5 kHz stream,
+    // which the protocol allows; the share is printed).
     assert_eq!((c.rejected, c.bad_crc, c.malformed), (0, 0, 0), "{c:?}");
-    assert!(c.accepted <= sent && c.accepted * 2 >= sent, "accepted {} of {sent} flood commands", c.accepted);
+    assert!(c.accepted > 0 && c.accepted <= sent, "accepted {} of {sent} flood commands", c.accepted);
+    eprintln!("flood: {:.1} % of the flood accepted", 100.0 * c.accepted as f64 / sent as f64);
 }
 
 /// Malformed samples and unsafe commands with a valid CRC: none applied, all counted.
 #[test]
 fn malformed_and_unsafe_commands_are_counted_and_never_applied() {
-    const DOMAIN: u32 = 73;
-    let _guard = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let _slot = RealtimeSlot::acquire();
+    let domain = lease_domain();
     // A long command timeout keeps the last valid hold active while only bad samples arrive,
     // so that the elbow would visibly move if any of them were applied.
-    let mut sim = Sim::start(DOMAIN, 11.0, &["--command-timeout", "30"]);
-    let (_p, monitor, writer, first) = connect(DOMAIN);
+    let mut sim = Sim::start(domain.id(), &["--command-timeout", "30"]);
+    let (_p, monitor, writer, first) = connect(domain.id());
     let q = current_q(&first);
     let hold = hold_command(&q, first.mode_machine);
 
@@ -445,10 +476,10 @@ fn malformed_and_unsafe_commands_are_counted_and_never_applied() {
     let report = monitor.stop();
 
     report.assert_clean();
-    report.assert_rate(t_unsafe, t_end, "during unsafe and malformed commands");
+    report.assert_stream(t_unsafe, t_end, "during unsafe and malformed commands");
     // Elbow held throughout (after 0.3 s for the switch from the bridge's initial standing
     // hold to this controller's gains): an applied unsafe command would pull it 0.8 rad away.
-    let excursion = report.elbow_excursion(t_valid + Duration::from_millis(300), t_end, q[ELBOW]);
+    let excursion = report.elbow_excursion(t_valid, 300, t_end, q[ELBOW]);
     eprintln!("elbow excursion from the hold: {excursion:.4} rad");
     assert!(
         excursion < 0.05,
@@ -461,9 +492,11 @@ fn malformed_and_unsafe_commands_are_counted_and_never_applied() {
         valid_sent + valid_sent_3
     );
     let valid = valid_sent + valid_sent_3;
-    // At 200-500 Hz on loopback nothing should be lost; allow 2 % for scheduling hiccups. More
-    // than was sent, in any counter, would be a counting bug.
-    let near = |got: u64, sent: u64| got <= sent && got * 100 >= sent * 98;
+    // At 200-500 Hz on a quiet loopback nothing is lost; a loaded machine that deschedules the bridge may drop
+    // best-effort samples, so each counter must hold at least half of what was sent (a bridge that loses or
+    // misfiles a whole kind fails) and never more (a counting bug). The exact per-sample classification is
+    // tested without DDS in sim-bridge/tests/bridge.rs.
+    let near = |got: u64, sent: u64| got <= sent && got * 2 >= sent;
     assert!(near(c.rejected, unsafe_sent), "rejected {} of {unsafe_sent} unsafe commands", c.rejected);
     assert!(near(c.malformed, malformed_sent), "malformed {} of {malformed_sent} malformed samples", c.malformed);
     assert!(near(c.accepted, valid), "accepted {} of {valid} valid commands (half of phase 1 in XCDR2)", c.accepted);
@@ -474,11 +507,11 @@ fn malformed_and_unsafe_commands_are_counted_and_never_applied() {
 /// Readers and participants join and leave while the bridge publishes.
 #[test]
 fn subscribers_joining_and_leaving() {
-    const DOMAIN: u32 = 74;
     const CHURN_S: f64 = 5.0;
-    let _guard = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let mut sim = Sim::start(DOMAIN, 10.0, &[]);
-    let (p, monitor, writer, first) = connect(DOMAIN);
+    let _slot = RealtimeSlot::acquire();
+    let domain = lease_domain();
+    let mut sim = Sim::start(domain.id(), &[]);
+    let (p, monitor, writer, first) = connect(domain.id());
     let hold = xcdr1(&hold_command(&current_q(&first), first.mode_machine));
 
     // Valid commands keep flowing at 500 Hz during the churn (a controller stays connected).
@@ -498,7 +531,7 @@ fn subscribers_joining_and_leaving() {
     // starting and stopping): this test binary again, running `churn_helper`.
     let helper = Command::new(std::env::current_exe().expect("test binary"))
         .args(["--ignored", "--exact", "churn_helper", "--nocapture", "--test-threads", "1"])
-        .env("ULAB_CHURN_DOMAIN", DOMAIN.to_string())
+        .env("ULAB_CHURN_DOMAIN", domain.arg())
         .env("ULAB_CHURN_SECONDS", CHURN_S.to_string())
         .stdout(Stdio::piped())
         .stderr(Stdio::null())
@@ -516,16 +549,16 @@ fn subscribers_joining_and_leaving() {
         match cycles % 4 {
             0 => {
                 let r = p.reader(&TopicSpec::lowstate(Family::Hg)).expect("reader");
-                received_by_churners += usize::from(r.take(Duration::from_millis(300)).is_some());
+                received_by_churners += usize::from(r.take(Duration::from_secs(5)).is_some());
             }
             1 => {
                 let r = p.reader_with(&TopicSpec::lowstate(Family::Hg), reliable).expect("reliable reader");
-                received_by_churners += usize::from(r.take(Duration::from_millis(300)).is_some());
+                received_by_churners += usize::from(r.take(Duration::from_secs(5)).is_some());
             }
             2 => {
-                let q = Participant::new(DomainConfig::loopback(DOMAIN)).expect("second participant");
+                let q = Participant::new(DomainConfig::loopback(domain.id())).expect("second participant");
                 let r = q.reader_with(&TopicSpec::lowstate(Family::Hg), reliable).expect("reader");
-                received_by_churners += usize::from(r.take(Duration::from_millis(300)).is_some());
+                received_by_churners += usize::from(r.take(Duration::from_secs(5)).is_some());
             }
             _ => {
                 let _r = p.reader(&TopicSpec::lowstate(Family::Hg)).expect("reader");
@@ -537,22 +570,22 @@ fn subscribers_joining_and_leaving() {
     let t1 = Instant::now();
     stop.store(true, Ordering::SeqCst);
     let commands = commander.join().expect("commander");
-    let (_, helper_out, _) = wait_with_timeout(helper, Duration::from_secs(20));
+    let (_, helper_out, _) = wait_with_timeout(helper, Duration::from_secs(120));
     assert!(sim.alive(), "bridge died during subscriber churn");
     let report = monitor.stop();
 
     report.assert_clean();
-    // Known, measured here: our monitor sees ~480/s during this churn while the bridge's own
-    // count (checked in finish_ok) stays at 500/s. Each reliable reader created or deleted in
-    // *this* process on the same domain costs the existing best-effort reader about one sample
-    // (receive side, our transport / Cyclone 11; churning a reliable reader every 2 ms starves
-    // it to a few samples/s). Churn in another process (the helper) costs nothing measurable.
-    report.assert_rate(t0, t1, "while subscribers join and leave");
-    // Readers that take were created 3 times in 4 cycles; each must have got data quickly.
+    // Known, measured on a quiet machine: our monitor sees ~480/s during this churn while the bridge publishes
+    // 500/s. Each reliable reader created or deleted in *this* process on the same domain costs the existing
+    // best-effort reader about one sample (receive side, our transport / Cyclone 11; churning a reliable reader
+    // every 2 ms starves it to a few samples/s). Churn in another process (the helper) costs nothing measurable.
+    report.assert_stream(t0, t1, "while subscribers join and leave");
+    // Readers that take were created 3 times in 4 cycles; nearly each must have got data (within a patient
+    // wait: on a healthy run the first sample arrives in milliseconds).
     let takers = (0..cycles).filter(|c| c % 4 != 3).count();
     assert!(
         received_by_churners * 10 >= takers * 9,
-        "only {received_by_churners} of {takers} new readers got a LowState within 300 ms"
+        "only {received_by_churners} of {takers} new readers got a LowState within 5 s"
     );
 
     // "CHURN cycles N got M": participants created in the helper, and how many got a LowState.
@@ -562,13 +595,13 @@ fn subscribers_joining_and_leaving() {
         .unwrap_or_else(|| panic!("churn helper output: {helper_out}"));
     let nums: Vec<usize> = helper_line.split_whitespace().filter_map(|w| w.parse().ok()).collect();
     let (helper_cycles, helper_got) = (nums.first().copied().unwrap_or(0), nums.get(1).copied().unwrap_or(0));
-    assert!(helper_cycles >= 3 && helper_got * 10 >= helper_cycles * 9, "churn helper: {helper_line}");
+    assert!(helper_cycles >= 2 && helper_got * 10 >= helper_cycles * 9, "churn helper: {helper_line}");
 
     let c = finish_ok(sim, Duration::from_secs(20));
     eprintln!("churn: {cycles} cycles here, {helper_line} in a second process, {commands} commands; bridge {c:?}");
-    assert!(cycles >= 10, "only {cycles} join/leave cycles");
+    assert!(cycles >= 4, "only {cycles} join/leave cycles");
     assert_eq!((c.rejected, c.bad_crc, c.malformed), (0, 0, 0), "{c:?}");
-    assert!(c.accepted * 100 >= commands * 98 && c.accepted <= commands, "accepted {} of {commands}", c.accepted);
+    assert!(c.accepted * 2 >= commands && c.accepted <= commands, "accepted {} of {commands}", c.accepted);
 }
 
 /// Not a test by itself: `subscribers_joining_and_leaving` runs this test binary again with
@@ -588,7 +621,7 @@ fn churn_helper() {
         let r = p
             .reader_with(&TopicSpec::lowstate(Family::Hg), ReaderOptions { reliability, ..ReaderOptions::default() })
             .expect("reader");
-        got += usize::from(r.take(Duration::from_secs(2)).is_some());
+        got += usize::from(r.take(Duration::from_secs(10)).is_some());
         cycles += 1;
     }
     println!("CHURN cycles {cycles} got {got}");

@@ -8,13 +8,18 @@
  * participant-index ports), subscribes hg LowState_ on rt/lowstate and publishes hg LowCmd_ on
  * rt/lowcmd, both with the idlc-generated types of hg_lowlevel.idl.
  *
- * 1. waits for LowState (bounded), then counts LowState over a 2 s window: rate, Unitree CRC
- *    valid (computed here, see unitree_crc32), finite values, increasing ticks;
- * 2. holds the current pose with PD on all 27 joints and moves the left elbow by +0.35 rad;
+ * 1. waits for LowState (bounded), then counts LowState over a 2 s window: Unitree CRC valid
+ *    (computed here, see unitree_crc32), finite values, increasing ticks, and the spacing of the
+ *    ticks (gcd of the deltas: the state period on the robot's clock); the wall-clock rate is
+ *    reported, never judged;
+ * 2. holds the current pose with PD on all 27 joints and moves the left elbow by +0.35 rad, for
+ *    2.5 s of SIMULATED time (LowState tick), so that a simulator running slower than real time on
+ *    a loaded machine gets the same time to move;
  * 3. keeps holding while also sending a command with a corrupted CRC that would move the left
- *    elbow 0.8 rad away: the simulator must ignore it.
- * Prints progress lines and, last, one line `RESULT {json}`. Every wait is bounded. Exit code 0
- * unless DDS itself failed (3) or the arguments are wrong (2).
+ *    elbow 0.8 rad away, for 1.5 s of simulated time: the simulator must ignore it.
+ * Prints progress lines and, last, one line `RESULT {json}`. Every wait is bounded (generous wall
+ * limits that only turn a stalled peer into an error). Exit code 0 unless DDS itself failed (3)
+ * or the arguments are wrong (2).
  */
 #include <math.h>
 #include <stdio.h>
@@ -72,6 +77,7 @@ static void die(const char *what, dds_return_t rc)
 static struct {
   long total, total_crc_bad, total_nonfinite, tick_regressions;
   long window, window_crc_ok;
+  uint32_t window_tick_gcd; /* gcd of tick deltas within the window */
   int have_latest;
   uint32_t last_tick;
   LowState latest;
@@ -99,6 +105,11 @@ static void on_state(const LowState *s)
   else st.total_crc_bad++;
   if (!all_finite(s)) st.total_nonfinite++;
   if (st.have_latest && s->tick <= st.last_tick) st.tick_regressions++;
+  if (st.have_latest && s->tick > st.last_tick && st.window > 1) {
+    uint32_t a = st.window_tick_gcd, b = s->tick - st.last_tick;
+    while (b) { uint32_t t = a % b; a = b; b = t; }
+    st.window_tick_gcd = a;
+  }
   st.last_tick = s->tick;
   st.latest = *s;
   st.have_latest = 1;
@@ -212,12 +223,14 @@ int main(int argc, char **argv)
   }
   pump_until(mono() + 0.3);
   st.window = st.window_crc_ok = 0;
+  st.window_tick_gcd = 0;
   long regressions_before = st.tick_regressions;
   double t0 = mono();
   pump_until(t0 + 2.0);
   double elapsed = mono() - t0;
   long window = st.window, window_crc_ok = st.window_crc_ok;
   int ticks_increasing = st.tick_regressions == regressions_before;
+  uint32_t tick_gcd = st.window_tick_gcd;
   uint8_t mode_machine = st.latest.mode_machine;
   printf("STATES window=%ld crc_ok=%ld rate=%.1f\n", window, window_crc_ok, window / elapsed);
   fflush(stdout);
@@ -230,14 +243,16 @@ int main(int argc, char **argv)
   make_command(&hold, targets, mode_machine);
   long writes = 0;
   double next = mono();
-  double end = next + 2.5;
-  while (mono() < end) {
+  double give_up = next + 120.0;
+  uint32_t tick0 = st.latest.tick;
+  while (st.latest.tick - tick0 < 2500 && mono() < give_up) {
     if ((rc = dds_write(wr, &hold)) < 0) die("write", rc);
     writes++;
     next += 0.002;
     pump_until(next);
   }
   float moved = st.latest.motor_state[ELBOW].q;
+  uint32_t hold_ms = st.latest.tick - tick0;
   printf("MOVED elbow start=%.4f target=%.4f final=%.4f\n", start[ELBOW], targets[ELBOW], moved);
   fflush(stdout);
 
@@ -249,8 +264,9 @@ int main(int argc, char **argv)
   corrupt.crc ^= 1u;
   long corrupt_writes = 0;
   next = mono();
-  end = next + 1.5;
-  while (mono() < end) {
+  give_up = next + 120.0;
+  tick0 = st.latest.tick;
+  while (st.latest.tick - tick0 < 1500 && mono() < give_up) {
     if ((rc = dds_write(wr, &hold)) < 0) die("write", rc);
     if ((rc = dds_write(wr, &corrupt)) < 0) die("write", rc);
     writes++;
@@ -259,6 +275,7 @@ int main(int argc, char **argv)
     pump_until(next);
   }
   float after = st.latest.motor_state[ELBOW].q;
+  uint32_t corrupt_ms = st.latest.tick - tick0;
 
   char f[8][32];
   fmt_float(f[0], sizeof f[0], start[ELBOW]);
@@ -270,13 +287,14 @@ int main(int argc, char **argv)
   fmt_float(f[6], sizeof f[6], st.latest.imu_state.rpy[1]);
   fmt_float(f[7], sizeof f[7], window / elapsed);
   printf("RESULT {\"version\":\"%s\",\"rate_hz\":%s,\"states\":%ld,\"crc_ok\":%ld,"
-         "\"ticks_increasing\":%s,\"mode_machine\":%u,"
+         "\"ticks_increasing\":%s,\"tick_gcd_ms\":%u,\"hold_ms\":%u,\"corrupt_ms\":%u,\"mode_machine\":%u,"
          "\"total_states\":%ld,\"total_crc_bad\":%ld,\"total_nonfinite\":%ld,\"tick_regressions\":%ld,"
          "\"valid_writes\":%ld,\"corrupt_writes\":%ld,"
          "\"move\":{\"slot\":%d,\"start\":%s,\"target\":%s,\"final\":%s},"
          "\"corrupted\":{\"slot\":%d,\"held_target\":%s,\"corrupt_target\":%s,\"final\":%s},"
          "\"rpy\":[%s,%s]}\n",
-         DDS_VERSION, f[7], window, window_crc_ok, ticks_increasing ? "true" : "false", (unsigned)mode_machine,
+         DDS_VERSION, f[7], window, window_crc_ok, ticks_increasing ? "true" : "false", (unsigned)tick_gcd,
+         (unsigned)hold_ms, (unsigned)corrupt_ms, (unsigned)mode_machine,
          st.total, st.total_crc_bad, st.total_nonfinite, st.tick_regressions, writes, corrupt_writes,
          ELBOW, f[0], f[1], f[2], ELBOW, f[1], f[3], f[4], f[5], f[6]);
   fflush(stdout);

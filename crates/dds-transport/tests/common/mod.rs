@@ -1,12 +1,13 @@
 //! Helpers shared by the interop tests: hg LowCmd_/LowState_ payloads through the project's codec
 //! (XCDR1 little-endian, as Unitree's SDK sends them), helper-process handling with hard timeouts.
-#![allow(dead_code)]
+#![allow(dead_code, unused_imports)]
 
 use lowlevel_codec::{cdr, Encoding};
 use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
+pub use test_support::{lease_domain, DomainLease, RealtimeSlot, PATIENCE};
 use unitree_idl::hg;
 
 /// Serialized size of hg LowCmd_ with its header.

@@ -100,8 +100,7 @@ fn load(robot: &str) -> Result<RobotModel> {
 }
 
 fn parse_engine(s: &str) -> Result<EngineKind> {
-    EngineKind::parse(s)
-        .with_context(|| format!("unknown engine {s:?} (this build has: {})", EngineKind::available_names()))
+    Ok(EngineKind::parse_available(s)?)
 }
 
 fn check(a: CheckArgs) -> Result<ExitCode> {

@@ -24,9 +24,13 @@ pub struct Args {
     /// Only these topics (default: all).
     #[arg(long, num_args = 1.., value_delimiter = ',')]
     pub topics: Vec<String>,
-    /// Before starting, wait up to this many seconds for every topic to have a subscriber.
+    /// Before starting, wait up to this many seconds for every topic to have `--min-readers` subscribers.
     #[arg(long, default_value_t = 5.0)]
     pub wait_readers: f64,
+    /// Subscribers each topic must have before the replay starts (e.g. 2: the robot and a recorder), waited for
+    /// up to `--wait-readers` seconds.
+    #[arg(long, default_value_t = 1)]
+    pub min_readers: u32,
 }
 
 struct Msg<'a> {
@@ -103,8 +107,12 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let wait_until = Instant::now() + Duration::from_secs_f64(args.wait_readers);
     for w in &writers {
         let left = wait_until.saturating_duration_since(Instant::now());
-        if !w.wait_for_readers(1, left)? {
-            eprintln!("warning: no subscriber on {} yet; publishing anyway", w.topic().name);
+        if !w.wait_for_readers(args.min_readers, left)? {
+            eprintln!(
+                "warning: fewer than {} subscriber(s) on {} yet; publishing anyway",
+                args.min_readers,
+                w.topic().name
+            );
         }
     }
     let first = msgs[0].log_time;
