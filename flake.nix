@@ -21,7 +21,8 @@
             (craneLib.filterCargoSources path type)
             || (builtins.match ".*(corpus|robots|snapshots)/.*" path != null);
         };
-        nativeBuildInputs = [ pkgs.cmake pkgs.pkg-config pkgs.rustPlatform.bindgenHook ];
+        # clang: physx-sys's build script compiles the vendored PhysX SDK with `clang++` (unless CXX is set).
+        nativeBuildInputs = [ pkgs.cmake pkgs.pkg-config pkgs.rustPlatform.bindgenHook pkgs.clang ];
         buildInputs = [ pkgs.mujoco pkgs.cyclonedds ];
         commonArgs = {
           inherit src nativeBuildInputs buildInputs;

@@ -10,6 +10,8 @@
 //! Loops: `engine` = `Engine::state()` + `pd_torques` + `Engine::step()`; `raw` = read `qpos`/`qvel` from
 //! `MjData` + the same PD + write `ctrl` + `mj_step` (no layer). Bullet (feature `bullet`) also has a raw loop:
 //! joint state straight from the btMultiBody + the same PD and the viscous damping the layer adds + one world step.
+//! PhysX (feature `physx`) too: joint positions/velocities from the articulation cache + the same PD (gains permuted
+//! to PhysX's DoF order once) + `jointForce` + `simulate`/`fetchResults` (no state conversion, no root read-back).
 //!
 //! Run: `source scripts/env.sh && CARGO_TARGET_DIR=target-model cargo bench -p diff-physics --features bullet --bench engines`
 use criterion::{criterion_group, Criterion};
@@ -132,6 +134,45 @@ fn run_raw_bullet(e: &mut diff_physics::bullet::BulletEngine, model: &RobotModel
     total
 }
 
+/// The same loop on PhysX's raw cache access (the engine is only used to reset, outside the timing).
+#[cfg(feature = "physx")]
+fn run_physx_raw(e: &mut diff_physics::physx::PhysxEngine, model: &RobotModel, s0: &State, iters: u64) -> Duration {
+    let slot = e.dof_joints().to_vec();
+    let t = PdTarget::hold_standing(model);
+    let perm = |v: &[f64]| slot.iter().map(|&j| v[j]).collect::<Vec<f64>>();
+    let target = PdTarget {
+        q_des: perm(&t.q_des),
+        dq_des: perm(&t.dq_des),
+        kp: perm(&t.kp),
+        kd: perm(&t.kd),
+        tau_ff: perm(&t.tau_ff),
+    };
+    let limits: Vec<f64> = slot.iter().map(|&j| model.joints[j].torque_limit).collect();
+    let nj = model.nj();
+    let (mut q, mut dq, mut tau) = (vec![0.0; nj], vec![0.0; nj], vec![0.0; nj]);
+    let mut total = Duration::ZERO;
+    let mut done = 0;
+    while done < iters {
+        if e.reset(s0).is_err() {
+            return Duration::MAX;
+        }
+        let n = RESET_EVERY.min(iters - done);
+        let t0 = Instant::now();
+        for _ in 0..n {
+            if e.raw_joints(&mut q, &mut dq).is_err() {
+                return Duration::MAX;
+            }
+            pd_torques_into(&target, &q, &dq, &limits, &mut tau);
+            if e.raw_step(&tau).is_err() {
+                return Duration::MAX;
+            }
+        }
+        total += t0.elapsed();
+        done += n;
+    }
+    total
+}
+
 fn mujoco(model: &RobotModel, zero_g: bool) -> MujocoEngine {
     MujocoEngine::new(model, &scenario(zero_g), &MujocoSettings::default()).expect("MuJoCo engine builds")
 }
@@ -176,6 +217,11 @@ fn summary() {
             .expect("Bullet engine builds");
         #[cfg(feature = "bullet")]
         let mut bullet_raw_rates = Vec::new();
+        #[cfg(feature = "physx")]
+        let mut physx_raw_e = diff_physics::physx::PhysxEngine::new(&model, &scenario(zero_g), &Default::default())
+            .expect("PhysX engine builds");
+        #[cfg(feature = "physx")]
+        let mut physx_raw_rates = Vec::new();
         let mut raw_rates = Vec::new();
         let mut rates: Vec<Vec<f64>> = vec![Vec::new(); engines.len()];
         for _ in 0..5 {
@@ -183,6 +229,8 @@ fn summary() {
             raw_rates.push(steps as f64 / t);
             #[cfg(feature = "bullet")]
             bullet_raw_rates.push(steps as f64 / run_raw_bullet(&mut bullet_raw, &model, &s0, steps).as_secs_f64());
+            #[cfg(feature = "physx")]
+            physx_raw_rates.push(steps as f64 / run_physx_raw(&mut physx_raw_e, &model, &s0, steps).as_secs_f64());
             for (i, (_, e)) in engines.iter_mut().enumerate() {
                 let t = run_engine(e.as_mut(), &model, &s0, steps).as_secs_f64();
                 rates[i].push(steps as f64 / t);
@@ -194,6 +242,11 @@ fn summary() {
         {
             let r = median(bullet_raw_rates);
             println!("| {name} | bullet raw btMultiBody | {r:.0} | {:.3} |", r / raw);
+        }
+        #[cfg(feature = "physx")]
+        {
+            let r = median(physx_raw_rates);
+            println!("| {name} | physx raw (articulation cache) | {r:.0} | {:.3} |", r / raw);
         }
         for ((label, _), r) in engines.iter().zip(rates) {
             let r = median(r);

@@ -32,6 +32,9 @@ pub mod bullet;
 // DART 6.12 through a C++ layer (cpp/dart_glue.cpp), feature `dart`.
 #[cfg(feature = "dart")]
 pub mod dart;
+// PhysX 5 reduced-coordinate articulation (f32), feature `physx`.
+#[cfg(feature = "physx")]
+pub mod physx;
 
 pub use engine::{CommonSettings, Contact, Energy, Engine, EngineError, EngineKind, LinkPose, State};
 pub use pd::{pd_torques, PdTarget};
@@ -60,6 +63,8 @@ pub fn make_engine(
         EngineKind::Bullet => Ok(Box::new(bullet::BulletEngine::new(model, common, &Default::default())?)),
         #[cfg(feature = "dart")]
         EngineKind::Dart => Ok(Box::new(dart::DartEngine::new(model, common, &dart::DartSettings::default())?)),
+        #[cfg(feature = "physx")]
+        EngineKind::Physx => Ok(Box::new(physx::PhysxEngine::new(model, common, &physx::PhysxSettings::default())?)),
         #[allow(unreachable_patterns)]
         other => Err(EngineError::Unavailable(other.name().to_string())),
     }

@@ -121,12 +121,28 @@ pub fn known_difference(engine: &str, check: &str) -> Option<&'static str> {
     if engine == "dart" {
         return crate::dart::known_difference(check);
     }
+    // PhysX (f32): reasons and measured figures live next to the engine (physx/mod.rs).
+    #[cfg(feature = "physx")]
+    if engine == "physx" {
+        return crate::physx::known_difference(check);
+    }
     let _ = (engine, check);
     None
 }
 
+/// The tolerance of a check for an engine: the stated one (derived for f64 arithmetic) unless the engine computes
+/// in lower precision, whose own derivation then applies (PhysX: f32, see `physx::f32_tolerance`).
+pub fn precision_tolerance(engine: &str, check: &str, tolerance: f64) -> f64 {
+    #[cfg(feature = "physx")]
+    if engine == "physx" {
+        return crate::physx::f32_tolerance(check, tolerance).unwrap_or(tolerance);
+    }
+    let _ = (engine, check);
+    tolerance
+}
+
 #[allow(clippy::too_many_arguments)]
-fn push(
+pub(crate) fn push(
     out: &mut Vec<CheckResult>,
     group: &str,
     name: &str,
@@ -136,6 +152,7 @@ fn push(
     unit: &str,
     note: &str,
 ) {
+    let tolerance = precision_tolerance(engine, name, tolerance);
     let passed = error.is_finite() && error <= tolerance;
     let known = if passed { None } else { known_difference(engine, name).map(str::to_string) };
     out.push(CheckResult {
@@ -238,6 +255,11 @@ pub fn run_checks(model: &RobotModel, kinds: &[EngineKind], opts: &CheckOptions)
         dynamics(model, k, opts, &mut checks);
         standing(model, k, opts, &mut checks);
         invariants(model, k, opts, &mut checks);
+        // PhysX's own inverse-dynamics API (floating base), against the same reference.
+        #[cfg(feature = "physx")]
+        if k == EngineKind::Physx {
+            crate::physx::native_checks(model, opts, &mut checks);
+        }
     }
     one_step_cross(model, &available, opts, &mut checks);
     Report {

@@ -29,7 +29,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use unitree_idl::{h1_2, hg};
 
-const ENGINES: [&str; 3] = ["mujoco", "rapier-multibody", "rapier-impulse"];
+const ENGINES: [&str; 4] = ["mujoco", "rapier-multibody", "rapier-impulse", "physx"];
 const STATE_RATE: f64 = 500.0;
 /// Probe motor: left wrist yaw (slot 19), a light joint far from the balance.
 const PROBE: usize = 19;

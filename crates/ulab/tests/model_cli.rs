@@ -151,3 +151,37 @@ fn bullet_checks_and_inspects_like_the_reference() {
     // Same tolerance as the oracle's analytic route (M rebuilt from accelerations: one extra inversion).
     assert!(diff / norm < 1e-8, "Bullet vs reference mass matrix: {}", diff / norm);
 }
+
+/// Issue 15: `ulab model check` passes on PhysX (f32 tolerances), and `ulab model inspect` shows PhysX's own
+/// mass matrix (built from its dense Jacobian) equal to the reference's within f32 rounding.
+#[test]
+fn check_and_inspect_physx() {
+    let (code, out, err) =
+        ulab(&["model", "check", "--robot", "h1_2", "--engine", "physx", "--format", "json", "--samples", "2"]);
+    assert_eq!(code, 0, "{out}\n{err}");
+    let r = json(&out);
+    assert_eq!(r["engines"][0]["name"], "physx");
+    assert_eq!(r["engines"][0]["settings"]["specific"]["solver"], "tgs");
+    let checks = r["checks"].as_array().expect("checks");
+    assert!(checks.iter().any(|c| c["name"] == "PhysX mass matrix, base free"), "PhysX's own checks missing");
+    for c in checks {
+        assert!(c["passed"] == true || c["known_difference"].is_string(), "{c}");
+    }
+    let inspect = |engine: &str| {
+        let (code, out, err) =
+            ulab(&["model", "inspect", "--robot", "h1_2", "--engine", engine, "--q", "random:5", "--format", "json"]);
+        assert_eq!(code, 0, "{err}");
+        let v = json(&out);
+        v["mass_matrix"]
+            .as_array()
+            .expect("rows")
+            .iter()
+            .flat_map(|r| r.as_array().expect("row").iter().map(|x| x.as_f64().expect("f64")))
+            .collect::<Vec<f64>>()
+    };
+    let (mp, mr) = (inspect("physx"), inspect("reference"));
+    let norm = mr.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let diff = mp.iter().zip(&mr).map(|(x, y)| (x - y) * (x - y)).sum::<f64>().sqrt();
+    // f32 Jacobian and inertias: <= ~8e-6 relative (derivation in diff_physics::physx::f32_tolerance).
+    assert!(diff / norm < 5e-5, "PhysX vs reference mass matrix: {}", diff / norm);
+}

@@ -1,6 +1,6 @@
 //! `ulab sim` driven by a controller on Cyclone DDS **0.10.2** (Debian's libddsc, the version
 //! inside Unitree's C++ SDK and on the robots), written in C against idlc-generated hg types
-//! (tests/clients/c010/sim_client.c), on loopback, with MuJoCo, Bullet and DART (engines with their own C++ layers):
+//! (tests/clients/c010/sim_client.c), on loopback, with MuJoCo, Bullet, DART and PhysX (engines with their own C++ layers):
 //! * the 0.10.2 participant, configured like Unitree SDK2 (interface only), discovers the bridge;
 //! * every LowState has a CRC valid by a C implementation of Unitree's CRC over the idlc C struct,
 //!   finite values, increasing ticks spaced by the state period of the robot's clock (2 ms); the
@@ -64,22 +64,8 @@ fn counter(line: &str, key: &str) -> u64 {
         .unwrap_or_else(|| panic!("`{key}` value in {line:?}"))
 }
 
-#[test]
-fn cyclone_0_10_2_client_drives_mujoco() {
-    check_engine("mujoco");
-}
-
-#[test]
-fn cyclone_0_10_2_client_drives_bullet() {
-    check_engine("bullet");
-}
-
-#[test]
-fn cyclone_0_10_2_client_drives_dart() {
-    check_engine("dart");
-}
-
-fn check_engine(engine: &str) {
+/// One run of the 0.10.2 client against `ulab sim --engine <engine>`.
+fn drive(engine: &str) {
     let client_bin = client_binary();
     let _slot = RealtimeSlot::acquire();
     let domain = lease_domain();
@@ -192,4 +178,24 @@ fn check_engine(engine: &str) {
         100.0 * accepted as f64 / valid.max(1) as f64,
         100.0 * bad_crc as f64 / corrupt.max(1) as f64
     );
+}
+
+#[test]
+fn cyclone_0_10_2_client_drives_mujoco() {
+    drive("mujoco");
+}
+
+#[test]
+fn cyclone_0_10_2_client_drives_physx() {
+    drive("physx");
+}
+
+#[test]
+fn cyclone_0_10_2_client_drives_bullet() {
+    drive("bullet");
+}
+
+#[test]
+fn cyclone_0_10_2_client_drives_dart() {
+    drive("dart");
 }

@@ -190,3 +190,8 @@ fn python_sdk_drives_bullet() {
 fn python_sdk_drives_dart() {
     check_engine("dart", false);
 }
+
+#[test]
+fn python_sdk_drives_physx() {
+    check_engine("physx", false);
+}
