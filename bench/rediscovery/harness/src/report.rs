@@ -94,6 +94,37 @@ pub fn markdown(all: &[Verdict], reference_engine: &str) -> String {
             bug.note
         );
     }
+    // Every cross-set version on every cross-set bug (when each bug appears and disappears).
+    let mut cross_engines: Vec<&str> = Vec::new();
+    for v in all {
+        let cross = crate::cross::CROSS_BUGS.iter().any(|b| b.id == v.bug);
+        if cross && !v.detail.starts_with("not run") && !cross_engines.contains(&v.engine.as_str()) {
+            cross_engines.push(&v.engine);
+        }
+    }
+    let _ = writeln!(s);
+    let _ = write!(s, "| bug |");
+    for e in &cross_engines {
+        let _ = write!(s, " {e} |");
+    }
+    let _ = writeln!(s);
+    let _ = writeln!(s, "|---|{}", "---|".repeat(cross_engines.len()));
+    for bug in &crate::cross::CROSS_BUGS {
+        let _ = write!(s, "| {} |", bug.id);
+        for e in &cross_engines {
+            let c = find(all, e, bug.id).filter(|v| !v.detail.starts_with("not run")).map_or("-".to_string(), |v| {
+                if v.flagged {
+                    "**F**".to_string()
+                } else {
+                    "q".to_string()
+                }
+            });
+            let _ = write!(s, " {c} |");
+        }
+        let _ = writeln!(s);
+    }
+    let _ = writeln!(s);
+    let _ = writeln!(s, "(F: flagged, q: quiet, -: scene not run on that engine.)");
     let found = BUGS
         .iter()
         .map(|b| (format!("rapier3d {}", b.last_bad), format!("rapier3d {}", b.first_good), b.id))
