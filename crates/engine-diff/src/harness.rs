@@ -394,6 +394,8 @@ struct InvariantState {
     energy_start: Vec<f64>,
     work: Vec<f64>,
     abs_work: Vec<f64>,
+    /// Per engine: centre-of-mass positions of the current run of contact-free steps (free-fall check).
+    free_com: Vec<Vec<[f64; 3]>>,
 }
 
 fn note(inv: &mut InvariantState, e: usize, what: &'static str, value: f64, bound: f64) {
@@ -452,9 +454,11 @@ fn simulate_window(
         energy_start: vec![0.0; ne],
         work: vec![0.0; ne],
         abs_work: vec![0.0; ne],
+        free_com: vec![Vec::new(); ne],
         ..Default::default()
     };
     let mut engine_time = Duration::ZERO;
+    let gravity = engines.first().map_or([0.0, 0.0, -robot_model::GRAVITY_EARTH], |e| e.common().gravity);
     for (i, e) in engines.iter_mut().enumerate() {
         e.reset(&input.start)?;
         inv.energy_start[i] = e.energy().total();
@@ -495,6 +499,21 @@ fn simulate_window(
             inv.abs_work[i] +=
                 tau.iter().zip(after.q.iter().zip(&st.q)).map(|(t, (a, b))| (t * (a - b)).abs()).sum::<f64>();
             check_step(&mut inv, i, e.as_ref(), &after, &joint_limits);
+            // Free fall: three consecutive contact-free samples without a push in between.
+            if e.contacts().is_empty() && pushes.is_empty() {
+                let c = e.com();
+                let h = &mut inv.free_com[i];
+                h.push(c);
+                if h.len() >= 3 {
+                    let n = h.len();
+                    // Judged against the lead's gravity: the world every engine is supposed to simulate.
+                    let err = physics_invariants::free_fall_error([h[n - 3], h[n - 2], h[n - 1]], dt, gravity);
+                    let g = gravity.iter().map(|x| x * x).sum::<f64>().sqrt();
+                    note(&mut inv, i, names::FREE_FALL, err, physics_invariants::FREE_FALL_ACCEL_TOL_FRACTION * g);
+                }
+            } else {
+                inv.free_com[i].clear();
+            }
             if s == 0 {
                 after_one.push((after.clone(), e.link_poses()));
             }

@@ -132,8 +132,14 @@ pub fn allow_usage(allow: &AllowList, episodes: &[EpisodeResult]) -> Vec<AllowUs
         .iter()
         .map(|entry| {
             let one = AllowList { entries: vec![AllowEntry { max_ratio: f64::INFINITY, ..entry.clone() }] };
-            let mut u =
-                AllowUsage { id: entry.id.clone(), findings: 0, groups: 0, max_ratio: 0.0, cap: entry.max_ratio, over_cap: 0 };
+            let mut u = AllowUsage {
+                id: entry.id.clone(),
+                findings: 0,
+                groups: 0,
+                max_ratio: 0.0,
+                cap: entry.max_ratio,
+                over_cap: 0,
+            };
             let mut groups = std::collections::BTreeSet::new();
             for f in episodes.iter().flat_map(|e| e.findings.iter()) {
                 // Covered by this entry's scope at all (ignoring the cap), and first in the list to match?

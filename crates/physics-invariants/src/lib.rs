@@ -14,6 +14,9 @@
 //! - cross-engine: the largest plausible difference in contact acceleration between two engines (soft vs hard
 //!   contact at touch-down) is 2.5 g; one step: base velocity Δv ≤ 2.5·g·dt, joint and base angular velocity
 //!   10× that (≲ 0.1 m lever arms); k steps: link positions ½·2.5·g·(k·dt)²;
+//! - free fall: with no contact, gravity is the only external force, so the centre of mass accelerates at
+//!   exactly g (joint torques, joint constraints and friction are internal); integrators reproduce a constant
+//!   force exactly, so |a_com − g| ≤ 0.25·|g| leaves room only for position corrections of joint constraints;
 //! - dynamics with an analytic route: relative error ≤ 1e-8 (the H1-2 mass matrix has condition ~1e5, so
 //!   solving loses ≤ 5 of 16 digits), as `diff_physics::oracle::dynamics` uses.
 #![forbid(unsafe_code)]
@@ -28,6 +31,8 @@ pub const QUAT_NORM_TOL: f64 = 1e-6;
 pub const PENETRATION_MAX: f64 = 0.02;
 /// Largest allowed joint-limit overrun (rad).
 pub const JOINT_LIMIT_OVERRUN_MAX: f64 = 0.05;
+/// Allowed deviation of the free-fall centre-of-mass acceleration from gravity, as a fraction of |g|.
+pub const FREE_FALL_ACCEL_TOL_FRACTION: f64 = 0.25;
 /// Relative tolerance of analytic dynamics (mass matrix, bias forces, inverse dynamics) against a reference.
 pub const DYNAMICS_REL_TOL: f64 = 1e-8;
 /// The contact-acceleration difference two plausible engines may show (2.5 g).
@@ -42,6 +47,7 @@ pub mod names {
     pub const ENERGY: &str = "energy created beyond actuator work (J)";
     pub const NON_FINITE: &str = "non-finite state";
     pub const INVERSE_DYNAMICS: &str = "inverse dynamics vs reference (rel)";
+    pub const FREE_FALL: &str = "free-fall COM acceleration error (m/s²)";
 }
 
 /// `value > bound`, with NaN counting as exceeding.
@@ -75,6 +81,11 @@ impl Bounds {
             k_step_link_pos: 0.5 * a * tw * tw,
         }
     }
+}
+
+/// |a − g| for the centre-of-mass positions `c` at three consecutive steps `dt` apart (second difference).
+pub fn free_fall_error(c: [[f64; 3]; 3], dt: f64, gravity: [f64; 3]) -> f64 {
+    (0..3).map(|k| ((c[2][k] - 2.0 * c[1][k] + c[0][k]) / (dt * dt) - gravity[k]).powi(2)).sum::<f64>().sqrt()
 }
 
 /// Lowest world z of a box with half-extents `half`, centred at `pos`, oriented by the unit quaternion
@@ -134,6 +145,25 @@ mod tests {
         let b = Bounds::new(0.002, 50);
         assert!((b.one_step_base_lin_vel - 2.5 * 9.81 * 0.002).abs() < 1e-15);
         assert!((b.k_step_link_pos - 0.5 * 2.5 * 9.81 * 0.01).abs() < 1e-12);
+    }
+
+    #[test]
+    fn free_fall_of_a_point_is_exact() {
+        let g = [0.0, 0.0, -9.81];
+        let dt = 0.002;
+        // Semi-implicit Euler from v0: every second difference is g·dt².
+        let (mut x, mut v) = ([0.0, 0.0, 1.0], [0.3, 0.0, 0.5]);
+        let mut c = Vec::new();
+        for _ in 0..3 {
+            for k in 0..3 {
+                v[k] += g[k] * dt;
+                x[k] += v[k] * dt;
+            }
+            c.push(x);
+        }
+        assert!(free_fall_error([c[0], c[1], c[2]], dt, g) < 1e-9);
+        // Gravity pointing up is off by 2 g.
+        assert!((free_fall_error([c[0], c[1], c[2]], dt, [0.0, 0.0, 9.81]) - 2.0 * 9.81).abs() < 1e-6);
     }
 
     #[test]
