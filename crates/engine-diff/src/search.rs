@@ -107,6 +107,8 @@ pub struct SearchOutcome {
     /// Of those, groups with at least one finding the allow-list does not cover (candidate bugs before the
     /// translation check).
     pub unexplained_groups: usize,
+    /// Those groups, with the largest ratio seen in each: (kind, engine, quantity, phase, ratio).
+    pub unexplained: Vec<(String, String, String, String, f64)>,
     /// Best score after each rollout (the search's progress curve).
     pub best_so_far: Vec<f64>,
     pub best_scenario: Option<Scenario>,
@@ -120,7 +122,7 @@ struct Tally {
     best_score: f64,
     max_divergence: f64,
     groups: BTreeSet<(String, String, String, String)>,
-    unexplained: BTreeSet<(String, String, String, String)>,
+    unexplained: std::collections::BTreeMap<(String, String, String, String), f64>,
     best_so_far: Vec<f64>,
     best: Option<Scenario>,
 }
@@ -136,7 +138,8 @@ impl Tally {
                 for f in &r.findings {
                     self.groups.insert(f.group_key());
                     if allow.matching(f).is_none() {
-                        self.unexplained.insert(f.group_key());
+                        let r = self.unexplained.entry(f.group_key()).or_insert(0.0);
+                        *r = r.max(f.ratio());
                     }
                 }
                 if score > self.best_score || self.best.is_none() {
@@ -163,6 +166,7 @@ impl Tally {
             max_divergence: self.max_divergence,
             finding_groups: self.groups.len(),
             unexplained_groups: self.unexplained.len(),
+            unexplained: self.unexplained.into_iter().map(|((k, e, q, p), r)| (k, e, q, p, r)).collect(),
             best_so_far: self.best_so_far,
             best_scenario: self.best,
             wall_s,
