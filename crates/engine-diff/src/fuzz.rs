@@ -67,6 +67,21 @@ pub fn fuzz(
     seeds: Vec<Scenario>,
     progress: &(dyn Fn(usize) + Sync),
 ) -> Result<FuzzOutcome, DiffError> {
+    fuzz_with_observer(model, factories, ctrl, cfg, fcfg, seeds, progress, &|_| {})
+}
+
+/// [`fuzz`], also handing every evaluated rollout to `observe` (the search comparison tallies them all).
+#[allow(clippy::too_many_arguments)]
+pub fn fuzz_with_observer(
+    model: &RobotModel,
+    factories: &[Arc<dyn EngineFactory>],
+    ctrl: &ControllerFactory,
+    cfg: &HarnessConfig,
+    fcfg: &FuzzConfig,
+    seeds: Vec<Scenario>,
+    progress: &(dyn Fn(usize) + Sync),
+    observe: &(dyn Fn(&Result<EpisodeResult, DiffError>) + Sync),
+) -> Result<FuzzOutcome, DiffError> {
     if seeds.is_empty() {
         return Err(DiffError::Input("fuzzing needs at least one seed scenario".into()));
     }
@@ -76,6 +91,7 @@ pub fn fuzz(
     let done = std::sync::atomic::AtomicUsize::new(0);
     let eval = |s: &Scenario| {
         let r = harness::run_episode(model, factories, ctrl, s, &cfg);
+        observe(&r);
         progress(done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1);
         r
     };

@@ -4,6 +4,7 @@ use crate::scenario::Scenario;
 use crate::DiffError;
 use diff_physics::pd::pd_torques_into;
 use diff_physics::{make_engine, CommonSettings, Contact, Engine, EngineError, EngineKind, LinkPose, PdTarget, State};
+use physics_invariants::names;
 use policy_runtime::{Controller, RobotObservation};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -80,11 +81,7 @@ pub struct Div {
     pub base_ang_vel: f64,
 }
 
-/// `value > bound`, with NaN counting as exceeding.
-#[allow(clippy::neg_cmp_op_on_partial_ord)]
-pub fn exceeds(value: f64, bound: f64) -> bool {
-    !(value <= bound)
-}
+pub use physics_invariants::exceeds;
 
 fn max_of(v: &[f64]) -> f64 {
     v.iter().copied().fold(0.0, f64::max)
@@ -118,37 +115,18 @@ impl Div {
     }
 }
 
-/// The bounds a divergence is compared with, derived from the largest plausible difference in contact
-/// acceleration between engines (soft vs hard contact at touch-down): 2.5 g, as in
-/// `diff_physics::oracle::one_step_cross`. One step: base velocity Δv ≤ 2.5·g·dt, joint and base angular
-/// velocities 10× that (≲ 0.1 m lever arms). k steps: link positions ½·2.5·g·(k·dt)².
-#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
-pub struct Bounds {
-    pub one_step_base_lin_vel: f64,
-    pub one_step_joint_vel: f64,
-    pub one_step_base_ang_vel: f64,
-    pub k_step_link_pos: f64,
-}
+/// The bounds a divergence is compared with: `physics_invariants::Bounds` (2.5 g contact-acceleration gap; one
+/// step: base velocity Δv ≤ 2.5·g·dt, joint and base angular velocities 10× that; k steps: link positions
+/// ½·2.5·g·(k·dt)²), shared with the rediscovery bench.
+pub use physics_invariants::Bounds;
 
-impl Bounds {
-    pub fn new(dt: f64, k: usize) -> Self {
-        let a = 2.5 * robot_model::GRAVITY_EARTH;
-        let tw = dt * k as f64;
-        Bounds {
-            one_step_base_lin_vel: a * dt,
-            one_step_joint_vel: 10.0 * a * dt,
-            one_step_base_ang_vel: 10.0 * a * dt,
-            k_step_link_pos: 0.5 * a * tw * tw,
-        }
-    }
-    /// (quantity, value, bound) of the one-step checks.
-    pub fn one_step(&self, d: &Div) -> [(&'static str, f64, f64); 3] {
-        [
-            ("base linear velocity", d.base_lin_vel, self.one_step_base_lin_vel),
-            ("joint velocity", d.max_dq(), self.one_step_joint_vel),
-            ("base angular velocity", d.base_ang_vel, self.one_step_base_ang_vel),
-        ]
-    }
+/// (quantity, value, bound) of the one-step checks of a divergence.
+pub fn one_step_checks(b: &Bounds, d: &Div) -> [(&'static str, f64, f64); 3] {
+    [
+        ("base linear velocity", d.base_lin_vel, b.one_step_base_lin_vel),
+        ("joint velocity", d.max_dq(), b.one_step_joint_vel),
+        ("base angular velocity", d.base_ang_vel, b.one_step_base_ang_vel),
+    ]
 }
 
 /// Everything needed to replay one window in any engine: the start state, the targets that become active at
@@ -259,7 +237,7 @@ impl EpisodeResult {
         self.windows
             .iter()
             .flat_map(|w| w.divs.iter())
-            .flat_map(|d| b.one_step(&d.one_step).map(|(_, v, bd)| v / bd))
+            .flat_map(|d| one_step_checks(&b, &d.one_step).map(|(_, v, bd)| v / bd))
             .fold(0.0, f64::max)
     }
 }
@@ -408,21 +386,17 @@ fn apply_push(e: &mut dyn Engine, dv: [f64; 3]) -> Result<(), EngineError> {
     e.reset(&st)
 }
 
-/// Per-engine invariants checked every step. Tolerances: quaternion norm 1e-6 (engines renormalise every
-/// step; a drift above this means an unnormalised integration), contact forces finite and ≥ 0, penetration
-/// ≤ 2 cm (a 70 kg robot on soft contacts sinks millimetres), joint-limit overrun ≤ 0.05 rad (soft limits
-/// give way by ~0.01 rad under full torque).
+/// Per-engine invariants checked every step, with the thresholds of `physics_invariants` (derivations there):
+/// quaternion norm, contact forces finite and ≥ 0, penetration, joint-limit overrun; passivity per window.
 #[derive(Debug, Default)]
 struct InvariantState {
     worst: std::collections::BTreeMap<(usize, &'static str), (f64, f64)>,
     energy_start: Vec<f64>,
     work: Vec<f64>,
     abs_work: Vec<f64>,
+    /// Per engine: centre-of-mass positions of the current run of contact-free steps (free-fall check).
+    free_com: Vec<Vec<[f64; 3]>>,
 }
-
-const INV_QUAT: f64 = 1e-6;
-const INV_PENETRATION: f64 = 0.02;
-const INV_LIMIT: f64 = 0.05;
 
 fn note(inv: &mut InvariantState, e: usize, what: &'static str, value: f64, bound: f64) {
     let v = if value.is_nan() { f64::INFINITY } else { value };
@@ -436,15 +410,15 @@ fn note(inv: &mut InvariantState, e: usize, what: &'static str, value: f64, boun
 
 fn check_step(inv: &mut InvariantState, i: usize, e: &dyn Engine, st: &State, limits: &[(f64, f64)]) {
     let n: f64 = st.base_quat.iter().map(|x| x * x).sum::<f64>().sqrt();
-    note(inv, i, "quaternion norm", (n - 1.0).abs(), INV_QUAT);
+    note(inv, i, names::QUAT_NORM, (n - 1.0).abs(), physics_invariants::QUAT_NORM_TOL);
     for c in e.contacts() {
         if !c.normal_force.is_finite() || c.normal_force < 0.0 {
-            note(inv, i, "contact normal force ≥ 0", c.normal_force.abs().max(1e-300), 0.0);
+            note(inv, i, names::CONTACT_FORCE, c.normal_force.abs().max(1e-300), 0.0);
         }
-        note(inv, i, "penetration depth", c.depth, INV_PENETRATION);
+        note(inv, i, names::PENETRATION, c.depth, physics_invariants::PENETRATION_MAX);
     }
     let over = st.q.iter().zip(limits).map(|(q, (lo, hi))| (lo - q).max(q - hi)).fold(0.0, f64::max);
-    note(inv, i, "joint limit overrun", over, INV_LIMIT);
+    note(inv, i, names::JOINT_LIMIT, over, physics_invariants::JOINT_LIMIT_OVERRUN_MAX);
 }
 
 /// The result of simulating one window in every engine.
@@ -480,9 +454,11 @@ fn simulate_window(
         energy_start: vec![0.0; ne],
         work: vec![0.0; ne],
         abs_work: vec![0.0; ne],
+        free_com: vec![Vec::new(); ne],
         ..Default::default()
     };
     let mut engine_time = Duration::ZERO;
+    let gravity = engines.first().map_or([0.0, 0.0, -robot_model::GRAVITY_EARTH], |e| e.common().gravity);
     for (i, e) in engines.iter_mut().enumerate() {
         e.reset(&input.start)?;
         inv.energy_start[i] = e.energy().total();
@@ -523,6 +499,21 @@ fn simulate_window(
             inv.abs_work[i] +=
                 tau.iter().zip(after.q.iter().zip(&st.q)).map(|(t, (a, b))| (t * (a - b)).abs()).sum::<f64>();
             check_step(&mut inv, i, e.as_ref(), &after, &joint_limits);
+            // Free fall: three consecutive contact-free samples without a push in between.
+            if e.contacts().is_empty() && pushes.is_empty() {
+                let c = e.com();
+                let h = &mut inv.free_com[i];
+                h.push(c);
+                if h.len() >= 3 {
+                    let n = h.len();
+                    // Judged against the lead's gravity: the world every engine is supposed to simulate.
+                    let err = physics_invariants::free_fall_error([h[n - 3], h[n - 2], h[n - 1]], dt, gravity);
+                    let g = gravity.iter().map(|x| x * x).sum::<f64>().sqrt();
+                    note(&mut inv, i, names::FREE_FALL, err, physics_invariants::FREE_FALL_ACCEL_TOL_FRACTION * g);
+                }
+            } else {
+                inv.free_com[i].clear();
+            }
             if s == 0 {
                 after_one.push((after.clone(), e.link_poses()));
             }
@@ -542,8 +533,8 @@ fn simulate_window(
     // gross actuator work (the discrete work estimate uses τ held over the step: O(dt) relative error).
     for (i, e) in engines.iter_mut().enumerate() {
         let gain = e.energy().total() - inv.energy_start[i] - inv.work[i];
-        let tol = 1.0 + 0.05 * inv.abs_work[i];
-        note(&mut inv, i, "energy created beyond actuator work (J)", gain, tol);
+        let tol = physics_invariants::energy_tolerance(inv.abs_work[i]);
+        note(&mut inv, i, names::ENERGY, gain, tol);
     }
     let mut invariants = vec![Vec::new(); ne];
     for ((i, what), (v, b)) in inv.worst {
@@ -650,7 +641,7 @@ pub fn run_episode_on(
         for i in 1..engines.len() {
             let one = Div::between(&run.after_one[0].0, &run.after_one[0].1, &run.after_one[i].0, &run.after_one[i].1);
             let kd = Div::between(&run.after_k[0].0, &run.after_k[0].1, &run.after_k[i].0, &run.after_k[i].1);
-            for (q, v, b) in bounds.one_step(&one) {
+            for (q, v, b) in one_step_checks(&bounds, &one) {
                 if exceeds(v, b) {
                     findings.push(mk("one_step_bound", &names[i], q, v, b));
                 }

@@ -22,6 +22,7 @@ pub mod harness;
 pub mod report;
 pub mod repro;
 pub mod scenario;
+pub mod search;
 pub mod triage;
 
 use thiserror::Error;

@@ -2,7 +2,7 @@
 //! entries and their reproducers.
 use crate::harness::{Bounds, ControllerFactory, EngineFactory, EpisodeResult, Finding, HarnessConfig, Timing};
 use crate::repro::{EngineInfo, Reproducer};
-use crate::triage::{self, AllowList, Class};
+use crate::triage::{self, AllowEntry, AllowList, Class};
 use crate::{io_err, DiffError, SCHEMA_VERSION};
 use robot_model::RobotModel;
 use serde::Serialize;
@@ -108,6 +108,60 @@ pub struct Entry {
     pub minimization_note: Option<String>,
 }
 
+/// What one allow-list entry absorbed over the whole run (every finding, not only each group's worst): how much
+/// of the run it explains, and how close the absorbed findings came to its cap.
+#[derive(Debug, Clone, Serialize)]
+pub struct AllowUsage {
+    pub id: String,
+    /// Findings the entry covers.
+    pub findings: usize,
+    /// Finding groups (kind, engine, quantity, phase) with at least one covered finding.
+    pub groups: usize,
+    /// Largest ratio (value / bound) among the covered findings.
+    pub max_ratio: f64,
+    /// The entry's cap.
+    pub cap: f64,
+    /// Findings of the entry's engines, kinds, quantities and phases that exceeded the cap (candidate bugs).
+    pub over_cap: usize,
+}
+
+/// Per-entry usage of the allow-list over `episodes`.
+pub fn allow_usage(allow: &AllowList, episodes: &[EpisodeResult]) -> Vec<AllowUsage> {
+    allow
+        .entries
+        .iter()
+        .map(|entry| {
+            let one = AllowList { entries: vec![AllowEntry { max_ratio: f64::INFINITY, ..entry.clone() }] };
+            let mut u = AllowUsage {
+                id: entry.id.clone(),
+                findings: 0,
+                groups: 0,
+                max_ratio: 0.0,
+                cap: entry.max_ratio,
+                over_cap: 0,
+            };
+            let mut groups = std::collections::BTreeSet::new();
+            for f in episodes.iter().flat_map(|e| e.findings.iter()) {
+                // Covered by this entry's scope at all (ignoring the cap), and first in the list to match?
+                if one.matching(f).is_none() {
+                    continue;
+                }
+                match allow.matching(f) {
+                    Some(m) if m.id == entry.id => {
+                        u.findings += 1;
+                        u.max_ratio = u.max_ratio.max(f.ratio());
+                        groups.insert(f.group_key());
+                    }
+                    None => u.over_cap += 1,
+                    Some(_) => {}
+                }
+            }
+            u.groups = groups.len();
+            u
+        })
+        .collect()
+}
+
 /// The whole report.
 #[derive(Debug, Clone, Serialize)]
 pub struct Report {
@@ -126,6 +180,8 @@ pub struct Report {
     pub outcomes: Vec<OutcomeDistribution>,
     pub entries: Vec<Entry>,
     pub allow_list: AllowList,
+    /// What each allow-list entry absorbed.
+    pub allow_usage: Vec<AllowUsage>,
     pub timing: Timing,
 }
 
@@ -371,6 +427,7 @@ pub fn analyse(a: &Analysis<'_>, episodes: &[EpisodeResult]) -> Result<(Report, 
         outcomes,
         entries,
         allow_list: a.allow.clone(),
+        allow_usage: allow_usage(a.allow, episodes),
         timing,
     };
     Ok((report, repros))
@@ -503,6 +560,18 @@ impl Report {
                     Class::CandidateEngineBug => s += &format!("- {}: no translation problem, no allow-list entry: candidate engine bug (replay: `ulab diff replay DIR/{}`)\n", e.id, e.minimized.as_ref().map(|m| m.reproducer.as_str()).unwrap_or("-")),
                 }
             }
+        }
+        s += "\n## Allow-list usage\n\n| entry | findings absorbed | groups | largest ratio absorbed | cap | in scope but over the cap |\n|---|---|---|---|---|---|\n";
+        for u in &self.allow_usage {
+            s += &format!(
+                "| `{}` | {} | {} | {} | {} | {} |\n",
+                u.id,
+                u.findings,
+                u.groups,
+                if u.findings > 0 { g3(u.max_ratio) } else { "–".into() },
+                g3(u.cap),
+                u.over_cap
+            );
         }
         s += "\n## Plots\n\n- `one_step.svg`: per window (x), max one-step joint-velocity divergence (y, linear from 0).\n- `k_step.svg`: per window, k-step link-position divergence.\n- `per_joint.svg`: per joint (x, slot order), max k-step joint-angle divergence.\n\nLines, in engine order after the lead: ";
         s += &self

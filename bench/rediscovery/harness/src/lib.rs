@@ -10,6 +10,7 @@
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
+pub mod cross;
 pub mod report;
 
 /// A sampled observable: `(time in s, value)`, one entry per engine step (or per sampling period).

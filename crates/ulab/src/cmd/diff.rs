@@ -8,6 +8,8 @@
 //!   then the same report over what it found; the corpus goes to `DIR/corpus/`.
 //! - `ulab diff replay FILE`: recomputes a reproducer; exit 0 if bit-identical, 1 if not.
 //! - `ulab diff bench`: rollouts per second per engine, on one thread and on all cores.
+//! - `ulab diff search [--budget N] [--methods cem,mutation,random]`: CEM over perturbations of the rollout
+//!   against the mutation fuzzer and uniform random inputs, at equal compute.
 //!
 //! Exit codes: 0 report written (or replay identical), 1 candidate engine bugs with `--fail-on-bug` (or a
 //! replay that differs), 2 errors.
@@ -39,6 +41,32 @@ enum Sub {
     Replay(ReplayArgs),
     /// Rollouts per second per engine (one thread and all cores), time outside the engines.
     Bench(BenchArgs),
+    /// Compare search methods at equal compute: CEM over perturbations of the rollout, the mutation fuzzer,
+    /// uniform random perturbations (findings, largest normalised divergence, divergence per unit).
+    Search(SearchArgs),
+}
+
+#[derive(Debug, clap::Args)]
+struct SearchArgs {
+    #[command(flatten)]
+    common: Common,
+    /// Rollouts per method (equal compute).
+    #[arg(long, default_value_t = 64)]
+    budget: usize,
+    /// CEM population per generation.
+    #[arg(long, default_value_t = 16)]
+    population: usize,
+    /// Seconds per rollout.
+    #[arg(long, default_value_t = 0.4)]
+    seconds: f64,
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Methods to run (comma-separated: cem, mutation, random).
+    #[arg(long, default_value = "cem,mutation,random")]
+    methods: String,
+    /// Writes every outcome (with its best scenario and progress curve) as JSON here.
+    #[arg(long)]
+    out: Option<PathBuf>,
 }
 
 #[derive(Debug, Clone, clap::Args)]
@@ -129,6 +157,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         Some(Sub::Fuzz(a)) => fuzz(a),
         Some(Sub::Replay(a)) => replay(a),
         Some(Sub::Bench(a)) => bench(a),
+        Some(Sub::Search(a)) => search(a),
         None => diff(args.run),
     }
 }
@@ -389,6 +418,63 @@ fn bench(a: BenchArgs) -> Result<ExitCode> {
             r.steps_per_s,
             100.0 * r.outside_engine
         );
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn search(a: SearchArgs) -> Result<ExitCode> {
+    use engine_diff::search::{Method, SearchConfig, SearchSetup};
+    check_seconds(a.seconds)?;
+    if a.budget == 0 || a.budget > 100_000 || a.population < 2 {
+        bail!("--budget must be in 1..=100000 and --population at least 2");
+    }
+    let methods = a
+        .methods
+        .split(',')
+        .map(|m| match m.trim() {
+            "cem" => Ok(Method::Cem),
+            "mutation" => Ok(Method::Mutation),
+            "random" => Ok(Method::Random),
+            other => bail!("--methods: unknown method {other:?} (cem, mutation, random)"),
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let s = setup(&a.common)?;
+    let allow = AllowList::builtin().context("allow-list")?;
+    let base = if s.is_policy { Scenario::policy(a.seed, a.seconds) } else { Scenario::excitation(a.seed, a.seconds) };
+    // The base input without its own perturbations: every method starts from the plain rollout.
+    let base = Scenario { commands: vec![], pushes: vec![], action_noise: 0.0, init_q_offset: 0.0, ..base };
+    let setup = SearchSetup {
+        model: &s.model,
+        factories: &s.factories,
+        controller: s.ctrl.as_ref(),
+        cfg: &s.cfg,
+        allow: &allow,
+        base,
+    };
+    let c = SearchConfig { budget: a.budget, population: a.population, seed: a.seed, ..SearchConfig::default() };
+    println!(
+        "{:<9} {:>9} {:>7} {:>16} {:>16} {:>14} {:>12} {:>8}",
+        "method", "rollouts", "failed", "best div/unit", "max norm. div", "finding groups", "unexplained", "wall s"
+    );
+    let mut outcomes = Vec::new();
+    for m in methods {
+        let o = engine_diff::search::search(&setup, m, &c).with_context(|| format!("search {}", m.name()))?;
+        println!(
+            "{:<9} {:>9} {:>7} {:>16.4} {:>16.3} {:>14} {:>12} {:>8.1}",
+            m.name(),
+            o.evaluated,
+            o.failed,
+            o.best_score,
+            o.max_divergence,
+            o.finding_groups,
+            o.unexplained_groups,
+            o.wall_s
+        );
+        outcomes.push(o);
+    }
+    if let Some(p) = &a.out {
+        std::fs::write(p, serde_json::to_string_pretty(&outcomes)?)
+            .with_context(|| format!("writing {}", p.display()))?;
     }
     Ok(ExitCode::SUCCESS)
 }
