@@ -28,6 +28,9 @@ pub use log::RobotLog;
 pub enum GapError {
     #[error("log: {0}")]
     Log(String),
+    /// The MCAP file could not be read (its sources say why).
+    #[error("reading the MCAP log")]
+    Recording(#[from] recording::ReadError),
     #[error("engine: {0}")]
     Engine(String),
     #[error("input: {0}")]

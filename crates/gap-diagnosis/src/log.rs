@@ -100,10 +100,10 @@ impl RobotLog {
     pub fn from_mcap(bytes: &[u8], model: &RobotModel) -> Result<Self, GapError> {
         let mut log = RobotLog::default();
         let mut t0: Option<u64> = None;
-        let stream = mcap::MessageStream::new(bytes).map_err(|e| GapError::Log(format!("not an MCAP file: {e}")))?;
+        let stream = recording::messages(bytes)?;
         let mut raw: Vec<(u64, bool, Vec<u8>)> = Vec::new();
         for m in stream {
-            let m = m.map_err(|e| GapError::Log(format!("reading the MCAP file: {e}")))?;
+            let m = m?;
             let is_cmd = match m.channel.topic.as_str() {
                 LOWCMD_TOPIC => true,
                 LOWSTATE_TOPIC => false,
@@ -131,12 +131,20 @@ impl RobotLog {
         Ok(log)
     }
 
-    /// Writes the MCAP form `ulab record` writes.
+    /// Writes the MCAP form `ulab record` writes (uncompressed chunks).
     pub fn write_mcap<W: Write + std::io::Seek>(&self, out: W, model: &RobotModel) -> Result<(), GapError> {
+        self.write_mcap_with(out, model, recording::Compression::None)
+    }
+
+    /// Writes the MCAP form `ulab record` writes, chunks compressed with `compression`.
+    pub fn write_mcap_with<W: Write + std::io::Seek>(
+        &self,
+        out: W,
+        model: &RobotModel,
+        compression: recording::Compression,
+    ) -> Result<(), GapError> {
         let io = |e: mcap::McapError| GapError::Io(e.to_string());
-        let opts = mcap::WriteOptions::new()
-            .library(concat!("ulab gap ", env!("CARGO_PKG_VERSION")))
-            .chunk_size(Some(256 * 1024));
+        let opts = recording::write_options(concat!("ulab gap ", env!("CARGO_PKG_VERSION")), compression);
         let mut w = opts.create(out).map_err(io)?;
         let mut ids = [0u16; 2];
         for (k, (topic, kind)) in

@@ -5,15 +5,19 @@
 //! * message encoding `cdr`: each message is the sample exactly as it travelled (encapsulation header included);
 //! * channel metadata [`DDS_TYPE_KEY`] holds the DDS type name; the schema (encoding `omgidl`) is the OMG IDL
 //!   text of the type generated from `unitree-idl` ([`idl_text`]), or absent for types the codec does not know;
-//! * log time = reception time in nanoseconds.
+//! * log time = reception time in nanoseconds;
+//! * chunks uncompressed by default ([`Compression`]); [`read::messages`] reads zstd, lz4, uncompressed and unchunked
+//!   files, whoever wrote them.
 //!
 //! [`columns`] names the flat CSV columns of a decoded message (`motor_state[3].q`, `imu_state.rpy[2]`).
 #![forbid(unsafe_code)]
 
 pub mod columns;
 mod idl;
+pub mod read;
 
 pub use idl::idl_text;
+pub use read::{messages, ReadError};
 use std::collections::BTreeMap;
 use std::io::{Seek, Write};
 use unitree_idl::MessageType;
@@ -24,6 +28,53 @@ pub const DDS_TYPE_KEY: &str = "dds_type_name";
 pub const MESSAGE_ENCODING: &str = "cdr";
 /// MCAP schema encoding of the IDL text stored per known type.
 pub const SCHEMA_ENCODING: &str = "omgidl";
+
+/// Chunk compression of a written recording.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Compression {
+    /// Uncompressed chunks: the cheapest to write while recording at 500 Hz (the default).
+    #[default]
+    None,
+    /// zstd (level 0, the library's default): what the official writers produce by default, about 5x smaller here.
+    Zstd,
+    /// lz4: faster than zstd, larger files.
+    Lz4,
+}
+
+impl Compression {
+    /// Every compression, by name.
+    pub const ALL: [Compression; 3] = [Compression::None, Compression::Zstd, Compression::Lz4];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Compression::None => "none",
+            Compression::Zstd => "zstd",
+            Compression::Lz4 => "lz4",
+        }
+    }
+
+    /// Parses `none`, `zstd` or `lz4`.
+    pub fn parse(s: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|c| c.name() == s)
+    }
+
+    fn to_mcap(self) -> Option<mcap::Compression> {
+        match self {
+            Compression::None => None,
+            Compression::Zstd => Some(mcap::Compression::Zstd),
+            Compression::Lz4 => Some(mcap::Compression::Lz4),
+        }
+    }
+}
+
+/// Chunk size of written recordings (bytes before compression).
+pub const CHUNK_SIZE: u64 = 256 * 1024;
+
+/// Writer options of every recording the project writes: `library` in the header, chunks of [`CHUNK_SIZE`],
+/// the given compression (never the `mcap` crate's default, which is zstd when its `zstd` feature is on).
+pub fn write_options(library: &str, compression: Compression) -> mcap::WriteOptions {
+    mcap::WriteOptions::new().library(library).chunk_size(Some(CHUNK_SIZE)).compression(compression.to_mcap())
+}
 
 /// The codec's type for a DDS type name, if it knows it.
 pub fn kind_of(dds_type_name: &str) -> Option<MessageType> {
@@ -71,7 +122,7 @@ mod tests {
     #[test]
     fn channels_carry_type_schema_and_encoding() {
         let mut buf = std::io::Cursor::new(Vec::new());
-        let mut w = mcap::WriteOptions::new().create(&mut buf).expect("writer");
+        let mut w = write_options("test", Compression::None).create(&mut buf).expect("writer");
         let known = add_topic(&mut w, "rt/lowstate", MessageType::HgLowState.dds_type_name()).expect("known");
         let unknown = add_topic(&mut w, "rt/other", "foo::Bar_").expect("unknown");
         w.write_to_known_channel(
@@ -87,7 +138,7 @@ mod tests {
         w.finish().expect("finish");
         drop(w);
         let bytes = buf.into_inner();
-        let msgs: Vec<_> = mcap::MessageStream::new(&bytes).expect("stream").collect::<Result<_, _>>().expect("read");
+        let msgs: Vec<_> = messages(&bytes).expect("stream").collect::<Result<_, _>>().expect("read");
         assert_eq!(msgs.len(), 2);
         let ch = &msgs[0].channel;
         assert_eq!((ch.topic.as_str(), ch.message_encoding.as_str()), ("rt/lowstate", "cdr"));

@@ -26,3 +26,14 @@ pub fn lstm_policy(command: [f64; 3]) -> PolicyInput {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../robots/h1_2/policies/unitree_rl_gym_lstm.toml");
     PolicyInput { spec: policy_runtime::PolicySpec::load(&path).expect("policy spec"), command }
 }
+
+/// The workspace root.
+pub fn workspace() -> PathBuf {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
+    p.canonicalize().unwrap_or(p)
+}
+
+/// The project's Python (the venv with MuJoCo's and `mcap`'s official bindings), from `$ULAB_PYTHON` or `.venv`.
+pub fn python() -> PathBuf {
+    std::env::var_os("ULAB_PYTHON").map_or_else(|| workspace().join(".venv/bin/python"), PathBuf::from)
+}

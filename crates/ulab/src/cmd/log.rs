@@ -70,8 +70,8 @@ fn export(a: ExportArgs) -> Result<ExitCode> {
     let bytes = std::fs::read(&a.file).with_context(|| format!("reading {}", a.file.display()))?;
     // First pass: which topics are there.
     let mut topics: BTreeMap<String, String> = BTreeMap::new();
-    for m in mcap::MessageStream::new(&bytes).context("not an MCAP file")? {
-        let m = m.context("reading the MCAP file")?;
+    for m in recording::messages(&bytes).with_context(|| format!("reading {}", a.file.display()))? {
+        let m = m.with_context(|| format!("reading {}", a.file.display()))?;
         let ty = channel_type_name(&m.channel);
         topics.entry(m.channel.topic.clone()).or_insert_with(|| ty.unwrap_or_default());
     }
@@ -121,8 +121,8 @@ fn export(a: ExportArgs) -> Result<ExitCode> {
         }
         tables.insert(topic.clone(), t);
     }
-    for m in mcap::MessageStream::new(&bytes).context("not an MCAP file")? {
-        let m = m.context("reading the MCAP file")?;
+    for m in recording::messages(&bytes).with_context(|| format!("reading {}", a.file.display()))? {
+        let m = m.with_context(|| format!("reading {}", a.file.display()))?;
         let Some(t) = tables.get_mut(&m.channel.topic) else {
             continue;
         };
@@ -164,8 +164,8 @@ fn create(p: &Path) -> Result<std::fs::File> {
 fn info(file: &Path) -> Result<ExitCode> {
     let bytes = std::fs::read(file).with_context(|| format!("reading {}", file.display()))?;
     let mut stats: BTreeMap<String, (String, String, u64, u64, u64)> = BTreeMap::new();
-    for m in mcap::MessageStream::new(&bytes).context("not an MCAP file")? {
-        let m = m.context("reading the MCAP file")?;
+    for m in recording::messages(&bytes).with_context(|| format!("reading {}", file.display()))? {
+        let m = m.with_context(|| format!("reading {}", file.display()))?;
         let ty = channel_type_name(&m.channel).unwrap_or_default();
         let e = stats
             .entry(m.channel.topic.clone())

@@ -54,8 +54,8 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let mut by_channel: BTreeMap<u16, usize> = BTreeMap::new();
     let mut msgs: Vec<Msg<'_>> = Vec::new();
     let mut skipped = 0u64;
-    for m in mcap::MessageStream::new(&bytes).context("not an MCAP file")? {
-        let m = m.context("reading the MCAP file")?;
+    for m in recording::messages(&bytes).with_context(|| format!("reading {}", args.file.display()))? {
+        let m = m.with_context(|| format!("reading {}", args.file.display()))?;
         let ch = &m.channel;
         if !args.topics.is_empty() && !args.topics.iter().any(|t| t == &ch.topic) {
             continue;
