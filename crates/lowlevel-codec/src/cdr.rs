@@ -7,12 +7,14 @@
 //! * structs add no padding of their own (no tail padding), unlike the C struct image;
 //! * XCDR2 prefixes every array or sequence of non-primitive elements with a 4-byte DHEADER, the
 //!   byte length of what follows; `@final` structs themselves get none;
-//! * sequences carry a 4-byte element count.
+//! * sequences carry a 4-byte element count; their elements are aligned only when there is one;
+//! * strings are a 4-byte length that counts the terminating NUL, the UTF-8 bytes and the NUL
+//!   (never a DHEADER); booleans are one byte, 0 or 1.
 //!
 //! The header's two option bytes may declare 0..3 bytes of padding at the end of the payload
 //! (XTypes 7.6.3.1.2); we honour them when reading and write none.
 
-use unitree_idl::{align_up, IdlStruct, Primitive, Visitor, VisitorMut};
+use unitree_idl::{align_up, IdlStruct, PrimKind, Primitive, Visitor, VisitorMut};
 
 /// Length of the encapsulation header.
 pub const HEADER_LEN: usize = 4;
@@ -168,7 +170,7 @@ pub enum DecodeError {
     MissingHeader { len: usize },
     #[error("unknown encapsulation identifier {id:#06x}")]
     UnknownRepresentation { id: u16 },
-    #[error("encapsulation {id:#06x} is {name}; SDK2 low-level types are @final and use plain CDR or CDR2")]
+    #[error("encapsulation {id:#06x} is {name}; SDK2 types are @final and use plain CDR or CDR2")]
     UnsupportedRepresentation { id: u16, name: &'static str },
     #[error("truncated in member `{member}` at payload offset {offset}: needs {needed} bytes, {available} left")]
     Truncated { member: &'static str, offset: usize, needed: usize, available: usize },
@@ -180,10 +182,28 @@ pub enum DecodeError {
         "DHEADER of `{member}` at payload offset {offset} declares {declared} bytes, but its elements take {actual}"
     )]
     BadDheader { member: &'static str, offset: usize, declared: u32, actual: usize },
+    #[error("boolean `{member}` at payload offset {offset} is {value}, not 0 or 1")]
+    InvalidBool { member: &'static str, offset: usize, value: u8 },
+    #[error("string `{member}` at payload offset {offset}: {reason}")]
+    BadString { member: &'static str, offset: usize, reason: StringFault },
     #[error("header declares {padding} padding bytes, more than the {payload} payload bytes")]
     BadPadding { padding: usize, payload: usize },
     #[error("{count} trailing byte(s) after the message (payload offset {offset})")]
     TrailingBytes { offset: usize, count: usize },
+}
+
+/// What is wrong with a CDR string.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum StringFault {
+    /// The length word is 0: a CDR string always counts its terminating NUL.
+    #[error("length 0 (a CDR string counts its terminating NUL)")]
+    ZeroLength,
+    /// The last byte the length covers is not NUL.
+    #[error("not terminated by NUL")]
+    Unterminated,
+    /// The characters are not UTF-8 (at this byte of the string).
+    #[error("not UTF-8 (byte {at})")]
+    NotUtf8 { at: usize },
 }
 
 /// A decoded message and how it was encoded.
@@ -290,6 +310,9 @@ impl<const BIG: bool, const V2: bool> Writer<'_, BIG, V2> {
             2 => {
                 self.out.extend_from_slice(&if BIG { (bits as u16).to_be_bytes() } else { (bits as u16).to_le_bytes() })
             }
+            4 => {
+                self.out.extend_from_slice(&if BIG { (bits as u32).to_be_bytes() } else { (bits as u32).to_le_bytes() })
+            }
             _ => self.out.extend_from_slice(&if BIG { bits.to_be_bytes() } else { bits.to_le_bytes() }),
         }
     }
@@ -298,6 +321,11 @@ impl<const BIG: bool, const V2: bool> Writer<'_, BIG, V2> {
     fn put_u32(&mut self, value: u32) {
         self.align(4);
         self.put(value);
+    }
+
+    /// Lengths beyond u32 cannot be expressed in CDR; nothing in the SDK comes close.
+    fn put_len(&mut self, len: usize) {
+        self.put_u32(u32::try_from(len).unwrap_or(u32::MAX));
     }
 
     /// Writes a DHEADER placeholder and returns where to patch it.
@@ -345,17 +373,29 @@ impl<const BIG: bool, const V2: bool> Visitor for Writer<'_, BIG, V2> {
     }
 
     fn struct_sequence<S: IdlStruct>(&mut self, _name: &'static str, items: &[S]) {
-        // Lengths beyond u32 cannot be expressed in CDR; nothing in the SDK comes close.
-        let count = u32::try_from(items.len()).unwrap_or(u32::MAX);
         if Self::REPRESENTATION.has_dheader() {
             let start = self.begin_dheader();
-            self.put_u32(count);
+            self.put_len(items.len());
             items.iter().for_each(|item| item.walk(self));
             self.end_dheader(start);
         } else {
-            self.put_u32(count);
+            self.put_len(items.len());
             items.iter().for_each(|item| item.walk(self));
         }
+    }
+
+    fn primitive_sequence<P: Primitive>(&mut self, name: &'static str, items: &[P]) {
+        // No DHEADER in XCDR2: the elements are primitives.
+        self.put_len(items.len());
+        if !items.is_empty() {
+            self.primitive_array(name, items);
+        }
+    }
+
+    fn string(&mut self, _name: &'static str, value: &str) {
+        self.put_len(value.len() + 1);
+        self.out.extend_from_slice(value.as_bytes());
+        self.out.push(0);
     }
 }
 
@@ -386,21 +426,36 @@ pub(crate) fn truncated(member: &'static str, start: usize, len: usize, buf_len:
 #[inline(always)]
 pub(crate) fn get<P: Primitive, const BIG: bool>(bytes: &[u8]) -> P {
     let bits = match P::SIZE {
-        1 => u32::from(bytes[0]),
+        1 => u64::from(bytes[0]),
         2 => {
             let b = [bytes[0], bytes[1]];
-            u32::from(if BIG { u16::from_be_bytes(b) } else { u16::from_le_bytes(b) })
+            u64::from(if BIG { u16::from_be_bytes(b) } else { u16::from_le_bytes(b) })
+        }
+        4 => {
+            let b = [bytes[0], bytes[1], bytes[2], bytes[3]];
+            u64::from(if BIG { u32::from_be_bytes(b) } else { u32::from_le_bytes(b) })
         }
         _ => {
-            let b = [bytes[0], bytes[1], bytes[2], bytes[3]];
+            let b = [bytes[0], bytes[1], bytes[2], bytes[3], bytes[4], bytes[5], bytes[6], bytes[7]];
             if BIG {
-                u32::from_be_bytes(b)
+                u64::from_be_bytes(b)
             } else {
-                u32::from_le_bytes(b)
+                u64::from_le_bytes(b)
             }
         }
     };
     P::from_bits(bits)
+}
+
+/// [`get`] for decoders: `None` where the bytes are no valid value of `P` (a boolean other than 0 or 1).
+#[inline(always)]
+pub(crate) fn get_valid<P: Primitive, const BIG: bool>(bytes: &[u8]) -> Option<P> {
+    let value = get::<P, BIG>(bytes);
+    if P::KIND == PrimKind::Bool {
+        P::from_valid_bits(u64::from(bytes[0]))
+    } else {
+        Some(value)
+    }
 }
 
 impl<const BIG: bool, const V2: bool> Reader<'_, BIG, V2> {
@@ -425,6 +480,32 @@ impl<const BIG: bool, const V2: bool> Reader<'_, BIG, V2> {
         Ok(get::<u32, BIG>(bytes))
     }
 
+    /// One primitive or a run of them: reads, and rejects invalid booleans where they are.
+    #[inline(always)]
+    fn primitives<P: Primitive>(&mut self, name: &'static str, items: &mut [P]) -> Result<(), DecodeError> {
+        let start = Self::REPRESENTATION.align(self.pos, P::SIZE);
+        let bytes = self.take(name, P::SIZE, items.len() * P::SIZE)?;
+        for (k, (item, chunk)) in items.iter_mut().zip(bytes.chunks_exact(P::SIZE)).enumerate() {
+            *item = match get_valid::<P, BIG>(chunk) {
+                Some(v) => v,
+                None => return Err(DecodeError::InvalidBool { member: name, offset: start + k, value: chunk[0] }),
+            };
+        }
+        Ok(())
+    }
+
+    /// A sequence's element count, bounded by the bytes left (each element takes at least `min` bytes) before
+    /// anything is allocated for it.
+    fn count(&mut self, name: &'static str, min: usize) -> Result<usize, DecodeError> {
+        let offset = Self::REPRESENTATION.align(self.pos, 4);
+        let count = self.u32(name)?;
+        let available = self.buf.len() - self.pos;
+        if (count as usize).saturating_mul(min.max(1)) > available {
+            return Err(DecodeError::BadSequenceLength { member: name, offset, count, available });
+        }
+        Ok(count as usize)
+    }
+
     fn check_dheader(
         &self,
         member: &'static str,
@@ -446,6 +527,9 @@ impl<const BIG: bool, const V2: bool> VisitorMut for Reader<'_, BIG, V2> {
 
     #[inline(always)]
     fn primitive<P: Primitive>(&mut self, name: &'static str, value: &mut P) -> Result<(), DecodeError> {
+        if P::KIND == PrimKind::Bool {
+            return self.primitives(name, core::slice::from_mut(value));
+        }
         let bytes = self.take(name, P::SIZE, P::SIZE)?;
         *value = get::<P, BIG>(bytes);
         Ok(())
@@ -453,6 +537,9 @@ impl<const BIG: bool, const V2: bool> VisitorMut for Reader<'_, BIG, V2> {
 
     #[inline(always)]
     fn primitive_array<P: Primitive>(&mut self, name: &'static str, items: &mut [P]) -> Result<(), DecodeError> {
+        if P::KIND == PrimKind::Bool {
+            return self.primitives(name, items);
+        }
         let bytes = self.take(name, P::SIZE, items.len() * P::SIZE)?;
         for (item, chunk) in items.iter_mut().zip(bytes.chunks_exact(P::SIZE)) {
             *item = get::<P, BIG>(chunk);
@@ -483,16 +570,9 @@ impl<const BIG: bool, const V2: bool> VisitorMut for Reader<'_, BIG, V2> {
         let repr = Self::REPRESENTATION;
         let dheader = if repr.has_dheader() { Some((repr.align(self.pos, 4), self.u32(name)?, 0)) } else { None };
         let dheader = dheader.map(|(offset, declared, _)| (offset, declared, self.pos));
-        let offset = repr.align(self.pos, 4);
-        let count = self.u32(name)?;
-        let available = self.buf.len() - self.pos;
-        // Bound the count by the bytes left before allocating anything: each element takes at
-        // least S::CDR_MIN bytes.
-        if (count as usize).saturating_mul(S::CDR_MIN.max(1)) > available {
-            return Err(DecodeError::BadSequenceLength { member: name, offset, count, available });
-        }
+        let count = self.count(name, S::CDR_MIN)?;
         items.clear();
-        items.reserve(count as usize);
+        items.reserve(count);
         for _ in 0..count {
             let mut item = S::zeroed();
             item.walk_mut(self)?;
@@ -501,6 +581,35 @@ impl<const BIG: bool, const V2: bool> VisitorMut for Reader<'_, BIG, V2> {
         match dheader {
             Some((offset, declared, start)) => self.check_dheader(name, offset, declared, start),
             None => Ok(()),
+        }
+    }
+
+    fn primitive_sequence<P: Primitive>(&mut self, name: &'static str, items: &mut Vec<P>) -> Result<(), DecodeError> {
+        let count = self.count(name, P::SIZE)?;
+        items.clear();
+        if count > 0 {
+            items.resize(count, P::from_bits(0));
+            self.primitive_array(name, items)?;
+        }
+        Ok(())
+    }
+
+    fn string(&mut self, name: &'static str, value: &mut String) -> Result<(), DecodeError> {
+        let offset = Self::REPRESENTATION.align(self.pos, 4);
+        let len = self.count(name, 1)?;
+        let fault = |reason| DecodeError::BadString { member: name, offset, reason };
+        let Some(chars) = len.checked_sub(1) else { return Err(fault(StringFault::ZeroLength)) };
+        let bytes = self.take(name, 1, len)?;
+        if bytes[chars] != 0 {
+            return Err(fault(StringFault::Unterminated));
+        }
+        match core::str::from_utf8(&bytes[..chars]) {
+            Ok(text) => {
+                value.clear();
+                value.push_str(text);
+                Ok(())
+            }
+            Err(e) => Err(fault(StringFault::NotUtf8 { at: e.valid_up_to() })),
         }
     }
 }

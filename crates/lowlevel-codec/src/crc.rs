@@ -80,8 +80,8 @@ fn swap_words(src: &[u8], dst: &mut [u8]) {
 /// The C struct image of `value`: members at their natural alignment, structs padded to their
 /// alignment, padding zeroed, little-endian (the robot's byte order).
 ///
-/// Sequences have no flat image (they are `std::vector` in C++) and are skipped; no type that
-/// carries a CRC contains one.
+/// Sequences and strings have no flat image (they are `std::vector` / `std::string` in C++) and
+/// are skipped; no type that carries a CRC contains one.
 pub fn c_image<T: IdlStruct>(value: &T) -> Vec<u8> {
     image_with::<T, false>(value)
 }
@@ -150,6 +150,8 @@ impl<const SWAP: bool> Visitor for CImage<SWAP> {
         items.iter().for_each(|item| self.structure(name, item));
     }
     fn struct_sequence<S: IdlStruct>(&mut self, _name: &'static str, _items: &[S]) {}
+    fn primitive_sequence<P: Primitive>(&mut self, _name: &'static str, _items: &[P]) {}
+    fn string(&mut self, _name: &'static str, _value: &str) {}
 }
 
 /// A message whose last member is Unitree's CRC of everything before it.

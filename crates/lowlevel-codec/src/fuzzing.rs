@@ -95,7 +95,7 @@ pub fn roundtrip<T: IdlStruct>(value: &T) {
 #[cfg(feature = "arbitrary")]
 pub fn roundtrip_bytes(data: &[u8]) {
     use arbitrary::{Arbitrary, Unstructured};
-    use unitree_idl::{go, hg};
+    use unitree_idl::{api, go, hg};
 
     // Built once per fuzz input and matched immediately: boxing the big variants buys nothing.
     #[allow(clippy::large_enum_variant)]
@@ -108,6 +108,8 @@ pub fn roundtrip_bytes(data: &[u8]) {
         HgBmsState(hg::BmsState_),
         GoLowCmd(go::LowCmd_),
         GoLowState(go::LowState_),
+        ApiRequest(api::Request_),
+        ApiResponse(api::Response_),
     }
 
     let Ok(message) = Message::arbitrary_take_rest(Unstructured::new(data)) else { return };
@@ -119,5 +121,7 @@ pub fn roundtrip_bytes(data: &[u8]) {
         Message::HgBmsState(v) => roundtrip(v),
         Message::GoLowCmd(v) => roundtrip(v),
         Message::GoLowState(v) => roundtrip(v),
+        Message::ApiRequest(v) => roundtrip(v),
+        Message::ApiResponse(v) => roundtrip(v),
     }
 }

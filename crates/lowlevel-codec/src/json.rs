@@ -6,6 +6,7 @@
 //! stays `-0.0`); JSON has no non-finite numbers, so those are the strings `"NaN"`,
 //! `"Infinity"` and `"-Infinity"`, and a NaN with a payload other than the canonical quiet NaN
 //! is `"NaN:0x7fc00001"` (its bit pattern), so that every value round-trips bit for bit.
+//! Booleans are JSON booleans, strings JSON strings, `int64` exact JSON integers.
 
 use crate::cdr::{Encoding, Endianness, Representation};
 use serde_json::{Map, Value};
@@ -97,9 +98,11 @@ pub fn float_text(x: f32) -> String {
 fn primitive_text<P: Primitive>(value: P) -> String {
     let bits = value.to_bits();
     match P::KIND {
-        PrimKind::F32 => float_text(f32::from_bits(bits)),
+        PrimKind::F32 => float_text(f32::from_bits(bits as u32)),
+        PrimKind::Bool => (bits != 0).to_string(),
         PrimKind::I16 => (bits as u16 as i16).to_string(),
-        PrimKind::I32 => (bits as i32).to_string(),
+        PrimKind::I32 => (bits as u32 as i32).to_string(),
+        PrimKind::I64 => (bits as i64).to_string(),
         PrimKind::U8 | PrimKind::U16 | PrimKind::U32 => bits.to_string(),
     }
 }
@@ -166,6 +169,13 @@ impl Visitor for JsonWriter {
             self.out.push_str(&primitive_text(*item));
         }
         self.out.push(']');
+    }
+    fn primitive_sequence<P: Primitive>(&mut self, name: &'static str, items: &[P]) {
+        self.primitive_array(name, items);
+    }
+    fn string(&mut self, name: &'static str, value: &str) {
+        self.key(name);
+        self.out.push_str(&Value::String(value.to_owned()).to_string());
     }
     fn structure<S: IdlStruct>(&mut self, name: &'static str, value: &S) {
         self.key(name);
@@ -312,8 +322,12 @@ impl<'v> JsonReader<'v> {
                         .ok_or_else(|| self.shape("a number, \"NaN\", \"Infinity\" or \"-Infinity\"", json))?,
                     _ => return Err(self.shape("a number", json)),
                 };
-                Ok(P::from_bits(x.to_bits()))
+                Ok(P::from_bits(u64::from(x.to_bits())))
             }
+            PrimKind::Bool => match json {
+                Value::Bool(b) => Ok(P::from_bits(u64::from(*b))),
+                _ => Err(self.shape("a boolean", json)),
+            },
             kind => {
                 let Value::Number(n) = json else {
                     return Err(self.shape("an integer", json));
@@ -326,16 +340,17 @@ impl<'v> JsonReader<'v> {
                     });
                 };
                 let (lo, hi) = match kind {
-                    PrimKind::U8 => (0, i64::from(u8::MAX)),
+                    PrimKind::U8 | PrimKind::Bool => (0, i64::from(u8::MAX)),
                     PrimKind::I16 => (i64::from(i16::MIN), i64::from(i16::MAX)),
                     PrimKind::U16 => (0, i64::from(u16::MAX)),
                     PrimKind::I32 => (i64::from(i32::MIN), i64::from(i32::MAX)),
                     PrimKind::U32 | PrimKind::F32 => (0, i64::from(u32::MAX)),
+                    PrimKind::I64 => (i64::MIN, i64::MAX),
                 };
                 if i < lo || i > hi {
                     return Err(out_of_range(kind_name(kind)));
                 }
-                Ok(P::from_bits(i as u32))
+                Ok(P::from_bits(i as u64))
             }
         }
     }
@@ -352,6 +367,8 @@ impl<'v> JsonReader<'v> {
 
 fn kind_name(kind: PrimKind) -> &'static str {
     match kind {
+        PrimKind::Bool => "boolean",
+        PrimKind::I64 => "i64 (long long)",
         PrimKind::U8 => "u8 (octet)",
         PrimKind::I16 => "i16 (short)",
         PrimKind::U16 => "u16 (unsigned short)",
@@ -422,6 +439,31 @@ impl VisitorMut for JsonReader<'_> {
         let list = self.array(json, None)?;
         *items = (0..list.len()).map(|_| S::zeroed()).collect();
         self.fill_struct_list(list, items)?;
+        self.path.pop();
+        Ok(())
+    }
+
+    fn primitive_sequence<P: Primitive>(&mut self, name: &'static str, items: &mut Vec<P>) -> Result<(), JsonError> {
+        let json = self.member(name)?;
+        self.path.push(Segment::Member(name));
+        let list = self.array(json, None)?;
+        items.clear();
+        for (i, json) in list.iter().enumerate() {
+            self.path.push(Segment::Index(i));
+            items.push(self.parse_primitive(json)?);
+            self.path.pop();
+        }
+        self.path.pop();
+        Ok(())
+    }
+
+    fn string(&mut self, name: &'static str, value: &mut String) -> Result<(), JsonError> {
+        let json = self.member(name)?;
+        self.path.push(Segment::Member(name));
+        let Value::String(text) = json else {
+            return Err(self.shape("a string", json));
+        };
+        value.clone_from(text);
         self.path.pop();
         Ok(())
     }

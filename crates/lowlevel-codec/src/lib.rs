@@ -1,4 +1,4 @@
-//! Wire codec for Unitree SDK2 low-level messages, written once against the reflection in
+//! Wire codec for Unitree SDK2 messages (low-level and RPC), written once against the reflection in
 //! [`unitree_idl`]:
 //!
 //! * [`cdr`]: CDR encode/decode, XCDR1 and XCDR2 (plain, for `@final` types), little- and
@@ -21,6 +21,6 @@ pub mod json;
 pub mod validate;
 pub mod view;
 
-pub use cdr::{decode, encode, DecodeError, Decoded, Encoding, Endianness, Representation};
+pub use cdr::{decode, encode, DecodeError, Decoded, Encoding, Endianness, Representation, StringFault};
 pub use crc::{seal, verify, Sealed};
 pub use view::{view, MessageView, Viewable};

@@ -78,8 +78,8 @@ struct NonFiniteFinder {
 }
 
 impl NonFiniteFinder {
-    fn check(&mut self, name: &str, index: Option<usize>, bits: u32) {
-        let x = f32::from_bits(bits);
+    fn check(&mut self, name: &str, index: Option<usize>, bits: u64) {
+        let x = f32::from_bits(bits as u32);
         if !x.is_finite() {
             let mut path = self.path.join(".");
             if !path.is_empty() {
@@ -122,6 +122,10 @@ impl Visitor for NonFiniteFinder {
     fn struct_sequence<S: IdlStruct>(&mut self, name: &'static str, items: &[S]) {
         self.struct_array(name, items);
     }
+    fn primitive_sequence<P: Primitive>(&mut self, name: &'static str, items: &[P]) {
+        self.primitive_array(name, items);
+    }
+    fn string(&mut self, _name: &'static str, _value: &str) {}
 }
 
 /// Checks an H1-2 hg LowCmd: non-finite values; for every enabled used slot, targets within

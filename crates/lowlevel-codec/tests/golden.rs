@@ -1,6 +1,9 @@
 //! Byte-for-byte agreement with bytes nobody on this project produced:
 //! * `corpus/golden/`: Cyclone DDS's Python serializer (cyclonedds 11.0.1) on Unitree's own
 //!   Python IDL classes, CRCs from Unitree's Python SDK (see corpus/golden/README.md);
+//! * `corpus/golden/api/`: the same serializer on Unitree's Python RPC classes (`unitree_api`), with
+//!   requests and responses as Unitree's Python RPC client and server code build them
+//!   (see corpus/golden/api/NOTES.md);
 //! * `corpus/captures/`: RTPS payloads captured on loopback while Unitree's Python SDK
 //!   published, reassembled from DATA and DATA_FRAG submessages.
 //!
@@ -98,9 +101,16 @@ fn golden_corpus_from_cyclonedds_python() {
 }
 
 #[test]
+fn golden_rpc_corpus_from_cyclonedds_python() {
+    let count = run_dir("golden/api", doc_type);
+    // 8 types x 3 profiles x 4 encodings, plus the SDK-built requests and responses.
+    assert!(count >= 96 + 14 * 4, "only {count} golden RPC cases found");
+}
+
+#[test]
 fn every_type_and_encoding_is_covered() {
     let mut seen = std::collections::BTreeSet::new();
-    for (_, doc, _) in cases("golden") {
+    for (_, doc, _) in cases("golden").into_iter().chain(cases("golden/api")) {
         seen.insert((
             doc["type"].as_str().unwrap_or("").to_owned(),
             doc["representation"].to_string(),

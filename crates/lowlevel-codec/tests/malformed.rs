@@ -112,3 +112,79 @@ fn payload_sizes_match_published_figures() {
     state.motor_state[0].mode = 0xCD;
     assert_eq!(cdr::encode(&state, x1)[4 + 70], 0xCD);
 }
+
+/// The RPC request of the golden corpus whose parameter is `{"data":204}`-like JSON, built here:
+/// header (32 bytes in XCDR1), then the string length at payload offset 32.
+fn rpc_request(parameter: &str) -> Vec<u8> {
+    let mut r = unitree_idl::api::Request_::default();
+    r.header.identity.api_id = 8101;
+    r.header.policy.noreply = true;
+    r.parameter = parameter.to_owned();
+    r.binary = vec![1, 2, 3];
+    lowlevel_codec::encode(&r, Encoding::UNITREE)
+}
+
+#[test]
+fn rpc_booleans_other_than_0_and_1_are_rejected() {
+    let mut bytes = rpc_request("{}");
+    // policy.noreply: the byte after priority (payload offset 28).
+    assert_eq!(bytes[4 + 28], 1);
+    bytes[4 + 28] = 2;
+    assert_eq!(
+        cdr::decode::<unitree_idl::api::Request_>(&bytes),
+        Err(DecodeError::InvalidBool { member: "noreply", offset: 28, value: 2 })
+    );
+}
+
+#[test]
+fn rpc_strings_must_be_terminated_utf8_with_a_length() {
+    use lowlevel_codec::StringFault;
+    let good = rpc_request("{\"data\":1}");
+    assert!(cdr::decode::<unitree_idl::api::Request_>(&good).is_ok());
+    let at = 4 + 32;
+    assert_eq!(u32::from_le_bytes(good[at..at + 4].try_into().expect("4 bytes")), 11, "length counts the NUL");
+    let fault = |bytes: &[u8]| match cdr::decode::<unitree_idl::api::Request_>(bytes) {
+        Err(DecodeError::BadString { member: "parameter", offset: 32, reason }) => Some(reason),
+        other => panic!("unexpected {other:?}"),
+    };
+    // The terminating NUL replaced.
+    let mut bad = good.clone();
+    bad[at + 4 + 10] = b'x';
+    assert_eq!(fault(&bad), Some(StringFault::Unterminated));
+    // Not UTF-8: a lone continuation byte at character 3.
+    let mut bad = good.clone();
+    bad[at + 4 + 3] = 0x80;
+    assert_eq!(fault(&bad), Some(StringFault::NotUtf8 { at: 3 }));
+    // Length 0 (no room even for the NUL).
+    let mut r = unitree_idl::api::Request_::default();
+    r.binary.clear();
+    let mut bad = lowlevel_codec::encode(&r, Encoding::UNITREE);
+    assert_eq!(&bad[at..at + 5], &[1, 0, 0, 0, 0], "an empty string is a NUL");
+    bad[at] = 0;
+    bad.remove(at + 4);
+    assert_eq!(fault(&bad), Some(StringFault::ZeroLength));
+    // A length beyond the input is a bad length, found before anything is allocated.
+    let mut bad = good.clone();
+    bad[at + 3] = 0x7f;
+    assert!(matches!(
+        cdr::decode::<unitree_idl::api::Request_>(&bad),
+        Err(DecodeError::BadSequenceLength { member: "parameter", offset: 32, .. })
+    ));
+}
+
+#[test]
+fn rpc_binary_sequence_length_is_checked() {
+    let good = rpc_request("");
+    // binary: count at payload 32 + 5 (string "") -> aligned to 40.
+    let at = 4 + 40;
+    assert_eq!(&good[at..], &[3, 0, 0, 0, 1, 2, 3]);
+    let mut bad = good.clone();
+    bad[at] = 4;
+    assert!(matches!(
+        cdr::decode::<unitree_idl::api::Request_>(&bad),
+        Err(DecodeError::BadSequenceLength { member: "binary", offset: 40, count: 4, available: 3 })
+    ));
+    let mut bad = good;
+    bad[at] = 2;
+    assert!(matches!(cdr::decode::<unitree_idl::api::Request_>(&bad), Err(DecodeError::TrailingBytes { .. })));
+}

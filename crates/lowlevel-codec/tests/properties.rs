@@ -5,7 +5,7 @@
 use arbitrary::{Arbitrary, Unstructured};
 use lowlevel_codec::{crc, fuzzing};
 use proptest::prelude::*;
-use unitree_idl::{go, hg, IdlStruct};
+use unitree_idl::{api, go, hg, IdlStruct};
 
 fn roundtrip_from_bytes<T: IdlStruct + for<'a> Arbitrary<'a>>(bytes: &[u8]) {
     let mut u = Unstructured::new(bytes);
@@ -35,6 +35,28 @@ proptest! {
         roundtrip_from_bytes::<go::LowState_>(&bytes);
         roundtrip_from_bytes::<go::BmsState_>(&bytes);
         roundtrip_from_bytes::<go::MotorState_>(&bytes);
+    }
+
+    #[test]
+    fn api_roundtrip(bytes in proptest::collection::vec(any::<u8>(), 0..4096)) {
+        roundtrip_from_bytes::<api::Request_>(&bytes);
+        roundtrip_from_bytes::<api::Response_>(&bytes);
+        roundtrip_from_bytes::<api::RequestPolicy_>(&bytes);
+    }
+
+    /// A valid RPC sample (strings, sequences, booleans, int64) with one byte changed: decodes to
+    /// something or fails cleanly, and whatever decodes re-encodes canonically.
+    #[test]
+    fn rpc_decoder_never_panics_on_mutations(seed in proptest::collection::vec(any::<u8>(), 16..2048), at in any::<usize>(), byte in any::<u8>()) {
+        let mut u = Unstructured::new(&seed);
+        if let Ok(value) = api::Request_::arbitrary(&mut u) {
+            for encoding in fuzzing::ENCODINGS {
+                let mut bytes = lowlevel_codec::encode(&value, encoding);
+                let i = at % bytes.len();
+                bytes[i] = byte;
+                fuzzing::decode_any(&bytes);
+            }
+        }
     }
 
     #[test]

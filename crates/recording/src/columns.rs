@@ -7,7 +7,7 @@ fn prim_text<P: Primitive>(v: &P) -> String {
     let bits = v.to_bits();
     match P::KIND {
         PrimKind::F32 => {
-            let x = f32::from_bits(bits);
+            let x = f32::from_bits(bits as u32);
             if x.is_finite() {
                 lowlevel_codec::json::float_text(x)
             } else if x.is_nan() {
@@ -18,8 +18,10 @@ fn prim_text<P: Primitive>(v: &P) -> String {
                 "-inf".to_owned()
             }
         }
+        PrimKind::Bool => (bits != 0).to_string(),
         PrimKind::I16 => (bits as u16 as i16).to_string(),
-        PrimKind::I32 => (bits as i32).to_string(),
+        PrimKind::I32 => (bits as u32 as i32).to_string(),
+        PrimKind::I64 => (bits as i64).to_string(),
         PrimKind::U8 | PrimKind::U16 | PrimKind::U32 => bits.to_string(),
     }
 }
@@ -66,6 +68,13 @@ impl Visitor for Flatten {
     }
     fn struct_sequence<S: IdlStruct>(&mut self, name: &'static str, items: &[S]) {
         self.struct_array(name, items);
+    }
+    fn primitive_sequence<P: Primitive>(&mut self, name: &'static str, items: &[P]) {
+        self.primitive_array(name, items);
+    }
+    /// One column; the text as it is (the CSV writer quotes it).
+    fn string(&mut self, name: &'static str, value: &str) {
+        self.columns.push((format!("{}{name}", self.prefix), value.to_owned()));
     }
 }
 

@@ -4,6 +4,8 @@ use unitree_idl::{with_message_type, IdlStruct, MessageType, PrimKind, Primitive
 
 fn idl_prim(kind: PrimKind) -> &'static str {
     match kind {
+        PrimKind::Bool => "boolean",
+        PrimKind::I64 => "int64",
         PrimKind::U8 => "uint8",
         PrimKind::I16 => "int16",
         PrimKind::U16 => "uint16",
@@ -58,6 +60,12 @@ impl Visitor for Members<'_> {
         self.gen.add::<S>();
         self.lines.push(format!("sequence<{}> {name};", qualified(S::DDS_TYPE_NAME)));
     }
+    fn primitive_sequence<P: Primitive>(&mut self, name: &'static str, _items: &[P]) {
+        self.lines.push(format!("sequence<{}> {name};", idl_prim(P::KIND)));
+    }
+    fn string(&mut self, name: &'static str, _value: &str) {
+        self.lines.push(format!("string {name};"));
+    }
 }
 
 /// OMG IDL text defining `kind` and everything it uses (MCAP schema encoding `omgidl`).
@@ -97,5 +105,22 @@ mod tests {
         assert!(imu < low && motor < low);
         assert!(t.contains("::unitree_hg::msg::dds_::MotorState_ motor_state[35];"));
         assert!(t.contains("uint8 wireless_remote[40];"));
+    }
+
+    /// The RPC request as Unitree's header declares it: int64 ids, boolean, string and byte sequence members.
+    #[test]
+    fn idl_text_of_the_rpc_request() {
+        let t = idl_text(MessageType::ApiRequest);
+        for line in [
+            "int64 id;",
+            "int64 api_id;",
+            "int32 priority;",
+            "boolean noreply;",
+            "::unitree_api::msg::dds_::RequestHeader_ header;",
+            "string parameter;",
+            "sequence<uint8> binary;",
+        ] {
+            assert!(t.contains(line), "{line} missing from:\n{t}");
+        }
     }
 }

@@ -1,6 +1,8 @@
-//! Unitree SDK2 low-level message types, exactly as Unitree's C++ SDK headers declare them.
+//! Unitree SDK2 message types, exactly as Unitree's C++ SDK headers declare them.
 //!
-//! * [`hg`]: `unitree_hg` (H1-2, G1) and [`go`]: `unitree_go` (Go2, H1, B2).
+//! * [`hg`]: `unitree_hg` (H1-2, G1) and [`go`]: `unitree_go` (Go2, H1, B2): low-level control.
+//! * [`api`]: `unitree_api`, the request/response of the SDK's RPC (high-level clients such as `LocoClient`),
+//!   with the service names, API versions, API ids and status codes of Unitree's headers.
 //! * Every struct implements [`IdlStruct`], a small reflection interface that walks its members
 //!   in declaration order. The wire codec, the CRC image, JSON and validation are all written once
 //!   against it (in `lowlevel-codec`), so member order and types live in exactly one place: here.
@@ -12,6 +14,7 @@
 mod macros;
 pub mod reflect;
 
+pub mod api;
 pub mod go;
 pub mod h1_2;
 pub mod hg;

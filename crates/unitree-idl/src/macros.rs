@@ -31,6 +31,7 @@ macro_rules! idl_struct {
             };
             const CDR_MIN: usize = 0 $( + <$ty as $crate::reflect::Field>::CDR_MIN )*;
             const HAS_SEQUENCE: bool = false $( || <$ty as $crate::reflect::Field>::HAS_SEQUENCE )*;
+            const EVERY_BYTE_VALID: bool = true $( && <$ty as $crate::reflect::Field>::EVERY_BYTE_VALID )*;
             fn zeroed() -> Self {
                 Self { $( $field: <$ty as $crate::reflect::Field>::zeroed(), )* }
             }
@@ -59,6 +60,14 @@ macro_rules! idl_struct {
             #[inline(always)]
             fn visit_array_mut<V: $crate::reflect::VisitorMut>(items: &mut [Self], name: &'static str, v: &mut V) -> Result<(), V::Error> {
                 v.struct_array(name, items)
+            }
+            #[inline(always)]
+            fn visit_sequence<V: $crate::reflect::Visitor>(items: &[Self], name: &'static str, v: &mut V) {
+                v.struct_sequence(name, items)
+            }
+            #[inline(always)]
+            fn visit_sequence_mut<V: $crate::reflect::VisitorMut>(items: &mut Vec<Self>, name: &'static str, v: &mut V) -> Result<(), V::Error> {
+                v.struct_sequence(name, items)
             }
         }
 

@@ -1,8 +1,8 @@
 //! Names of every message type, as the CLI, reports and DDS spell them.
 
-use crate::{go, hg, IdlStruct};
+use crate::{api, go, hg, IdlStruct};
 
-/// Every SDK2 low-level message type this crate knows.
+/// Every SDK2 message type this crate knows: the low-level types and the RPC types.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum MessageType {
     HgLowCmd,
@@ -23,6 +23,14 @@ pub enum MessageType {
     GoImuState,
     GoBmsCmd,
     GoBmsState,
+    ApiRequest,
+    ApiRequestHeader,
+    ApiRequestIdentity,
+    ApiRequestLease,
+    ApiRequestPolicy,
+    ApiResponse,
+    ApiResponseHeader,
+    ApiResponseStatus,
 }
 
 /// A type name that names no SDK2 low-level type.
@@ -50,7 +58,7 @@ impl std::error::Error for UnknownMessageType {}
 macro_rules! registry {
     ($d:tt $( $variant:ident => $name:literal, $module:ident :: $ty:ident; )*) => {
         impl MessageType {
-            /// All types, hg first.
+            /// All types: hg, go, then the RPC types (api).
             pub const ALL: &'static [MessageType] = &[$( MessageType::$variant ),*];
 
             /// Short name: package and IDL name without the trailing underscore (`hg/LowCmd`).
@@ -115,6 +123,14 @@ registry! {
     GoImuState => "go/IMUState", go::IMUState_;
     GoBmsCmd => "go/BmsCmd", go::BmsCmd_;
     GoBmsState => "go/BmsState", go::BmsState_;
+    ApiRequest => "api/Request", api::Request_;
+    ApiRequestHeader => "api/RequestHeader", api::RequestHeader_;
+    ApiRequestIdentity => "api/RequestIdentity", api::RequestIdentity_;
+    ApiRequestLease => "api/RequestLease", api::RequestLease_;
+    ApiRequestPolicy => "api/RequestPolicy", api::RequestPolicy_;
+    ApiResponse => "api/Response", api::Response_;
+    ApiResponseHeader => "api/ResponseHeader", api::ResponseHeader_;
+    ApiResponseStatus => "api/ResponseStatus", api::ResponseStatus_;
 }
 
 impl core::fmt::Display for MessageType {

@@ -165,4 +165,8 @@ impl Visitor for Walk {
 
     /// Never reached: views are declared only for types without sequences (a compile-time check).
     fn struct_sequence<S: IdlStruct>(&mut self, _name: &'static str, _items: &[S]) {}
+    /// Never reached, as above.
+    fn primitive_sequence<P: Primitive>(&mut self, _name: &'static str, _items: &[P]) {}
+    /// Never reached, as above (strings have no fixed size).
+    fn string(&mut self, _name: &'static str, _value: &str) {}
 }

@@ -176,6 +176,18 @@ impl<const BIG: bool> unitree_idl::VisitorMut for Fill<'_, BIG> {
     fn struct_sequence<S: IdlStruct>(&mut self, _name: &'static str, _items: &mut Vec<S>) -> Result<(), Self::Error> {
         Ok(())
     }
+    /// Never reached, as above.
+    fn primitive_sequence<P: Primitive>(
+        &mut self,
+        _name: &'static str,
+        _items: &mut Vec<P>,
+    ) -> Result<(), Self::Error> {
+        Ok(())
+    }
+    /// Never reached, as above.
+    fn string(&mut self, _name: &'static str, _value: &mut String) -> Result<(), Self::Error> {
+        Ok(())
+    }
 }
 
 /// What a leaf accessor returns: a primitive, or a primitive array by value.
@@ -502,7 +514,10 @@ macro_rules! struct_view {
             ),
             concat!("view ", stringify!($view), ": members differ from the IDL declaration order"),
         );
-        const _: () = assert!(!<$owned as unitree_idl::Field>::HAS_SEQUENCE, "views need a fixed layout");
+        const _: () = assert!(
+            !<$owned as unitree_idl::Field>::HAS_SEQUENCE && <$owned as unitree_idl::Field>::EVERY_BYTE_VALID,
+            "views need a fixed layout in which every byte pattern decodes"
+        );
     };
 
     (@leaves value($t:ty)) => { 1 };
@@ -599,7 +614,17 @@ macro_rules! with_viewable_type {
                 type $T = go::BmsState_;
                 Some($body)
             }
-            M::HgHandCmd | M::HgHandState => None,
+            // Sequences, strings or booleans (the RPC types): no view.
+            M::HgHandCmd
+            | M::HgHandState
+            | M::ApiRequest
+            | M::ApiRequestHeader
+            | M::ApiRequestIdentity
+            | M::ApiRequestLease
+            | M::ApiRequestPolicy
+            | M::ApiResponse
+            | M::ApiResponseHeader
+            | M::ApiResponseStatus => None,
         }
     }};
 }

@@ -1,0 +1,227 @@
+//! `unitree_api`: the request/response types of Unitree's SDK2 RPC (module `unitree_api::msg::dds_`), carried on
+//! `rt/api/<service>/request` and `rt/api/<service>/response` by every high-level client (`LocoClient`,
+//! `SportClient`, ...).
+//!
+//! Member names, order and types follow Unitree's C++ SDK headers
+//! (`include/unitree/robot/internal/internal_idl_decl/*_.hpp` of unitreerobotics/unitree_sdk2, commit
+//! `21d0a3b2c46ee48c8fdf2783becb6be3beb0a59b`), without the trailing underscore of the C++ members; Unitree's
+//! Python classes (`unitree_sdk2py/idl/unitree_api/msg/dds_/`) declare the same, `@final`. The payloads are JSON
+//! text in `parameter` / `data` (and raw bytes in `binary` for the binary calls).
+
+use crate::macros::idl_struct;
+
+idl_struct! {
+    /// Which call this is: `id` pairs a response with its request (Unitree's clients use a monotonic clock in
+    /// nanoseconds), `api_id` names the call (`ROBOT_API_ID_*`).
+    "unitree_api" struct RequestIdentity_ {
+        id: i64,
+        api_id: i64,
+    }
+}
+
+idl_struct! {
+    /// The caller's lease (0 without one).
+    "unitree_api" struct RequestLease_ {
+        id: i64,
+    }
+}
+
+idl_struct! {
+    /// Scheduling of the request: priority queue and whether the caller waits for an answer.
+    "unitree_api" struct RequestPolicy_ {
+        priority: i32,
+        noreply: bool,
+    }
+}
+
+idl_struct! {
+    /// Header of a request.
+    "unitree_api" struct RequestHeader_ {
+        identity: RequestIdentity_,
+        lease: RequestLease_,
+        policy: RequestPolicy_,
+    }
+}
+
+idl_struct! {
+    /// An RPC request, topic `rt/api/<service>/request`.
+    "unitree_api" struct Request_ {
+        header: RequestHeader_,
+        parameter: String,
+        binary: Vec<u8>,
+    }
+}
+
+idl_struct! {
+    /// Outcome of a call: 0 or an SDK status code (`UT_ROBOT_ERR_*`, service-specific codes).
+    "unitree_api" struct ResponseStatus_ {
+        code: i32,
+    }
+}
+
+idl_struct! {
+    /// Header of a response: the request's identity, echoed, and the status.
+    "unitree_api" struct ResponseHeader_ {
+        identity: RequestIdentity_,
+        status: ResponseStatus_,
+    }
+}
+
+idl_struct! {
+    /// An RPC response, topic `rt/api/<service>/response`.
+    "unitree_api" struct Response_ {
+        header: ResponseHeader_,
+        data: String,
+        binary: Vec<u8>,
+    }
+}
+
+/// Topic on which a client sends requests to `service` (unitree_sdk2py `core/channel_name.py`,
+/// `GetClientChannelName`: `"rt/api/" + service + "/request"`).
+pub fn request_topic(service: &str) -> String {
+    format!("rt/api/{service}/request")
+}
+
+/// Topic on which `service` answers (`"rt/api/" + service + "/response"`).
+pub fn response_topic(service: &str) -> String {
+    format!("rt/api/{service}/response")
+}
+
+/// SDK status codes shared by every service: `include/unitree/robot/internal/internal_error.hpp`
+/// (`UT_DECL_ERR`, same values in unitree_sdk2py `rpc/internal.py`).
+pub mod status {
+    /// `UT_ROBOT_OK`.
+    pub const OK: i32 = 0;
+    /// `UT_ROBOT_ERR_UNKNOWN`.
+    pub const ERR_UNKNOWN: i32 = 3001;
+    /// `UT_ROBOT_ERR_CLIENT_SEND`.
+    pub const ERR_CLIENT_SEND: i32 = 3102;
+    /// `UT_ROBOT_ERR_CLIENT_API_NOT_REG`.
+    pub const ERR_CLIENT_API_NOT_REG: i32 = 3103;
+    /// `UT_ROBOT_ERR_CLIENT_API_TIMEOUT`.
+    pub const ERR_CLIENT_API_TIMEOUT: i32 = 3104;
+    /// `UT_ROBOT_ERR_CLIENT_API_NOT_MATCH`.
+    pub const ERR_CLIENT_API_NOT_MATCH: i32 = 3105;
+    /// `UT_ROBOT_ERR_CLIENT_API_DATA`.
+    pub const ERR_CLIENT_API_DATA: i32 = 3106;
+    /// `UT_ROBOT_ERR_CLIENT_LEASE_INVALID`.
+    pub const ERR_CLIENT_LEASE_INVALID: i32 = 3107;
+    /// `UT_ROBOT_ERR_SERVER_SEND`.
+    pub const ERR_SERVER_SEND: i32 = 3201;
+    /// `UT_ROBOT_ERR_SERVER_INTERNAL`.
+    pub const ERR_SERVER_INTERNAL: i32 = 3202;
+    /// `UT_ROBOT_ERR_SERVER_API_NOT_IMPL`.
+    pub const ERR_SERVER_API_NOT_IMPL: i32 = 3203;
+    /// `UT_ROBOT_ERR_SERVER_API_PARAMETER`.
+    pub const ERR_SERVER_API_PARAMETER: i32 = 3204;
+    /// `UT_ROBOT_ERR_SERVER_LEASE_DENIED`.
+    pub const ERR_SERVER_LEASE_DENIED: i32 = 3205;
+    /// `UT_ROBOT_ERR_SERVER_LEASE_NOT_EXIST`.
+    pub const ERR_SERVER_LEASE_NOT_EXIST: i32 = 3206;
+    /// `UT_ROBOT_ERR_SERVER_LEASE_EXIST`.
+    pub const ERR_SERVER_LEASE_EXIST: i32 = 3207;
+}
+
+/// API ids every server answers (`include/unitree/robot/internal/internal_api.hpp`).
+pub mod internal {
+    /// `ROBOT_INTERNAL_API_ID_MAX`: ids up to this are the SDK's own, not a service's.
+    pub const API_ID_MAX: i64 = 100;
+    /// `ROBOT_API_ID_INTERNAL_API_VERSION`: the server answers with its API version string.
+    pub const API_VERSION: i64 = 1;
+    /// `ROBOT_API_ID_LEASE_APPLY`.
+    pub const LEASE_APPLY: i64 = 101;
+    /// `ROBOT_API_ID_LEASE_RENEWAL`.
+    pub const LEASE_RENEWAL: i64 = 102;
+}
+
+/// The locomotion services of Unitree's humanoids, as the SDK's `LocoClient`s call them.
+pub mod loco {
+    /// One variant of the locomotion RPC: its service name, API version and API ids.
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    pub struct LocoApi {
+        /// Which SDK header it comes from (for messages).
+        pub robot: &'static str,
+        /// Service name: topics `rt/api/<service>/request|response`.
+        pub service: &'static str,
+        /// What the server answers to `ROBOT_API_ID_INTERNAL_API_VERSION`.
+        pub version: &'static str,
+        pub get_fsm_id: i64,
+        pub get_fsm_mode: i64,
+        pub get_balance_mode: i64,
+        pub get_swing_height: i64,
+        pub get_stand_height: i64,
+        /// Deprecated in the headers.
+        pub get_phase: i64,
+        pub set_fsm_id: i64,
+        pub set_balance_mode: i64,
+        pub set_swing_height: i64,
+        pub set_stand_height: i64,
+        pub set_velocity: i64,
+        /// Odometry calls (H1 only): enable, disable, get.
+        pub odom: Option<[i64; 3]>,
+    }
+
+    /// H1 / H1-2: `include/unitree/robot/h1/loco/h1_loco_api.hpp` (`LOCO_SERVICE_NAME = "loco"`,
+    /// `LOCO_API_VERSION = "2.0.0.0"`, `ROBOT_API_ID_LOCO_*` 8001..8006, 8101..8105, odometry 8201..8203); the same
+    /// values in unitree_sdk2_python `unitree_sdk2py/h1/loco/h1_loco_api.py` (which lacks the odometry ids).
+    pub const H1: LocoApi = LocoApi {
+        robot: "h1",
+        service: "loco",
+        version: "2.0.0.0",
+        get_fsm_id: 8001,
+        get_fsm_mode: 8002,
+        get_balance_mode: 8003,
+        get_swing_height: 8004,
+        get_stand_height: 8005,
+        get_phase: 8006,
+        set_fsm_id: 8101,
+        set_balance_mode: 8102,
+        set_swing_height: 8103,
+        set_stand_height: 8104,
+        set_velocity: 8105,
+        odom: Some([8201, 8202, 8203]),
+    };
+
+    /// G1: `include/unitree/robot/g1/loco/g1_loco_api.hpp` (`LOCO_SERVICE_NAME = "sport"`,
+    /// `LOCO_API_VERSION = "1.0.0.0"`, `ROBOT_API_ID_LOCO_*` 7001..7006, 7101..7105).
+    pub const G1: LocoApi = LocoApi {
+        robot: "g1",
+        service: "sport",
+        version: "1.0.0.0",
+        get_fsm_id: 7001,
+        get_fsm_mode: 7002,
+        get_balance_mode: 7003,
+        get_swing_height: 7004,
+        get_stand_height: 7005,
+        get_phase: 7006,
+        set_fsm_id: 7101,
+        set_balance_mode: 7102,
+        set_swing_height: 7103,
+        set_stand_height: 7104,
+        set_velocity: 7105,
+        odom: None,
+    };
+
+    /// H1 locomotion error codes: `include/unitree/robot/h1/loco/h1_loco_error.hpp`.
+    pub mod status {
+        /// `UT_ROBOT_LOCO_ERR_LOCOSTATE_NOT_AVAILABLE`.
+        pub const ERR_LOCOSTATE_NOT_AVAILABLE: i32 = 8301;
+        /// `UT_ROBOT_LOCO_ERR_INVALID_FSM_ID`.
+        pub const ERR_INVALID_FSM_ID: i32 = 8302;
+        /// `UT_ROBOT_LOCO_ERR_ODOMSTATE_NOT_AVAILABLE`.
+        pub const ERR_ODOMSTATE_NOT_AVAILABLE: i32 = 8303;
+    }
+
+    /// FSM ids the SDK's `LocoClient` high-level calls set (`h1_loco_client.hpp`: `ZeroTorque()` = `SetFsmId(0)`,
+    /// `Damp()` = 1, `StandUp()` = 2, `Start()` = 204).
+    pub mod fsm {
+        pub const ZERO_TORQUE: i64 = 0;
+        pub const DAMP: i64 = 1;
+        pub const STAND_UP: i64 = 2;
+        pub const START: i64 = 204;
+    }
+
+    /// `duration` the SDK's `Move(vx, vy, vyaw, continous_move = true)` sends (`h1_loco_client.hpp`: 864000 s,
+    /// ten days); `StopMove()` is `SetVelocity(0, 0, 0)` with the default duration 1 s.
+    pub const CONTINUOUS_MOVE_DURATION: f64 = 864000.0;
+}
