@@ -66,8 +66,15 @@ fn spawn(cmd: &mut Command) -> KillOnDrop {
 fn wait_for_endpoint(domain: u32, kind: EndpointKind, topic: &str) {
     let p = Participant::new(DomainConfig::loopback(domain)).expect("participant");
     let m = p.discovery().expect("discovery");
-    let found = m.wait_for(PATIENCE, |e| !e.local && e.alive && e.kind == kind && e.topic_name == topic).expect("discovery");
-    assert!(found.is_some(), "no {kind:?} on {topic} appeared on domain {domain}");
+    let deadline = Instant::now() + PATIENCE;
+    loop {
+        let endpoints = m.endpoints().expect("discovery");
+        if endpoints.iter().any(|e| !e.local && e.alive && e.kind == kind && e.topic_name == topic) {
+            return;
+        }
+        assert!(Instant::now() < deadline, "no {kind:?} on {topic} appeared on domain {domain}");
+        std::thread::sleep(Duration::from_millis(50));
+    }
 }
 
 /// Runs `ulab doctor --format json` with `args`; (exit code, report).
