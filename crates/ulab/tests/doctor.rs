@@ -89,9 +89,9 @@ fn doctor(args: &[&str]) -> (Option<i32>, Value) {
 }
 
 fn codes(report: &Value) -> Vec<String> {
-    report["findings"].as_array().map_or_else(Vec::new, |f| {
-        f.iter().filter_map(|x| x["code"].as_str().map(str::to_owned)).collect()
-    })
+    report["findings"]
+        .as_array()
+        .map_or_else(Vec::new, |f| f.iter().filter_map(|x| x["code"].as_str().map(str::to_owned)).collect())
 }
 
 fn finding<'a>(report: &'a Value, code: &str) -> &'a Value {
@@ -183,11 +183,14 @@ fn nothing_publishing_lowstate_is_named() {
     let _slot = RealtimeSlot::acquire();
     let domain = lease_domain();
     // The 0.10.2 peer as a controller: it reads rt/lowstate and writes rt/lowcmd; no robot side anywhere.
-    let _controller = spawn(Command::new(&peer_bin).args([domain.arg().as_str(), "lo", "30", "controller", "3", "0.4", "60", "2"]));
+    let _controller =
+        spawn(Command::new(&peer_bin).args([domain.arg().as_str(), "lo", "30", "controller", "3", "0.4", "60", "2"]));
     wait_for_endpoint(domain.id(), EndpointKind::Subscription, "rt/lowstate");
     let (code, r) = doctor(&["--domain", &domain.arg()]);
     assert_eq!(code, Some(1));
-    assert!(finding(&r, "no-lowstate")["message"].as_str().is_some_and(|m| m.contains("nothing publishes rt/lowstate")));
+    assert!(finding(&r, "no-lowstate")["message"]
+        .as_str()
+        .is_some_and(|m| m.contains("nothing publishes rt/lowstate")));
     let p = with_endpoint(participants(&r), "reader", "rt/lowstate");
     assert_eq!((p["product_version"].as_str(), p["process"].as_str()), (Some("0.10.2"), Some("peer")));
     // idlc-generated types carry (0.10-style) type information.
@@ -217,8 +220,17 @@ fn qos_that_cannot_match_is_named() {
     let _slot = RealtimeSlot::acquire();
     let domain = lease_domain();
     let _sim = sim(&domain.arg());
-    let _reader =
-        py11(&["sub", "--domain", &domain.arg(), "--topic", "rt/lowstate", "--reader-qos", "transient-local", "--seconds", "60"]);
+    let _reader = py11(&[
+        "sub",
+        "--domain",
+        &domain.arg(),
+        "--topic",
+        "rt/lowstate",
+        "--reader-qos",
+        "transient-local",
+        "--seconds",
+        "60",
+    ]);
     wait_for_endpoint(domain.id(), EndpointKind::Subscription, "rt/lowstate");
     let (code, r) = doctor(&["--domain", &domain.arg()]);
     assert_eq!(code, Some(1));
