@@ -40,19 +40,24 @@ fn rig(kind: EngineKind) -> Rig {
         .expect("bridge");
     let spec = PolicySpec::from_toml_str(DEFAULT_POLICY_SPEC, std::path::Path::new(".")).expect("spec");
     let policy = PolicyController::from_spec(spec).expect("policy");
-    Rig { robot, loco: LocoService::new(vec![loco::H1], Ok(policy), true), t: 0.0, next_id: 1 }
+    Rig { robot, loco: LocoService::new(vec![loco::H1, loco::G1], Ok(policy), true), t: 0.0, next_id: 1 }
 }
 
 impl Rig {
     /// One call as the SDK's client makes it: identity (id, api_id), empty lease, priority 0, reply wanted.
     fn call(&mut self, api_id: i64, parameter: &str) -> (i32, String) {
+        self.call_on(&loco::H1, api_id, parameter)
+    }
+
+    /// The same on another served variant (the G1 API on `rt/api/sport`).
+    fn call_on(&mut self, api: &loco::LocoApi, api_id: i64, parameter: &str) -> (i32, String) {
         let mut req = api::Request_::default();
         req.header.identity.id = self.next_id;
         req.header.identity.api_id = api_id;
         req.parameter = parameter.to_owned();
         self.next_id += 1;
         let t = self.t;
-        let resp = self.loco.handle(&loco::H1, &req, &mut self.robot, t, t).expect("a reply");
+        let resp = self.loco.handle(api, &req, &mut self.robot, t, t).expect("a reply");
         assert_eq!(resp.header.identity, req.header.identity, "the response echoes the request's identity");
         (resp.header.status.code, resp.data)
     }
@@ -217,4 +222,31 @@ fn low_level_commands_take_over() {
     assert_eq!(r.call(h1.set_fsm_id, &fsm(2)).0, 0);
     assert_eq!(r.fsm_id(), (0, Some(2)));
     assert!(r.robot.internal_command().is_some());
+}
+
+/// The G1 variant (`g1_loco_api.hpp`: service `sport`, version 1.0.0.0, ids 7001..7105) drives the same robot and
+/// state: Start through the G1 ids is seen by the H1 ids, a G1 move walks the robot forward (judged on the physics
+/// state over simulated time, with the band of the H1 checks), odometry is not part of the G1 API.
+#[test]
+fn g1_api_drives_the_same_service() {
+    if !shared_available() {
+        return;
+    }
+    let mut r = rig(EngineKind::Mujoco);
+    let g1 = loco::G1;
+    assert_eq!(r.call_on(&g1, api::internal::API_VERSION, ""), (0, "1.0.0.0".to_owned()));
+    assert_eq!(r.call_on(&g1, g1.set_fsm_id, &fsm(204)).0, 0);
+    assert_eq!(r.fsm_id(), (0, Some(204)), "the H1 ids see the state the G1 ids set");
+    assert_eq!(r.call_on(&g1, 8203, "").0, status::ERR_SERVER_API_NOT_IMPL, "no odometry in the G1 API");
+    r.run(1.0);
+    assert_eq!(r.call_on(&g1, g1.set_velocity, &set_velocity([0.5, 0.0, 0.0], loco::CONTINUOUS_MOVE_DURATION)).0, 0);
+    r.run(2.0);
+    let (a, ta) = (r.robot.engine().state().base_pos, r.t);
+    r.run(3.0);
+    let (b, tb) = (r.robot.engine().state().base_pos, r.t);
+    let speed = (b[0] - a[0]).hypot(b[1] - a[1]) / (tb - ta);
+    eprintln!("G1 API on MuJoCo: {speed:.3} m/s for 0.5 commanded");
+    assert!((0.35..=0.6).contains(&speed), "G1 API: {speed:.3} m/s for 0.5 commanded");
+    assert_eq!(r.call_on(&g1, g1.set_fsm_id, &fsm(1)).0, 0);
+    assert_eq!(r.fsm_id(), (0, Some(1)));
 }
