@@ -14,6 +14,9 @@
 //! Safety: the default is domain 1 on `lo`; domain 0 or another interface needs
 //! [`DomainConfig::allow_robot`].
 //!
+//! [`probe`] lists the host's interfaces and finds a domain's participants by their SPDP announcements (vendor,
+//! protocol and product version), for `ulab doctor`.
+//!
 //! ```no_run
 //! use dds_transport::{DomainConfig, Participant, TopicSpec, topics::Family};
 //! use std::time::Duration;
@@ -28,6 +31,7 @@
 
 pub mod config;
 mod error;
+pub mod probe;
 // The crate's only unsafe code: thin Cyclone DDS wrappers, invariants stated in the module.
 #[allow(unsafe_code)]
 mod ffi;
@@ -555,6 +559,11 @@ impl DiscoveryMonitor {
             }
             std::thread::sleep(Duration::from_millis(20));
         }
+    }
+
+    /// GUID of the participant it belongs to (its endpoints' `participant_guid`).
+    pub fn own_participant_guid(&self) -> [u8; 16] {
+        self.own_guid
     }
 
     /// The participant it belongs to.

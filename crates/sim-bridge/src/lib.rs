@@ -13,6 +13,10 @@
 //!   the torso (quaternion w,x,y,z; gyroscope in the IMU frame; accelerometer = specific force
 //!   `R^T (a - g)`, so +9.81 m/s² on z at rest), `tick` in ms and a correct CRC.
 //!
+//! [`loco`] is the built-in locomotion service (what Unitree's `LocoClient` talks to over RPC): a walking policy
+//! and the FSM states behind it, driving the robot through an internal command that any fresh `rt/lowcmd`
+//! command overrides ([`SimRobot::set_internal_command`]).
+//!
 //! [`suspension`] holds the robot on a stiff stand (pelvis still, feet in the air) for `ulab sim --hang`; the gap
 //! diagnosis's rig uses the same stand.
 //!
@@ -20,6 +24,7 @@
 #![forbid(unsafe_code)]
 
 mod imu;
+pub mod loco;
 pub mod suspension;
 
 use diff_physics::{pd, Engine, EngineError, PdTarget, State};
@@ -99,6 +104,8 @@ pub struct Counters {
     pub states_published: u64,
     /// Physics steps run in damping mode because no command was fresh.
     pub damping_steps: u64,
+    /// Physics steps driven by the internal command (the locomotion service).
+    pub internal_steps: u64,
 }
 
 /// Stiffness that keeps the robot standing without a balance controller (N·m/rad, N·m·s/rad):
@@ -154,6 +161,11 @@ pub struct SimRobot {
     target: PdTarget,
     /// Latest accepted command and when it arrived (caller's clock, s).
     command: Option<(hg::LowCmd_, f64)>,
+    /// Command of the built-in controller (the locomotion service), applied while no received command is
+    /// fresh; validated when set.
+    internal: Option<hg::LowCmd_>,
+    /// Whether the last step applied [`Self::internal`] (the motor modes LowState reports follow it).
+    applied_internal: bool,
     tau: Vec<f64>,
     prev_dq: Vec<f64>,
     ddq: Vec<f64>,
@@ -183,6 +195,8 @@ impl SimRobot {
             engine,
             config,
             command: None,
+            internal: None,
+            applied_internal: false,
             tau: vec![0.0; n],
             prev_dq: vec![0.0; n],
             ddq: vec![0.0; n],
@@ -199,6 +213,8 @@ impl SimRobot {
     pub fn reset(&mut self, state: &State) -> Result<(), BridgeError> {
         self.engine.reset(state)?;
         self.command = None;
+        self.internal = None;
+        self.applied_internal = false;
         self.tau.iter_mut().for_each(|t| *t = 0.0);
         self.prev_dq.clone_from(&state.dq);
         self.ddq.iter_mut().for_each(|a| *a = 0.0);
@@ -245,9 +261,33 @@ impl SimRobot {
         Verdict::Accepted
     }
 
-    /// Whether a command is fresh at `now` (else the robot is in damping mode).
+    /// Whether a received command is fresh at `now` (else the internal command drives the robot, or without one
+    /// the robot is in damping mode).
     pub fn command_active(&self, now: f64) -> bool {
         self.command.as_ref().is_some_and(|(_, t)| now - t <= self.config.command_timeout)
+    }
+
+    /// Sets (or clears) the internal command: what drives the motors whenever no received `rt/lowcmd` command is
+    /// fresh, with no timeout of its own. A fresh received command always takes precedence, as low-level commands
+    /// override the robot's own controller. The command passes the same limit checks as a received one (not the
+    /// CRC: it never travelled); on findings it is refused and the previous internal command stays.
+    pub fn set_internal_command(&mut self, cmd: Option<hg::LowCmd_>) -> Result<(), Vec<validate::Finding>> {
+        if let Some(c) = &cmd {
+            let findings: Vec<_> = validate::h1_2_lowcmd(c)
+                .into_iter()
+                .filter(|f| !matches!(f, validate::Finding::UnusedSlotNotZero { .. }))
+                .collect();
+            if !findings.is_empty() {
+                return Err(findings);
+            }
+        }
+        self.internal = cmd;
+        Ok(())
+    }
+
+    /// The internal command, if one is set.
+    pub fn internal_command(&self) -> Option<&hg::LowCmd_> {
+        self.internal.as_ref()
     }
 
     /// One physics step at time `now` (caller's clock, for the command timeout): PD torques from
@@ -256,7 +296,16 @@ impl SimRobot {
         let state = self.engine.state();
         let n = self.model.nj();
         let active = self.command_active(now);
-        if let (true, Some((cmd, _))) = (active, &self.command) {
+        let applied = match (active, &self.command, &self.internal) {
+            (true, Some((cmd, _)), _) => Some(cmd),
+            (false, _, Some(cmd)) => {
+                self.counters.internal_steps += 1;
+                Some(cmd)
+            }
+            _ => None,
+        };
+        self.applied_internal = !active && self.internal.is_some();
+        if let Some(cmd) = applied {
             let target = &mut self.target;
             for (i, joint) in self.model.joints.iter().enumerate() {
                 let m = &cmd.motor_cmd[joint.slot];
@@ -326,7 +375,8 @@ impl SimRobot {
         s.imu_state.accelerometer = reading.accelerometer.map(|x| x as f32);
         s.imu_state.rpy = reading.rpy.map(|x| x as f32);
         s.imu_state.temperature = 40;
-        let enabled = self.command.as_ref().map(|(c, _)| c);
+        let enabled =
+            if self.applied_internal { self.internal.as_ref() } else { self.command.as_ref().map(|(c, _)| c) };
         for (i, joint) in self.model.joints.iter().enumerate() {
             let m = &mut s.motor_state[joint.slot];
             m.mode = enabled.map_or(0, |c| u8::from(c.motor_cmd[joint.slot].mode != 0));

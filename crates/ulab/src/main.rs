@@ -17,7 +17,7 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// Encode, decode and checksum SDK2 low-level messages (CDR with encapsulation header).
+    /// Encode, decode and checksum SDK2 messages, low-level and RPC (CDR with encapsulation header).
     Codec(cmd::codec::Args),
     /// Record DDS topics (rt/lowcmd, rt/lowstate, ...) into an MCAP file.
     Record(cmd::record::Args),
@@ -27,7 +27,7 @@ enum Command {
     Log(cmd::log::Args),
     /// The robot model in several physics engines: oracles (check), mass matrix dumps (inspect), MJCF export.
     Model(cmd::model::Args),
-    /// Simulated robot behind rt/lowcmd and rt/lowstate (a bridge a stock Unitree SDK client drives).
+    /// Simulated robot behind rt/lowcmd and rt/lowstate and the SDK's locomotion RPC (LocoClient).
     Sim(cmd::sim::Args),
     /// Check how a DDS peer that plays the robot side handles good and bad traffic (report, fuzz, replay).
     Conform(cmd::conform::Args),
@@ -35,6 +35,8 @@ enum Command {
     Diff(cmd::diff::Args),
     /// Sim-to-real gap diagnosis from robot logs (diagnose, excite, bench).
     Gap(cmd::gap::Args),
+    /// Why an SDK client sees nothing: interfaces, DDS participants (vendor, version), topics, QoS, diagnosis.
+    Doctor(cmd::doctor::Args),
 }
 
 fn main() -> ExitCode {
@@ -49,6 +51,7 @@ fn main() -> ExitCode {
         Command::Conform(args) => cmd::conform::run(args),
         Command::Diff(args) => cmd::diff::run(args),
         Command::Gap(args) => cmd::gap::run(args),
+        Command::Doctor(args) => cmd::doctor::run(args),
     };
     match result {
         Ok(code) => code,

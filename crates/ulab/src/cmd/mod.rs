@@ -2,6 +2,7 @@
 pub mod codec;
 pub mod conform;
 pub mod diff;
+pub mod doctor;
 pub mod gap;
 pub mod log;
 pub mod model;
@@ -9,6 +10,7 @@ pub mod record;
 pub mod recording;
 pub mod replay;
 pub mod sim;
+pub mod sim_loco;
 
 /// A help line ending in the engines compiled into this build (they depend on `diff-physics` features), for every
 /// flag that names an engine.

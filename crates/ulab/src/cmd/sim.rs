@@ -1,7 +1,9 @@
 //! `ulab sim`: a simulated robot behind Unitree's low-level DDS topics, so that a stock Unitree
 //! SDK2 controller drives it exactly as the real robot: it subscribes `rt/lowcmd`, publishes
 //! `rt/lowstate`. The protocol logic (gates, PD law, damping timeout, IMU, CRC) is
-//! `sim_bridge::SimRobot`; this module adds DDS, pacing and the status line.
+//! `sim_bridge::SimRobot`; this module adds DDS, pacing and the status line. It also serves the
+//! SDK's locomotion RPC (`LocoClient`: stand, walk at a velocity, stop, damp) through
+//! `sim_loco` / `sim_bridge::loco`.
 
 use super::recording::NetArgs;
 use anyhow::{Context, Result};
@@ -60,6 +62,14 @@ pub struct Args {
     /// then describes the end of a step the wall clock has not reached yet).
     #[arg(long)]
     pub on_time_state: bool,
+    /// Locomotion RPC services to serve (`LocoClient`): h1 (`rt/api/loco/...`, H1/H1-2 API 2.0.0.0), g1
+    /// (`rt/api/sport/...`, G1 API 1.0.0.0), comma-separated, or none.
+    #[arg(long, default_value = "h1,g1", value_parser = super::sim_loco::parse_api)]
+    pub loco_api: super::sim_loco::LocoApis,
+    /// Walking policy spec the locomotion service runs (default: the shipped unitree_rl_gym H1-2 LSTM, weights
+    /// from $ULAB_SHARED/reference/policies/).
+    #[arg(long)]
+    pub loco_policy: Option<std::path::PathBuf>,
     /// No status line.
     #[arg(long)]
     pub quiet: bool,
@@ -112,12 +122,28 @@ pub fn run(args: Args) -> Result<ExitCode> {
     if config.protections != Protections::default() {
         eprintln!("sim: WARNING test-only switches active: {:?}", config.protections);
     }
+    let holding = config.hold_until_first_command;
+    let policy = if args.loco_api.0.is_empty() {
+        Err("no locomotion service".to_owned())
+    } else {
+        super::sim_loco::load_policy(args.loco_policy.as_deref(), &model, args.dt)
+    };
+    if let (Err(why), false) = (&policy, args.loco_api.0.is_empty()) {
+        anyhow::ensure!(args.loco_policy.is_none(), "loading the walking policy: {why}");
+        eprintln!("sim: WARNING no walking policy ({why}); the locomotion service refuses Start and moves");
+    }
     let mut robot = SimRobot::new(engine, model, config, &initial).context("starting the simulated robot")?;
 
     let participant = Participant::new(cfg.clone()).context("opening the DDS domain")?;
     let family = dds_transport::Family::Hg;
     let commands = participant.reader(&TopicSpec::lowcmd(family)).context("subscribing rt/lowcmd")?;
     let states = participant.writer(&TopicSpec::lowstate(family)).context("creating the rt/lowstate writer")?;
+    let mut loco = if args.loco_api.0.is_empty() {
+        None
+    } else {
+        let service = sim_bridge::loco::LocoService::new(args.loco_api.0.clone(), policy, holding);
+        Some(super::sim_loco::LocoEndpoints::open(&participant, service).context("serving the locomotion RPC")?)
+    };
 
     let stop = Arc::new(AtomicBool::new(false));
     {
@@ -154,6 +180,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
             // Ahead of the wall clock: wait, but keep taking commands.
             std::thread::sleep(Duration::from_secs_f64((sim_time - wall).min(0.001)));
             drain(&commands, &mut robot, start);
+            if let Some(l) = loco.as_mut() {
+                l.serve(&mut robot, sim_time, start.elapsed().as_secs_f64());
+            }
             continue;
         }
         // --on-time-state: the state at `sim_time` goes out when the wall clock reaches `sim_time`, before the step
@@ -163,6 +192,14 @@ pub fn run(args: Args) -> Result<ExitCode> {
             publish_due(&mut robot, &states, sim_time, &mut next_publish, publish_period)?;
         }
         drain(&commands, &mut robot, start);
+        if let Some(l) = loco.as_mut() {
+            let now = start.elapsed().as_secs_f64();
+            l.serve(&mut robot, sim_time, now);
+            l.control(&mut robot, sim_time, now);
+            if !args.quiet {
+                l.take_events().iter().for_each(|e| eprintln!("sim: t={sim_time:.2}s {e}"));
+            }
+        }
         robot.step(start.elapsed().as_secs_f64()).context("physics step")?;
         sim_time += args.dt;
         if !args.on_time_state {
@@ -172,15 +209,21 @@ pub fn run(args: Args) -> Result<ExitCode> {
         if since >= 1.0 {
             let c = robot.counters();
             if !args.quiet {
+                let now = start.elapsed().as_secs_f64();
                 eprintln!(
-                    "sim: t={sim_time:.1}s state {:.1} Hz  rtf {:.2}  cmds accepted {} rejected {} bad-crc {} malformed {}{}",
+                    "sim: t={sim_time:.1}s state {:.1} Hz  rtf {:.2}  cmds accepted {} rejected {} bad-crc {} malformed {}{}{}",
                     (c.states_published - window.2) as f64 / since,
                     (sim_time - window.1) / since,
                     c.accepted,
                     c.rejected,
                     c.bad_crc,
                     c.malformed,
-                    if robot.command_active(start.elapsed().as_secs_f64()) { "" } else { "  [damping/hold: no fresh command]" }
+                    match (robot.command_active(now), robot.internal_command().is_some()) {
+                        (true, _) => "",
+                        (false, true) => "  [driven by the locomotion service]",
+                        (false, false) => "  [damping/hold: no fresh command]",
+                    },
+                    loco.as_ref().map(|l| format!("  {}", l.status(sim_time))).unwrap_or_default()
                 );
             }
             window = (Instant::now(), sim_time, c.states_published);
@@ -206,6 +249,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         "dt": args.dt,
         "state_rate_hz": args.state_rate,
         "counters": c,
+        "loco": loco.as_ref().map(|l| l.summary()),
     });
     eprintln!("sim: summary {summary}");
     Ok(ExitCode::SUCCESS)

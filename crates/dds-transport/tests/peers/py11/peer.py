@@ -10,6 +10,8 @@ Modes (all on loopback, bounded in time, output on stdout as JSON lines):
                                                         whether they carry XTypes type information
 Discovery: --sdk uses unitree_sdk2py's ChannelFactoryInitialize(D, "lo") (Unitree's own config);
 otherwise the same unicast settings as our transport (participant index auto, peer 127.0.0.1).
+Misconfigurations for `ulab doctor`'s tests: --go (unitree_go types on the topic: the wrong family for an
+H1-2), --writer-qos best-effort, --reader-qos reliable|transient-local (QoS that cannot match Unitree's).
 """
 import argparse
 import json
@@ -28,10 +30,29 @@ from cyclonedds.topic import Topic  # noqa: E402
 from cyclonedds.util import duration  # noqa: E402
 from unitree_sdk2py.idl.default import unitree_hg_msg_dds__LowCmd_, unitree_hg_msg_dds__LowState_  # noqa: E402
 from unitree_sdk2py.idl.unitree_hg.msg.dds_ import LowCmd_, LowState_  # noqa: E402
+from unitree_sdk2py.idl.unitree_go.msg.dds_ import LowCmd_ as GoLowCmd_, LowState_ as GoLowState_  # noqa: E402
 
 TYPES = {"rt/lowcmd": LowCmd_, "rt/lowstate": LowState_}
+GO_TYPES = {"rt/lowcmd": GoLowCmd_, "rt/lowstate": GoLowState_}
 WRITER_QOS = Qos(Policy.Reliability.Reliable(duration(milliseconds=100)), Policy.History.KeepLast(1))
 READER_QOS = Qos(Policy.Reliability.BestEffort, Policy.History.KeepLast(64))
+QOS_CHOICES = {
+    "best-effort": Qos(Policy.Reliability.BestEffort, Policy.History.KeepLast(1)),
+    "reliable": Qos(Policy.Reliability.Reliable(duration(milliseconds=100)), Policy.History.KeepLast(64)),
+    "transient-local": Qos(Policy.Reliability.BestEffort, Policy.History.KeepLast(64), Policy.Durability.TransientLocal),
+}
+
+
+def writer_qos(args):
+    return QOS_CHOICES[args.writer_qos] if args.writer_qos else WRITER_QOS
+
+
+def reader_qos(args):
+    return QOS_CHOICES[args.reader_qos] if args.reader_qos else READER_QOS
+
+
+def topic_type(args, name):
+    return (GO_TYPES if args.go else TYPES)[name]
 
 XML = (
     '<CycloneDDS><Domain Id="any"><General><Interfaces><NetworkInterface name="lo" priority="default" '
@@ -86,7 +107,7 @@ def cmd_pattern(i):
 
 def pub(args, topic_name):
     dp = participant(args)
-    w = DataWriter(dp, Topic(dp, topic_name, TYPES[topic_name]), qos=WRITER_QOS)
+    w = DataWriter(dp, Topic(dp, topic_name, topic_type(args, topic_name)), qos=writer_qos(args))
     emit({"event": "ready", "matched": wait_matched(w, args.match_timeout)})
     period = 1.0 / args.rate
     t0 = time.time()
@@ -139,7 +160,7 @@ def echo(args):
 
 def sub(args):
     dp = participant(args)
-    r = DataReader(dp, Topic(dp, args.topic, TYPES[args.topic]), qos=READER_QOS)
+    r = DataReader(dp, Topic(dp, args.topic, topic_type(args, args.topic)), qos=reader_qos(args))
     emit({"event": "ready"})
     n = 0
     end = time.time() + args.seconds
@@ -208,9 +229,14 @@ def main():
     ap.add_argument("--match-timeout", type=float, default=5.0)
     ap.add_argument("--sdk", action="store_true")
     ap.add_argument("--gap-at", type=int, default=-1, help="pub-lowstate: pause and skip ticks at this sample")
+    ap.add_argument("--go", action="store_true", help="pub/sub: unitree_go types instead of unitree_hg")
+    ap.add_argument("--writer-qos", choices=sorted(QOS_CHOICES), help="pub: writer QoS instead of Unitree's")
+    ap.add_argument("--reader-qos", choices=sorted(QOS_CHOICES), help="sub: reader QoS instead of Unitree's")
     args = ap.parse_args()
     if args.domain == 0:
         sys.exit("refusing domain 0")
+    if args.go and args.mode != "sub":
+        sys.exit("--go is for sub only (the samples written are hg)")
     if args.mode == "pub-lowcmd":
         pub(args, "rt/lowcmd")
     elif args.mode == "pub-lowstate":
