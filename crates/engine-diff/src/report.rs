@@ -586,11 +586,12 @@ impl Report {
     }
 }
 
-const PALETTE_NAMES: [&str; 4] = ["red", "blue", "green", "magenta"];
+/// One colour per engine after the lead (up to the six engines of the CLI's build, then repeating).
+const PALETTE_NAMES: [&str; 6] = ["red", "blue", "green", "magenta", "cyan", "black"];
 
 fn palette(i: usize) -> plotters::style::RGBColor {
     use plotters::style::colors::*;
-    [RED, BLUE, GREEN, MAGENTA][i % 4]
+    [RED, BLUE, GREEN, MAGENTA, CYAN, BLACK][i % PALETTE_NAMES.len()]
 }
 
 fn line_plot(path: &Path, series: &[Vec<(f64, f64)>]) -> Result<(), DiffError> {

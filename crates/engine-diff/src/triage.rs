@@ -128,7 +128,8 @@ impl Class {
 
 /// Model equivalence at a state, for the named engines: per-link masses, link-frame FK positions and the
 /// COM against `robot-model`'s reference (the checks of `diff_physics::oracle::model_equivalence`, here at
-/// the finding's state rather than random ones). Tolerances as there: 1e-9 kg, 1e-9 m. `None`: all equal.
+/// the finding's state rather than random ones). Tolerances as there: 1e-9 kg, 1e-9 m, or the engine's
+/// precision-derived ones ([`diff_physics::oracle::precision_tolerance`]). `None`: all equal.
 pub fn model_equivalence_at(
     model: &RobotModel,
     factories: &[&Arc<dyn EngineFactory>],
@@ -156,7 +157,12 @@ pub fn model_equivalence_at(
         let c = e.com();
         let dc = ((c[0] - com.x).powi(2) + (c[1] - com.y).powi(2) + (c[2] - com.z).powi(2)).sqrt();
         let counts_ok = masses.len() == model.links.len() && poses.len() == fk.link_poses.len();
-        if !counts_ok || harness::exceeds(dm, 1e-9) || harness::exceeds(dp, 1e-9) || harness::exceeds(dc, 1e-9) {
+        // The oracle's tolerances, widened by its own derivation for engines computing in lower precision (PhysX:
+        // f32, where 1e-9 kg would call every rounded mass a translation problem).
+        let name = f.name();
+        let tol = |check: &str| diff_physics::oracle::precision_tolerance(&name, check, 1e-9);
+        let (tm, tp, tc) = (tol("per-link mass"), tol("link-frame FK position"), tol("centre of mass"));
+        if !counts_ok || harness::exceeds(dm, tm) || harness::exceeds(dp, tp) || harness::exceeds(dc, tc) {
             problems.push(format!("{}: mass Δ {dm:.3e} kg, link FK Δ {dp:.3e} m, COM Δ {dc:.3e} m", f.name()));
         }
     }

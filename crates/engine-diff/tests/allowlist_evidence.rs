@@ -183,7 +183,9 @@ fn clean_runs_stay_under_every_cap() {
     use engine_diff::report::allow_usage;
     use engine_diff::scenario::Scenario;
     let m = model();
-    let f = builtin_factories(&["mujoco".into(), "rapier_multibody".into(), "rapier_impulse".into()]).expect("engines");
+    // Every engine of this build (the CLI's build has all six), MuJoCo leading.
+    let names: Vec<String> = EngineKind::available().iter().map(|k| k.name().to_string()).collect();
+    let f = builtin_factories(&names).expect("engines");
     let ctrl = excitation_factory(&m);
     let cfg = HarnessConfig { free_runs: false, ..HarnessConfig::default() };
     // The standard excitation (0.15 rad) and the strong one the planted-bug test uses (0.5 rad).
