@@ -242,7 +242,7 @@ fn shipped_policies_run_across_engines() {
 fn bad_arguments_exit_2() {
     for args in [
         vec!["diff", "--engines", "mujoco", "--out", "/tmp/x"],
-        vec!["diff", "--engines", "mujoco,bullet", "--out", "/tmp/x"],
+        vec!["diff", "--engines", "mujoco,bogus", "--out", "/tmp/x"],
         vec!["diff", "--seconds", "-1", "--out", "/tmp/x"],
         vec!["diff", "--seconds", "0.1"],
         vec!["diff", "replay", "/nonexistent/repro.json"],
