@@ -157,11 +157,7 @@ fn mode_zero_gives_no_torque_and_silence_gives_damping() {
 #[test]
 fn state_is_fresh_unless_the_switch_is_off() {
     let mut fresh = robot(EngineKind::Mujoco, CommonSettings::default(), &[]);
-    let mut stale = robot(
-        EngineKind::Mujoco,
-        CommonSettings::default(),
-        Protections { fresh_state: false, ..&[] },
-    );
+    let mut stale = robot(EngineKind::Mujoco, CommonSettings::default(), &[Defect::StaleState]);
     let distinct = |r: &mut SimRobot| {
         let mut seen = Vec::new();
         let mut t = 0.0;
