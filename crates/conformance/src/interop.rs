@@ -68,7 +68,10 @@ impl InteropOptions {
     }
 
     fn python(&self) -> PathBuf {
-        self.python.clone().or_else(|| std::env::var_os("ULAB_PYTHON").map(PathBuf::from)).unwrap_or_else(|| "python3".into())
+        self.python
+            .clone()
+            .or_else(|| std::env::var_os("ULAB_PYTHON").map(PathBuf::from))
+            .unwrap_or_else(|| "python3".into())
     }
 }
 
@@ -243,7 +246,15 @@ pub fn c010_probe_binary(opts: &InteropOptions) -> Result<PathBuf, String> {
         )?;
         let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
         run_tool(
-            Command::new(cc).current_dir(&tmp).args(["-O1", "-I.", "-o", "c010_probe", "c010_probe.c", "lowstate.c", "-lddsc"]),
+            Command::new(cc).current_dir(&tmp).args([
+                "-O1",
+                "-I.",
+                "-o",
+                "c010_probe",
+                "c010_probe.c",
+                "lowstate.c",
+                "-lddsc",
+            ]),
             "compiling the probe against libddsc (Debian package cyclonedds-dev)",
         )?;
         Ok::<(), String>(())
@@ -338,18 +349,26 @@ pub fn start_cyclone11(target: &Target, opts: &InteropOptions) -> Cyclone11Probe
 }
 
 /// Lets the Cyclone 11 probe join, judges what it saw, then checks that the peer still publishes.
-pub fn finish_cyclone11(probe: Cyclone11Probe, target: &mut Target, timing: Timing) -> Result<CheckResult, ConformError> {
+pub fn finish_cyclone11(
+    probe: Cyclone11Probe,
+    target: &mut Target,
+    timing: Timing,
+) -> Result<CheckResult, ConformError> {
     let id = CheckId::InteropCyclone11;
     let mut running = match probe.running {
         Ok(r) => r,
-        Err(e) => return Ok(CheckResult::new(id, Status::Inconclusive, format!("no Cyclone 11 probe: {e}")).with("error", e)),
+        Err(e) => {
+            return Ok(CheckResult::new(id, Status::Inconclusive, format!("no Cyclone 11 probe: {e}")).with("error", e))
+        }
     };
     if running.wait_line("READY", Duration::from_secs(60)).is_none() {
         let done = running.finish(Duration::from_secs(5));
         let why = done
             .lines
             .iter()
-            .find_map(|l| serde_json::from_str::<serde_json::Value>(l).ok().and_then(|v| v["error"].as_str().map(str::to_owned)))
+            .find_map(|l| {
+                serde_json::from_str::<serde_json::Value>(l).ok().and_then(|v| v["error"].as_str().map(str::to_owned))
+            })
             .unwrap_or_else(|| done.stderr.lines().last().unwrap_or("no output").to_owned());
         return Ok(CheckResult::new(
             id,
@@ -361,8 +380,12 @@ pub fn finish_cyclone11(probe: Cyclone11Probe, target: &mut Target, timing: Timi
     let go = running.stdin.as_mut().map(|s| s.write_all(b"go\n").and_then(|()| s.flush()));
     if !matches!(go, Some(Ok(()))) {
         let done = running.finish(Duration::from_secs(5));
-        return Ok(CheckResult::new(id, Status::Inconclusive, "the Cyclone 11 probe exited before it was told to join")
-            .with("log", done.log()));
+        return Ok(CheckResult::new(
+            id,
+            Status::Inconclusive,
+            "the Cyclone 11 probe exited before it was told to join",
+        )
+        .with("log", done.log()));
     }
     // Our own reader watches the stream while the probe is on the domain and after it leaves.
     let before = target.samples.len();
@@ -392,7 +415,11 @@ fn judge(id: CheckId, who: &str, done: &Finished, target: &Target) -> CheckResul
             Status::Fail,
             format!(
                 "{who} crashed (signal {sig}){} while the peer was on the domain",
-                if invalid_type { " on XTypes type information it could not parse (`invalid type object`)" } else { "" }
+                if invalid_type {
+                    " on XTypes type information it could not parse (`invalid type object`)"
+                } else {
+                    ""
+                }
             ),
         )
     } else if done.killed {
@@ -401,7 +428,10 @@ fn judge(id: CheckId, who: &str, done: &Finished, target: &Target) -> CheckResul
         CheckResult::new(
             id,
             Status::Inconclusive,
-            format!("{who} could not run: {}", log.lines().filter(|l| !l.trim().is_empty()).last().unwrap_or("no output")),
+            format!(
+                "{who} could not run: {}",
+                log.lines().filter(|l| !l.trim().is_empty()).last().unwrap_or("no output")
+            ),
         )
     } else if let Some(p) = &report {
         let ours = target.samples.len();

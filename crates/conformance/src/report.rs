@@ -450,7 +450,9 @@ mod id_tests {
     #[test]
     fn check_names_round_trip_and_are_unique() {
         let mut seen = std::collections::BTreeSet::new();
-        for id in CheckId::DEFAULT_RUN.into_iter().chain([CheckId::Fuzz, CheckId::FuzzFailure(0), CheckId::FuzzFailure(12)]) {
+        for id in
+            CheckId::DEFAULT_RUN.into_iter().chain([CheckId::Fuzz, CheckId::FuzzFailure(0), CheckId::FuzzFailure(12)])
+        {
             assert_eq!(CheckId::parse(&id.name()), Some(id));
             assert!(seen.insert(id.name()), "{id}");
             let json = serde_json::to_string(&id).unwrap_or_default();

@@ -331,9 +331,9 @@ impl SimRobot {
                 .into_iter()
                 .filter(|f| match f {
                     validate::Finding::UnusedSlotNotZero { .. } => false,
-                    validate::Finding::OutOfLimits { field: validate::CmdField::Kp | validate::CmdField::Kd, .. } => {
-                        !absurd_gains
-                    }
+                    validate::Finding::OutOfLimits {
+                        field: validate::CmdField::Kp | validate::CmdField::Kd, ..
+                    } => !absurd_gains,
                     validate::Finding::NonFinite { .. } => !non_finite,
                     _ => true,
                 })

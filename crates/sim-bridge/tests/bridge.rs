@@ -12,7 +12,13 @@ fn robot(kind: EngineKind, common: CommonSettings, defects: &[Defect]) -> SimRob
     let model = robot_model::RobotModel::h1_2().expect("model");
     let engine = make_engine(kind, &model, &common).expect("engine");
     let initial = State::standing(&model);
-    SimRobot::new(engine, model, BridgeConfig { defects: defects.iter().copied().collect::<BTreeSet<_>>(), ..BridgeConfig::default() }, &initial).expect("bridge")
+    SimRobot::new(
+        engine,
+        model,
+        BridgeConfig { defects: defects.iter().copied().collect::<BTreeSet<_>>(), ..BridgeConfig::default() },
+        &initial,
+    )
+    .expect("bridge")
 }
 
 /// A command holding the standing pose with the model's gains, one joint moved to `target`.
@@ -244,7 +250,8 @@ fn defects_break_exactly_their_protection() {
     let engine = make_engine(EngineKind::Mujoco, &model, &common()).expect("engine");
     let defects = [Defect::FallenPinned].into_iter().collect::<BTreeSet<_>>();
     let initial = sim_bridge::lying_on_back(&model);
-    let mut r = SimRobot::new(engine, model, BridgeConfig { defects, ..BridgeConfig::default() }, &initial).expect("bridge");
+    let mut r =
+        SimRobot::new(engine, model, BridgeConfig { defects, ..BridgeConfig::default() }, &initial).expect("bridge");
     let t = run(&mut r, None, 500, 0.0);
     let rpy = r.imu().rpy;
     assert!(rpy[1].abs() > 1.2, "lying: torso pitch {rpy:?}");
@@ -253,7 +260,8 @@ fn defects_break_exactly_their_protection() {
     let mut step = hold(&r, ELBOW, before as f32 + 0.3);
     for j in r.model().joints.iter() {
         // Hold where it lies rather than the standing pose.
-        step.motor_cmd[j.slot].q = r.engine().state().q[r.model().joints.iter().position(|k| k.slot == j.slot).unwrap_or(0)] as f32;
+        step.motor_cmd[j.slot].q =
+            r.engine().state().q[r.model().joints.iter().position(|k| k.slot == j.slot).unwrap_or(0)] as f32;
     }
     step.motor_cmd[ELBOW].q = before as f32 + 0.3;
     step.motor_cmd[ELBOW].kp = 40.0;

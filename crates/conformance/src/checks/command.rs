@@ -361,9 +361,15 @@ impl<'a> Session<'a> {
         for pass in 0..2 {
             let sign = if pass == 0 { 1.0 } else { -1.0 };
             let held = self.settle()?;
-            let step = self.with_joints_where(&self.hold, &held.reference, sign, |_| true, |j, r, d, m| {
-                m.q = commands::clamp_target(j.slot, r + d * j.step);
-            });
+            let step = self.with_joints_where(
+                &self.hold,
+                &held.reference,
+                sign,
+                |_| true,
+                |j, r, d, m| {
+                    m.q = commands::clamp_target(j.slot, r + d * j.step);
+                },
+            );
             let bytes = wire(&step);
             if pass == 0 {
                 bytes_example.clone_from(&bytes);
@@ -414,14 +420,21 @@ impl<'a> Session<'a> {
                 continue;
             }
             let q = held.reference[slot];
-            let spread = qs.iter().fold(f32::NEG_INFINITY, |a, b| a.max(*b)) - qs.iter().fold(f32::INFINITY, |a, b| a.min(*b));
+            let spread =
+                qs.iter().fold(f32::NEG_INFINITY, |a, b| a.max(*b)) - qs.iter().fold(f32::INFINITY, |a, b| a.min(*b));
             let speed = states.iter().map(|s| s.motor_state[slot].dq.abs()).fold(0.0f32, f32::max);
             let torque = mean(states.iter().map(|s| f64::from(s.motor_state[slot].tau_est)));
             let room = (q - joint.lower - RANGE_MARGIN).min(joint.upper - RANGE_MARGIN - q);
             let why = if room < MIN_STEP_RAD {
-                Some(format!("{} at {q:.2} rad has {room:.2} rad of room to its range [{}, {}]", joint.name, joint.lower, joint.upper))
+                Some(format!(
+                    "{} at {q:.2} rad has {room:.2} rad of room to its range [{}, {}]",
+                    joint.name, joint.lower, joint.upper
+                ))
             } else if spread > SETTLED_RANGE_RAD || !(speed <= SETTLED_SPEED) {
-                Some(format!("{} not settled (moved {spread:.3} rad, |dq| up to {speed:.2} rad/s while held)", joint.name))
+                Some(format!(
+                    "{} not settled (moved {spread:.3} rad, |dq| up to {speed:.2} rad/s while held)",
+                    joint.name
+                ))
             } else if torque.abs() > LOADED_FRACTION * f64::from(joint.torque_limit) {
                 Some(format!("{} loaded ({torque:.1} N·m of its {} N·m)", joint.name, joint.torque_limit))
             } else {
@@ -469,13 +482,18 @@ impl<'a> Session<'a> {
     fn valid_result(&self, example: &[u8]) -> CheckResult {
         let applied: Vec<&TestJoint> = self.joints.iter().filter(|j| j.applied()).collect();
         let by_torque: Vec<&str> = self.joints.iter().filter(|j| j.torque).map(|j| j.name).collect();
-        let by_motion: Vec<&str> =
-            self.joints.iter().filter(|j| j.moved.iter().any(|m| m.is_some_and(|f| f >= MOVED_FRACTION))).map(|j| j.name).collect();
+        let by_motion: Vec<&str> = self
+            .joints
+            .iter()
+            .filter(|j| j.moved.iter().any(|m| m.is_some_and(|f| f >= MOVED_FRACTION)))
+            .map(|j| j.name)
+            .collect();
         let follows_hold: Vec<&str> = self
             .joints
             .iter()
             .filter(|j| {
-                j.torque_separation_nm >= MIN_SEPARATION_NM && j.torque_residual_hold_nm <= TORQUE_FIT * j.torque_separation_nm
+                j.torque_separation_nm >= MIN_SEPARATION_NM
+                    && j.torque_residual_hold_nm <= TORQUE_FIT * j.torque_separation_nm
             })
             .map(|j| j.name)
             .collect();
@@ -488,11 +506,19 @@ impl<'a> Session<'a> {
                 format!(
                     "a valid step of {} was applied: {}{}",
                     names.join(", "),
-                    if by_motion.is_empty() { String::new() } else { format!("moved {} by >= {:.0} % of the step", by_motion.join(", "), MOVED_FRACTION * 100.0) },
+                    if by_motion.is_empty() {
+                        String::new()
+                    } else {
+                        format!("moved {} by >= {:.0} % of the step", by_motion.join(", "), MOVED_FRACTION * 100.0)
+                    },
                     if by_torque.is_empty() {
                         String::new()
                     } else {
-                        format!("{}tau_est of {} follows the step's PD law", if by_motion.is_empty() { "" } else { "; " }, by_torque.join(", "))
+                        format!(
+                            "{}tau_est of {} follows the step's PD law",
+                            if by_motion.is_empty() { "" } else { "; " },
+                            by_torque.join(", ")
+                        )
                     }
                 ),
             )
@@ -526,7 +552,10 @@ impl<'a> Session<'a> {
             .with("test_joints", self.joints_evidence())
             .with("rejected_candidates", &self.rejected)
             .with("tilt_deg", self.tilt.map(|t| round(t.to_degrees(), 1)))
-            .with("loaded_joints_reporting_torque", self.loaded.iter().map(|s| h1_2::JOINTS[*s].name).collect::<Vec<_>>())
+            .with(
+                "loaded_joints_reporting_torque",
+                self.loaded.iter().map(|s| h1_2::JOINTS[*s].name).collect::<Vec<_>>(),
+            )
             .with("probe_bytes_hex", hex(example, 64))
     }
 
@@ -615,7 +644,10 @@ impl<'a> Session<'a> {
                                 "fraction_of_unsafe_effect": round(fraction, 3), "effect": effect}));
         }
         let effect = combine(effects.into_iter());
-        Ok((effect, json!({"case": name, "evidence": "motion (two runs, opposite directions)", "effect": effect, "joints": details})))
+        Ok((
+            effect,
+            json!({"case": name, "evidence": "motion (two runs, opposite directions)", "effect": effect, "joints": details}),
+        ))
     }
 
     /// Reads one joint's `tau_est` during an alternating probe against the case's interpretations.
@@ -639,7 +671,8 @@ impl<'a> Session<'a> {
                 expected_unsafe = (1.0 - DUTY) * hold + DUTY * mean(samples.iter().map(|s| pd(u, *s, j.limit)));
                 for (name, c) in &case.safe {
                     let m = &c.motor_cmd[j.slot];
-                    expected_safe.push((*name, (1.0 - DUTY) * hold + DUTY * mean(samples.iter().map(|s| pd(m, *s, j.limit)))));
+                    expected_safe
+                        .push((*name, (1.0 - DUTY) * hold + DUTY * mean(samples.iter().map(|s| pd(m, *s, j.limit)))));
                 }
             }
             Metric::Activity => {
@@ -653,7 +686,10 @@ impl<'a> Session<'a> {
                 expected_unsafe = DUTY * mean(samples.iter().map(|s| (pd(u, *s, j.limit) - pd(h, *s, j.limit)).abs()));
                 for (name, c) in &case.safe {
                     let m = &c.motor_cmd[j.slot];
-                    expected_safe.push((*name, DUTY * mean(samples.iter().map(|s| (pd(m, *s, j.limit) - pd(h, *s, j.limit)).abs()))));
+                    expected_safe.push((
+                        *name,
+                        DUTY * mean(samples.iter().map(|s| (pd(m, *s, j.limit) - pd(h, *s, j.limit)).abs())),
+                    ));
                 }
             }
         }
@@ -681,15 +717,25 @@ impl<'a> Session<'a> {
     /// Verdict of a check made of cases: fail on any unsafe case, pass when every case was shown safe.
     fn verdict(&self, id: CheckId, what: &str, outcomes: Vec<(String, Effect, serde_json::Value)>) -> CheckResult {
         let unsafe_: Vec<&str> = outcomes.iter().filter(|o| o.1 == Effect::Unsafe).map(|o| o.0.as_str()).collect();
-        let open: Vec<&str> =
-            outcomes.iter().filter(|o| matches!(o.1, Effect::Unclear | Effect::Undecidable)).map(|o| o.0.as_str()).collect();
+        let open: Vec<&str> = outcomes
+            .iter()
+            .filter(|o| matches!(o.1, Effect::Unclear | Effect::Undecidable))
+            .map(|o| o.0.as_str())
+            .collect();
         let joints: Vec<&str> = self.joints.iter().filter(|j| j.usable()).map(|j| j.name).collect();
         let (status, summary) = if !unsafe_.is_empty() {
-            (Status::Fail, format!("{what}: applied in {} of {} cases: {}", unsafe_.len(), outcomes.len(), unsafe_.join("; ")))
+            (
+                Status::Fail,
+                format!("{what}: applied in {} of {} cases: {}", unsafe_.len(), outcomes.len(), unsafe_.join("; ")),
+            )
         } else if open.is_empty() {
             (
                 Status::Pass,
-                format!("{what}: all {} cases rejected or made harmless, judged on {}", outcomes.len(), joints.join(", ")),
+                format!(
+                    "{what}: all {} cases rejected or made harmless, judged on {}",
+                    outcomes.len(),
+                    joints.join(", ")
+                ),
             )
         } else {
             (
@@ -984,7 +1030,11 @@ impl<'a> Session<'a> {
             return Ok(CheckResult::new(
                 CheckId::CmdTimeoutBehaviour,
                 Status::Fail,
-                format!("LowState stopped after commands stopped (gap {:.0} ms, limit {:.0} ms)", gap * 1e3, self.timing.gap_limit * 1e3),
+                format!(
+                    "LowState stopped after commands stopped (gap {:.0} ms, limit {:.0} ms)",
+                    gap * 1e3,
+                    self.timing.gap_limit * 1e3
+                ),
             )
             .with("max_gap_ms", round(gap * 1e3, 1)));
         }
@@ -1003,15 +1053,15 @@ impl<'a> Session<'a> {
                 continue;
             }
             let dq2: f64 = js.iter().map(|s| f64::from(s.dq).powi(2)).sum();
-            let c = if dq2 > 0.0 { (-js.iter().map(|s| s.tau * f64::from(s.dq)).sum::<f64>() / dq2).max(0.0) } else { 0.0 };
+            let c =
+                if dq2 > 0.0 { (-js.iter().map(|s| s.tau * f64::from(s.dq)).sum::<f64>() / dq2).max(0.0) } else { 0.0 };
             let laws: [(Loss, Vec<f64>); 4] = [
                 (Loss::KeepsCommand, js.iter().map(|s| pd(m, *s, limit)).collect()),
                 (Loss::KeepsTorque, js.iter().map(|_| last).collect()),
                 (Loss::Damps, js.iter().map(|s| -c * f64::from(s.dq)).collect()),
                 (Loss::Releases, js.iter().map(|_| 0.0).collect()),
             ];
-            let residual: Vec<f64> =
-                laws.iter().map(|(_, p)| rms(js.iter().zip(p).map(|(s, p)| s.tau - p))).collect();
+            let residual: Vec<f64> = laws.iter().map(|(_, p)| rms(js.iter().zip(p).map(|(s, p)| s.tau - p))).collect();
             let best = (0..4).min_by(|a, b| residual[*a].total_cmp(&residual[*b])).unwrap_or(3);
             // Every law that predicts something else must fit clearly worse.
             let mut decided = true;

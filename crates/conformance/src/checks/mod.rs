@@ -184,7 +184,8 @@ pub fn run_all(
         let mode_machine = target.latest().map_or(h1_2::MODE_MACHINE, |s| s.mode_machine);
         if !target.command_reader_matched {
             let why = "no reader of the target matched our rt/lowcmd writer";
-            for id in sel.ids().into_iter().filter(|c| matches!(c.group(), Group::CommandHandling | Group::Robustness)) {
+            for id in sel.ids().into_iter().filter(|c| matches!(c.group(), Group::CommandHandling | Group::Robustness))
+            {
                 results.push(CheckResult::new(id, Status::Inconclusive, why));
             }
         } else {

@@ -29,9 +29,18 @@ pub(super) fn run(
     let good = wire(&hold);
     let mut out = Vec::new();
     if sel.wants(CheckId::RobustTruncated) {
-        let truncated: Vec<Vec<u8>> =
-            [4, 5, 8, 100, good.len() / 2, good.len() - 1].iter().map(|len| good[..(*len).min(good.len())].to_vec()).collect();
-        out.push(case(s, facts, CheckId::RobustTruncated, "truncated LowCmd samples (4 bytes up to one byte short)", &truncated, 1)?);
+        let truncated: Vec<Vec<u8>> = [4, 5, 8, 100, good.len() / 2, good.len() - 1]
+            .iter()
+            .map(|len| good[..(*len).min(good.len())].to_vec())
+            .collect();
+        out.push(case(
+            s,
+            facts,
+            CheckId::RobustTruncated,
+            "truncated LowCmd samples (4 bytes up to one byte short)",
+            &truncated,
+            1,
+        )?);
     }
     if sel.wants(CheckId::RobustBadHeader) {
         let bad_header: Vec<Vec<u8>> =
@@ -114,7 +123,14 @@ pub(super) fn run(
                 shuffled.push(m.clone());
             }
         }
-        out.push(case(s, facts, CheckId::RobustDuplicatesReordering, "duplicated and reordered commands", &shuffled, 1)?);
+        out.push(case(
+            s,
+            facts,
+            CheckId::RobustDuplicatesReordering,
+            "duplicated and reordered commands",
+            &shuffled,
+            1,
+        )?);
     }
     Ok(out)
 }
@@ -182,11 +198,8 @@ fn case(
     }
     let publishing = gap <= timing.gap_limit && rate >= MIN_RATE_FRACTION * own_rate;
     let held_still = worst.0 <= HOLD_TOLERANCE;
-    let status = if samples.is_empty() || !publishing || non_finite > 0 || !held_still {
-        Status::Fail
-    } else {
-        Status::Pass
-    };
+    let status =
+        if samples.is_empty() || !publishing || non_finite > 0 || !held_still { Status::Fail } else { Status::Pass };
     Ok(CheckResult::new(
         id,
         status,

@@ -79,9 +79,8 @@ fn parse_engine(s: &str) -> Result<EngineKind, String> {
 }
 
 fn parse_defect(s: &str) -> Result<Defect, String> {
-    Defect::parse(s).ok_or_else(|| {
-        format!("unknown defect `{s}` (known: {})", Defect::ALL.map(Defect::name).join(", "))
-    })
+    Defect::parse(s)
+        .ok_or_else(|| format!("unknown defect `{s}` (known: {})", Defect::ALL.map(Defect::name).join(", ")))
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
