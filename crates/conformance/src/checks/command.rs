@@ -52,6 +52,8 @@ const MOVED_FRACTION: f64 = 0.5;
 const TORQUE_FIT: f64 = 0.35;
 /// Torque laws closer than this (N·m, RMS) cannot be told apart.
 const MIN_SEPARATION_NM: f64 = 1.0;
+/// A probe's torque evidence at a joint needs this many samples at which its unsafe law is told apart.
+const MIN_SEPARABLE_SAMPLES: usize = 10;
 /// A probe counts as applied at this fraction of the effect full application predicts ...
 const APPLIED: f64 = 0.5;
 /// ... and as not applied at most at this fraction.
@@ -693,14 +695,30 @@ impl<'a> Session<'a> {
                 }
             }
         }
-        let fractions: Vec<Option<f64>> = expected_safe
-            .iter()
-            .map(|(_, e)| {
-                let sep = expected_unsafe - e;
-                (sep.abs() >= DUTY * MIN_SEPARATION_NM && sep.is_finite()).then(|| (observed - e) / sep)
-            })
-            .collect();
-        let effect = judge(&fractions);
+        // The verdict counts samples instead of comparing the means above: at each sample where the unsafe law is
+        // at least MIN_SEPARATION_NM from the hold's and from every safe reading, which law does tau_est follow?
+        // A conformant peer's samples never follow the unsafe law, however its steps split between the hold and
+        // the probe (on a loaded host the alternating messages arrive in bursts, so that split is not DUTY).
+        let mut separable = 0usize;
+        let mut follows_unsafe = 0usize;
+        for s in samples.iter().filter(|s| s.tau.is_finite()) {
+            let unsafe_law = pd(u, *s, j.limit);
+            let others: Vec<f64> = std::iter::once(pd(h, *s, j.limit))
+                .chain(case.safe.iter().map(|(_, c)| pd(&c.motor_cmd[j.slot], *s, j.limit)))
+                .collect();
+            let apart = others.iter().map(|o| (unsafe_law - o).abs()).fold(f64::INFINITY, f64::min);
+            if !(apart >= MIN_SEPARATION_NM && unsafe_law.is_finite()) {
+                continue;
+            }
+            separable += 1;
+            let nearest_other = others.iter().map(|o| (s.tau - o).abs()).fold(f64::INFINITY, f64::min);
+            if (s.tau - unsafe_law).abs() < nearest_other {
+                follows_unsafe += 1;
+            }
+        }
+        // A peer applying the probe follows its law for about DUTY of the samples: scaled, 1 is full application.
+        let fraction = (separable >= MIN_SEPARABLE_SAMPLES).then(|| follows_unsafe as f64 / separable as f64 / DUTY);
+        let effect = judge(&[fraction]);
         (
             effect,
             json!({
@@ -708,7 +726,9 @@ impl<'a> Session<'a> {
                 "observed_nm": round(observed, 3),
                 "expected_unsafe_nm": round(expected_unsafe, 3),
                 "expected_safe_nm": expected_safe.iter().map(|(n, e)| json!({"reading": n, "nm": round(*e, 3)})).collect::<Vec<_>>(),
-                "fraction_of_unsafe_effect": fractions.iter().map(|f| f.map(|x| round(x, 3))).collect::<Vec<_>>(),
+                "separable_samples": separable,
+                "samples_following_unsafe_law": follows_unsafe,
+                "fraction_of_unsafe_effect": fraction.map(|x| round(x, 3)),
                 "effect": effect,
             }),
         )
