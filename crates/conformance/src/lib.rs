@@ -6,6 +6,9 @@
 //!   discovery monitor; drives command phases at a fixed rate and records every LowState.
 //! * [`checks`]: the default check run (state stream, discovery, command handling,
 //!   robustness), each check a [`report::CheckResult`] with its evidence.
+//! * [`interop`]: participants of the robot's own DDS stacks (Cyclone 0.10.2 in C, Cyclone 11 in Python) that try
+//!   to read the peer's state.
+//! * [`wire`]: the peer's RTPS vendor and protocol version, from the header of its answer to an SPDP announcement.
 //! * [`fuzz`]: structure-aware mutation of LowCmd sequences with state feedback, minimisation
 //!   and reproducer files ([`fuzz::Reproducer`]).
 //! * [`safety`]: the extra rule for fuzzing a non-loopback target (the network rule itself is
@@ -17,9 +20,11 @@
 pub mod checks;
 pub mod commands;
 pub mod fuzz;
+pub mod interop;
 pub mod report;
 pub mod safety;
 pub mod target;
+pub mod wire;
 
 /// Why a conformance run could not be carried out (as opposed to a check that failed).
 #[derive(Debug, thiserror::Error)]
@@ -38,4 +43,6 @@ pub enum ConformError {
     Reproducer(String),
     #[error("{0}")]
     Refused(String),
+    #[error("--checks: {0}")]
+    Selection(String),
 }

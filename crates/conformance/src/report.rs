@@ -4,15 +4,17 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
 /// Version of the `report.json` layout; bump on any incompatible change.
-pub const REPORT_SCHEMA_VERSION: u32 = 1;
+/// 2: `discovery_type_information` replaced by the decisive `interop_cyclone_010` / `interop_cyclone_11` probes;
+/// `target` gains the peer's measured LowState rate, RTPS vendor and protocol version; `settings.checks`.
+pub const REPORT_SCHEMA_VERSION: u32 = 2;
 
-/// Outcome of one check.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+/// Outcome of one check (the verdict).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Status {
     Pass,
     Fail,
-    /// Not enough data to decide (e.g. no LowState during the phase, no discovery data).
+    /// No evidence could decide it; the summary says why (e.g. no joint could move or report torque).
     Inconclusive,
 }
 
@@ -27,11 +29,12 @@ impl Status {
 }
 
 /// Which part of the protocol a check is about.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, PartialOrd, Ord)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, PartialOrd, Ord)]
 #[serde(rename_all = "snake_case")]
 pub enum Group {
     StateStream,
     Discovery,
+    Interop,
     CommandHandling,
     Robustness,
     Fuzz,
@@ -42,10 +45,185 @@ impl Group {
         match self {
             Group::StateStream => "State stream (rt/lowstate)",
             Group::Discovery => "Type, QoS and discovery",
+            Group::Interop => "Interoperability with the robot's DDS stacks",
             Group::CommandHandling => "Command handling (rt/lowcmd)",
             Group::Robustness => "Robustness",
             Group::Fuzz => "Fuzzing",
         }
+    }
+
+    /// The snake_case name (as in report.json and `--checks`).
+    pub const fn name(self) -> &'static str {
+        match self {
+            Group::StateStream => "state_stream",
+            Group::Discovery => "discovery",
+            Group::Interop => "interop",
+            Group::CommandHandling => "command_handling",
+            Group::Robustness => "robustness",
+            Group::Fuzz => "fuzz",
+        }
+    }
+}
+
+/// Identity of a check. The snake_case names are stable: report.json, scripts and `--checks` key on them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(into = "String", try_from = "String")]
+pub enum CheckId {
+    StateCrc,
+    StateRate,
+    StateJitter,
+    StateTick,
+    StateFresh,
+    StateFinite,
+    StateQuaternion,
+    StateJointLimits,
+    DiscoveryTypesQos,
+    InteropCyclone010,
+    InteropCyclone11,
+    CmdValidMovesJoint,
+    CmdBadCrcIgnored,
+    CmdMode0NoTorque,
+    CmdAbsurdGainsSafe,
+    CmdNonFiniteRejected,
+    CmdTimeoutBehaviour,
+    RobustTruncated,
+    RobustBadHeader,
+    RobustOversize,
+    RobustXcdr2,
+    RobustFlood,
+    RobustDuplicatesReordering,
+    /// Fuzz mode without a failure.
+    Fuzz,
+    /// The k-th failure found by fuzzing (`fuzz_failure_k`).
+    FuzzFailure(u32),
+}
+
+impl CheckId {
+    /// The checks of the default run, in report order.
+    pub const DEFAULT_RUN: [CheckId; 23] = [
+        CheckId::StateCrc,
+        CheckId::StateRate,
+        CheckId::StateJitter,
+        CheckId::StateTick,
+        CheckId::StateFresh,
+        CheckId::StateFinite,
+        CheckId::StateQuaternion,
+        CheckId::StateJointLimits,
+        CheckId::DiscoveryTypesQos,
+        CheckId::InteropCyclone010,
+        CheckId::InteropCyclone11,
+        CheckId::CmdValidMovesJoint,
+        CheckId::CmdBadCrcIgnored,
+        CheckId::CmdMode0NoTorque,
+        CheckId::CmdAbsurdGainsSafe,
+        CheckId::CmdNonFiniteRejected,
+        CheckId::CmdTimeoutBehaviour,
+        CheckId::RobustTruncated,
+        CheckId::RobustBadHeader,
+        CheckId::RobustOversize,
+        CheckId::RobustXcdr2,
+        CheckId::RobustFlood,
+        CheckId::RobustDuplicatesReordering,
+    ];
+
+    /// The stable snake_case name.
+    pub fn name(self) -> String {
+        let fixed = match self {
+            CheckId::StateCrc => "state_crc",
+            CheckId::StateRate => "state_rate",
+            CheckId::StateJitter => "state_jitter",
+            CheckId::StateTick => "state_tick",
+            CheckId::StateFresh => "state_fresh",
+            CheckId::StateFinite => "state_finite",
+            CheckId::StateQuaternion => "state_quaternion",
+            CheckId::StateJointLimits => "state_joint_limits",
+            CheckId::DiscoveryTypesQos => "discovery_types_qos",
+            CheckId::InteropCyclone010 => "interop_cyclone_010",
+            CheckId::InteropCyclone11 => "interop_cyclone_11",
+            CheckId::CmdValidMovesJoint => "cmd_valid_moves_joint",
+            CheckId::CmdBadCrcIgnored => "cmd_bad_crc_ignored",
+            CheckId::CmdMode0NoTorque => "cmd_mode0_no_torque",
+            CheckId::CmdAbsurdGainsSafe => "cmd_absurd_gains_safe",
+            CheckId::CmdNonFiniteRejected => "cmd_non_finite_rejected",
+            CheckId::CmdTimeoutBehaviour => "cmd_timeout_behaviour",
+            CheckId::RobustTruncated => "robust_truncated",
+            CheckId::RobustBadHeader => "robust_bad_header",
+            CheckId::RobustOversize => "robust_oversize",
+            CheckId::RobustXcdr2 => "robust_xcdr2",
+            CheckId::RobustFlood => "robust_flood",
+            CheckId::RobustDuplicatesReordering => "robust_duplicates_reordering",
+            CheckId::Fuzz => "fuzz",
+            CheckId::FuzzFailure(k) => return format!("fuzz_failure_{k}"),
+        };
+        fixed.to_owned()
+    }
+
+    /// Parses a [`CheckId::name`].
+    pub fn parse(name: &str) -> Option<CheckId> {
+        if let Some(k) = name.strip_prefix("fuzz_failure_") {
+            return k.parse().ok().map(CheckId::FuzzFailure);
+        }
+        Self::DEFAULT_RUN.into_iter().chain([CheckId::Fuzz]).find(|c| c.name() == name)
+    }
+
+    /// The group it belongs to.
+    pub const fn group(self) -> Group {
+        match self {
+            CheckId::StateCrc
+            | CheckId::StateRate
+            | CheckId::StateJitter
+            | CheckId::StateTick
+            | CheckId::StateFresh
+            | CheckId::StateFinite
+            | CheckId::StateQuaternion
+            | CheckId::StateJointLimits => Group::StateStream,
+            CheckId::DiscoveryTypesQos => Group::Discovery,
+            CheckId::InteropCyclone010 | CheckId::InteropCyclone11 => Group::Interop,
+            CheckId::CmdValidMovesJoint
+            | CheckId::CmdBadCrcIgnored
+            | CheckId::CmdMode0NoTorque
+            | CheckId::CmdAbsurdGainsSafe
+            | CheckId::CmdNonFiniteRejected
+            | CheckId::CmdTimeoutBehaviour => Group::CommandHandling,
+            CheckId::RobustTruncated
+            | CheckId::RobustBadHeader
+            | CheckId::RobustOversize
+            | CheckId::RobustXcdr2
+            | CheckId::RobustFlood
+            | CheckId::RobustDuplicatesReordering => Group::Robustness,
+            CheckId::Fuzz | CheckId::FuzzFailure(_) => Group::Fuzz,
+        }
+    }
+}
+
+impl std::fmt::Display for CheckId {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.name())
+    }
+}
+
+impl From<CheckId> for String {
+    fn from(id: CheckId) -> String {
+        id.name()
+    }
+}
+
+/// A check name that is not one of [`CheckId`]'s.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown check `{0}`")]
+pub struct UnknownCheck(pub String);
+
+impl TryFrom<String> for CheckId {
+    type Error = UnknownCheck;
+    fn try_from(name: String) -> Result<CheckId, UnknownCheck> {
+        CheckId::parse(&name).ok_or(UnknownCheck(name))
+    }
+}
+
+impl std::str::FromStr for CheckId {
+    type Err = UnknownCheck;
+    fn from_str(name: &str) -> Result<CheckId, UnknownCheck> {
+        CheckId::parse(name).ok_or_else(|| UnknownCheck(name.to_owned()))
     }
 }
 
@@ -53,18 +231,18 @@ impl Group {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CheckResult {
     /// Stable snake_case name (tests and scripts key on it).
-    pub id: String,
+    pub id: CheckId,
     pub group: Group,
     pub status: Status,
-    /// One sentence: what was seen.
+    /// One sentence: what was seen, and for a fail or an inconclusive result, why.
     pub summary: String,
     /// Figures, sample counts, offending bytes (hex).
     pub evidence: BTreeMap<String, serde_json::Value>,
 }
 
 impl CheckResult {
-    pub fn new(id: &str, group: Group, status: Status, summary: impl Into<String>) -> Self {
-        CheckResult { id: id.to_owned(), group, status, summary: summary.into(), evidence: BTreeMap::new() }
+    pub fn new(id: CheckId, status: Status, summary: impl Into<String>) -> Self {
+        CheckResult { id, group: id.group(), status, summary: summary.into(), evidence: BTreeMap::new() }
     }
 
     /// Adds one evidence item.
@@ -83,6 +261,15 @@ pub struct TargetInfo {
     pub interface: String,
     /// GUID prefix (hex) of the participant that published rt/lowstate, if discovered.
     pub participant: Option<String>,
+    /// LowState rate measured while nothing was sent (Hz): every duration of the run scales with it.
+    #[serde(default)]
+    pub measured_state_rate_hz: Option<f64>,
+    /// RTPS vendor of that participant as seen on the wire (`1.16 Eclipse Cyclone DDS`), where it answered.
+    #[serde(default)]
+    pub rtps_vendor: Option<String>,
+    /// RTPS protocol version of that participant as seen on the wire (`2.1`).
+    #[serde(default)]
+    pub rtps_protocol_version: Option<String>,
 }
 
 /// Settings of the run.
@@ -94,6 +281,9 @@ pub struct Settings {
     /// Fuzz budget (s), fuzz mode only.
     pub budget_s: Option<f64>,
     pub seed: Option<u64>,
+    /// The checks that were asked for (`--checks`); every check of the default run if empty.
+    #[serde(default)]
+    pub checks: Vec<CheckId>,
 }
 
 /// The whole report.
@@ -137,12 +327,17 @@ impl Report {
         let c = self.counts();
         out.push_str("# Conformance report\n\n");
         out.push_str(&format!(
-            "Target: robot `{}` on DDS domain {} / `{}`{}  \nMode: {}; nominal LowState rate {} Hz; run took {:.1} s.  \n",
+            "Target: robot `{}` on DDS domain {} / `{}`{}{}  \nMode: {}; LowState measured at {} against {} Hz nominal; run took {:.1} s.  \n",
             self.target.robot,
             self.target.domain,
             self.target.interface,
             self.target.participant.as_ref().map(|p| format!(", participant `{p}`")).unwrap_or_default(),
+            match (&self.target.rtps_vendor, &self.target.rtps_protocol_version) {
+                (Some(v), Some(p)) => format!(" (RTPS vendor {v}, protocol {p})"),
+                _ => String::new(),
+            },
             self.settings.mode,
+            self.target.measured_state_rate_hz.map_or("?".to_owned(), |r| format!("{r:.1} Hz")),
             self.settings.expected_state_rate_hz,
             self.duration_s
         ));
@@ -198,13 +393,27 @@ mod tests {
     fn sample() -> Report {
         Report {
             schema_version: REPORT_SCHEMA_VERSION,
-            target: TargetInfo { robot: "h1_2".into(), domain: 81, interface: "lo".into(), participant: None },
-            settings: Settings { mode: "checks".into(), expected_state_rate_hz: 500.0, budget_s: None, seed: None },
+            target: TargetInfo {
+                robot: "h1_2".into(),
+                domain: 81,
+                interface: "lo".into(),
+                participant: None,
+                measured_state_rate_hz: Some(499.9),
+                rtps_vendor: Some("1.16 Eclipse Cyclone DDS".into()),
+                rtps_protocol_version: Some("2.5".into()),
+            },
+            settings: Settings {
+                mode: "checks".into(),
+                expected_state_rate_hz: 500.0,
+                budget_s: None,
+                seed: None,
+                checks: vec![CheckId::StateCrc, CheckId::FuzzFailure(3)],
+            },
             versions: BTreeMap::from([("ulab".to_owned(), "0.1.0".to_owned())]),
             duration_s: 1.0,
             results: vec![
-                CheckResult::new("a", Group::StateStream, Status::Pass, "ok").with("n", 3),
-                CheckResult::new("b", Group::Robustness, Status::Fail, "bad | pipe").with("bytes", "00ff"),
+                CheckResult::new(CheckId::StateCrc, Status::Pass, "ok").with("n", 3),
+                CheckResult::new(CheckId::RobustFlood, Status::Fail, "bad | pipe").with("bytes", "00ff"),
             ],
             reproducers: vec![],
         }
@@ -217,6 +426,8 @@ mod tests {
         let v: serde_json::Value = serde_json::from_str(&text).unwrap_or_default();
         assert_eq!(v["results"][1]["status"], "fail");
         assert_eq!(v["results"][0]["group"], "state_stream");
+        assert_eq!(v["results"][0]["id"], "state_crc");
+        assert_eq!(v["settings"]["checks"][1], "fuzz_failure_3");
         let back: Report = serde_json::from_str(&text).unwrap_or_else(|e| panic!("{e}"));
         assert_eq!(back, r);
         assert!(r.any_fail());
@@ -226,7 +437,28 @@ mod tests {
     fn markdown_escapes_pipes_and_lists_every_check() {
         let md = sample().to_markdown();
         assert!(md.contains("bad \\| pipe"));
-        assert!(md.contains("`a`") && md.contains("`b`"));
+        assert!(md.contains("`state_crc`") && md.contains("`robust_flood`"));
+        assert!(md.contains("RTPS vendor 1.16 Eclipse Cyclone DDS, protocol 2.5"));
         assert!(md.contains("1 pass, 1 fail, 0 inconclusive"));
+    }
+}
+
+#[cfg(test)]
+mod id_tests {
+    use super::*;
+
+    #[test]
+    fn check_names_round_trip_and_are_unique() {
+        let mut seen = std::collections::BTreeSet::new();
+        for id in
+            CheckId::DEFAULT_RUN.into_iter().chain([CheckId::Fuzz, CheckId::FuzzFailure(0), CheckId::FuzzFailure(12)])
+        {
+            assert_eq!(CheckId::parse(&id.name()), Some(id));
+            assert!(seen.insert(id.name()), "{id}");
+            let json = serde_json::to_string(&id).unwrap_or_default();
+            assert_eq!(json, format!("\"{}\"", id.name()));
+        }
+        assert_eq!(CheckId::parse("discovery_type_information"), None);
+        assert!(serde_json::from_str::<CheckId>("\"no_such_check\"").is_err());
     }
 }

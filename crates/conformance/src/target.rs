@@ -45,6 +45,7 @@ pub struct Target {
     reader: RawReader,
     discovery: DiscoveryMonitor,
     _participant: Participant,
+    config: DomainConfig,
     start: Instant,
     epoch_ns: i64,
     /// Every LowState received so far, in arrival order.
@@ -64,7 +65,7 @@ impl Target {
     /// Joins the domain and waits up to `timeout` for the target's first LowState (error if none)
     /// and for its LowCmd reader to match our writer (recorded, not required).
     pub fn connect(cfg: DomainConfig, timeout: Duration) -> Result<Target, ConformError> {
-        let participant = Participant::new(cfg)?;
+        let participant = Participant::new(cfg.clone())?;
         let discovery = participant.discovery()?;
         let writer = participant.writer(&TopicSpec::lowcmd(Family::Hg))?;
         let reader = participant.reader_with(
@@ -76,6 +77,7 @@ impl Target {
             reader,
             discovery,
             _participant: participant,
+            config: cfg,
             start: Instant::now(),
             epoch_ns: now_ns(),
             samples: Vec::new(),
@@ -102,7 +104,12 @@ impl Target {
         Ok(target)
     }
 
-    /// Seconds since connection.
+    /// The domain and interface it joined.
+    pub fn config(&self) -> &DomainConfig {
+        &self.config
+    }
+
+    /// Seconds since connection (the clock of [`StateSample::t`]).
     pub fn elapsed(&self) -> f64 {
         self.start.elapsed().as_secs_f64()
     }

@@ -16,6 +16,7 @@
 //! [`loco`] is the built-in locomotion service (what Unitree's `LocoClient` talks to over RPC): a walking policy
 //! and the FSM states behind it, driving the robot through an internal command that any fresh `rt/lowcmd`
 //! command overrides ([`SimRobot::set_internal_command`]).
+//! [`Defect`]s switch single protocol faults on, for testing conformance tools; none is active in normal use.
 //!
 //! [`suspension`] holds the robot on a stiff stand (pelvis still, feet in the air) for `ulab sim --hang`; the gap
 //! diagnosis's rig uses the same stand.
@@ -30,31 +31,86 @@ pub mod suspension;
 use diff_physics::{pd, Engine, EngineError, PdTarget, State};
 use lowlevel_codec::{cdr, crc, validate, DecodeError};
 use robot_model::RobotModel;
+use std::collections::BTreeSet;
 use unitree_idl::hg;
 
 pub use imu::ImuReading;
 
-/// Protections of the bridge. All on in normal use; the switches exist so that the conformance
-/// fuzzer can prove it detects a bridge that lacks each of them (test-only CLI flags).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
-pub struct Protections {
-    /// Drop commands whose CRC does not verify.
-    pub check_crc: bool,
-    /// Reject commands with non-finite values, unknown modes or targets/gains beyond limits.
-    pub check_limits: bool,
-    /// Rebuild LowState from the physics state at every publish (off: republish a snapshot
-    /// refreshed only every [`STALE_REFRESH`] publishes, as a stale bridge would).
-    pub fresh_state: bool,
+/// A deliberate deviation from Unitree's protocol (test-only, `ulab sim --unsafe-defect NAME`). Each one reproduces a
+/// fault seen in a public simulator bridge, so the conformance tester can prove that it reports exactly that fault
+/// and nothing else. None is active in normal use.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Defect {
+    /// LowState goes out with `crc = 0` (unitree_mujoco's Python bridge never computes it).
+    NoStateCrc,
+    /// LowState `tick` stays 0 (same bridge).
+    TickStuck,
+    /// LowState is a snapshot refreshed only every [`STALE_REFRESH`] publishes.
+    StaleState,
+    /// Commands whose CRC is wrong are applied (no public bridge checks it).
+    ApplyBadCrc,
+    /// Motor mode 0 drives the motor like mode 1.
+    IgnoreMode0,
+    /// Gains outside `[0, KP_MAX]` / `[0, KD_MAX]` (negative, huge) are applied as sent.
+    ApplyAbsurdGains,
+    /// Non-finite values are accepted; a step whose torque is not finite zeroes every motor, as MuJoCo clears all
+    /// controls on a bad control value: the robot goes limp instead of rejecting the message.
+    LimpOnNonFinite,
+    /// No command timeout: the last command is applied forever when commands stop.
+    KeepLastCommand,
+    /// The robot starts lying on its back and [`PINNED_SLOTS`] are held by brakes (standing in for the robot's own
+    /// body lying on them after a fall): commands reach their motors, whose torque is reported, but cannot move them.
+    FallenPinned,
 }
 
-impl Default for Protections {
-    fn default() -> Self {
-        Protections { check_crc: true, check_limits: true, fresh_state: true }
+impl Defect {
+    /// Every defect, in declaration order.
+    pub const ALL: [Defect; 9] = [
+        Defect::NoStateCrc,
+        Defect::TickStuck,
+        Defect::StaleState,
+        Defect::ApplyBadCrc,
+        Defect::IgnoreMode0,
+        Defect::ApplyAbsurdGains,
+        Defect::LimpOnNonFinite,
+        Defect::KeepLastCommand,
+        Defect::FallenPinned,
+    ];
+
+    /// The command-line name (kebab-case).
+    pub const fn name(self) -> &'static str {
+        match self {
+            Defect::NoStateCrc => "no-state-crc",
+            Defect::TickStuck => "tick-stuck",
+            Defect::StaleState => "stale-state",
+            Defect::ApplyBadCrc => "apply-bad-crc",
+            Defect::IgnoreMode0 => "ignore-mode0",
+            Defect::ApplyAbsurdGains => "apply-absurd-gains",
+            Defect::LimpOnNonFinite => "limp-on-non-finite",
+            Defect::KeepLastCommand => "keep-last-command",
+            Defect::FallenPinned => "fallen-pinned",
+        }
+    }
+
+    /// Parses a [`Defect::name`].
+    pub fn parse(name: &str) -> Option<Defect> {
+        Defect::ALL.into_iter().find(|d| d.name() == name)
     }
 }
 
-/// How many publishes a stale snapshot is reused for when `fresh_state` is off.
+/// How many publishes a stale snapshot is reused for under [`Defect::StaleState`].
 pub const STALE_REFRESH: u32 = 10;
+
+/// Motor slots braked by [`Defect::FallenPinned`]: both elbows and the left shoulder pitch (the right shoulder pitch
+/// stays free, so one arm joint can still move).
+pub const PINNED_SLOTS: [usize; 3] = [16, 23, 13];
+
+/// Brake of a pinned joint (N·m/rad, N·m·s/rad): stiff enough that a motor torque at its limit deflects the joint by
+/// a few milliradians, soft enough for explicit integration at 2 ms with the model's 0.1 kg·m² armature
+/// (K dt²/I = 0.08, D dt/I = 0.4).
+const BRAKE_KP: f64 = 2000.0;
+const BRAKE_KD: f64 = 20.0;
 
 /// Bridge behaviour.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -66,7 +122,15 @@ pub struct BridgeConfig {
     /// Until the first command is accepted, hold the standing pose with the model's default
     /// gains (a simulator that starts standing); afterwards silence means damping.
     pub hold_until_first_command: bool,
-    pub protections: Protections,
+    /// Deliberate protocol defects (test-only; empty in normal use).
+    pub defects: BTreeSet<Defect>,
+}
+
+impl BridgeConfig {
+    /// Whether `defect` is active.
+    pub fn has(&self, defect: Defect) -> bool {
+        self.defects.contains(&defect)
+    }
 }
 
 impl Default for BridgeConfig {
@@ -75,7 +139,7 @@ impl Default for BridgeConfig {
             command_timeout: 0.1,
             mode_machine: unitree_idl::h1_2::MODE_MACHINE,
             hold_until_first_command: false,
-            protections: Protections::default(),
+            defects: BTreeSet::new(),
         }
     }
 }
@@ -136,6 +200,17 @@ pub fn stand_target(model: &RobotModel) -> PdTarget {
     t
 }
 
+/// The robot lying on its back in its default joint pose, pelvis 0.4 m up (it drops onto the ground within the first
+/// 0.3 s): the start of [`Defect::FallenPinned`].
+pub fn lying_on_back(model: &RobotModel) -> State {
+    let mut s = State::standing(model);
+    // -90 degrees about the world y axis: the pelvis' forward axis points up.
+    let half = -std::f64::consts::FRAC_PI_4;
+    s.base_quat = [half.cos(), 0.0, half.sin(), 0.0];
+    s.base_pos = [0.0, 0.0, 0.4];
+    s
+}
+
 /// Errors that stop the simulation.
 #[derive(Debug, thiserror::Error)]
 pub enum BridgeError {
@@ -166,7 +241,12 @@ pub struct SimRobot {
     internal: Option<hg::LowCmd_>,
     /// Whether the last step applied [`Self::internal`] (the motor modes LowState reports follow it).
     applied_internal: bool,
+    /// Motor torques of the last step (what LowState reports as `tau_est`).
     tau: Vec<f64>,
+    /// Torques handed to the engine: the motor torques plus the brakes of [`Defect::FallenPinned`].
+    engine_tau: Vec<f64>,
+    /// Brakes of [`Defect::FallenPinned`]: (model joint index, angle held).
+    brakes: Vec<(usize, f64)>,
     prev_dq: Vec<f64>,
     ddq: Vec<f64>,
     imu: imu::ImuTracker,
@@ -198,6 +278,8 @@ impl SimRobot {
             internal: None,
             applied_internal: false,
             tau: vec![0.0; n],
+            engine_tau: vec![0.0; n],
+            brakes: Vec::new(),
             prev_dq: vec![0.0; n],
             ddq: vec![0.0; n],
             imu,
@@ -220,6 +302,17 @@ impl SimRobot {
         self.ddq.iter_mut().for_each(|a| *a = 0.0);
         self.imu.reset(&self.model, state, self.engine.common().gravity)?;
         self.stale = None;
+        self.brakes = if self.config.has(Defect::FallenPinned) {
+            self.model
+                .joints
+                .iter()
+                .enumerate()
+                .filter(|(_, j)| PINNED_SLOTS.contains(&j.slot))
+                .map(|(i, _)| (i, state.q[i]))
+                .collect()
+        } else {
+            Vec::new()
+        };
         Ok(())
     }
 
@@ -238,18 +331,27 @@ impl SimRobot {
 
     /// Handles an already decoded command (same gates as [`SimRobot::handle_lowcmd`]).
     pub fn handle_command(&mut self, cmd: hg::LowCmd_, now: f64) -> Verdict {
-        if self.config.protections.check_crc {
+        if !self.config.has(Defect::ApplyBadCrc) {
             let computed = crc::compute(&cmd);
             if computed != cmd.crc {
                 self.counters.bad_crc += 1;
                 return Verdict::BadCrc { stored: cmd.crc, computed };
             }
         }
-        if self.config.protections.check_limits {
+        {
             // Unused slots that are not zero are harmless: the robot has no motor there.
+            let absurd_gains = self.config.has(Defect::ApplyAbsurdGains);
+            let non_finite = self.config.has(Defect::LimpOnNonFinite);
             let findings: Vec<_> = validate::h1_2_lowcmd(&cmd)
                 .into_iter()
-                .filter(|f| !matches!(f, validate::Finding::UnusedSlotNotZero { .. }))
+                .filter(|f| match f {
+                    validate::Finding::UnusedSlotNotZero { .. } => false,
+                    validate::Finding::OutOfLimits {
+                        field: validate::CmdField::Kp | validate::CmdField::Kd, ..
+                    } => !absurd_gains,
+                    validate::Finding::NonFinite { .. } => !non_finite,
+                    _ => true,
+                })
                 .collect();
             if !findings.is_empty() {
                 self.counters.rejected += 1;
@@ -264,7 +366,9 @@ impl SimRobot {
     /// Whether a received command is fresh at `now` (else the internal command drives the robot, or without one
     /// the robot is in damping mode).
     pub fn command_active(&self, now: f64) -> bool {
-        self.command.as_ref().is_some_and(|(_, t)| now - t <= self.config.command_timeout)
+        self.command
+            .as_ref()
+            .is_some_and(|(_, t)| self.config.has(Defect::KeepLastCommand) || now - t <= self.config.command_timeout)
     }
 
     /// Sets (or clears) the internal command: what drives the motors whenever no received `rt/lowcmd` command is
@@ -310,7 +414,7 @@ impl SimRobot {
             for (i, joint) in self.model.joints.iter().enumerate() {
                 let m = &cmd.motor_cmd[joint.slot];
                 // mode 0: motor disabled, no torque at all (gains and feed-forward ignored).
-                let enabled = m.mode != 0;
+                let enabled = m.mode != 0 || self.config.defects.contains(&Defect::IgnoreMode0);
                 let value = |x: f32| if enabled { f64::from(x) } else { 0.0 };
                 target.q_des[i] = value(m.q);
                 target.dq_des[i] = value(m.dq);
@@ -319,8 +423,15 @@ impl SimRobot {
                 target.tau_ff[i] = value(m.tau);
             }
             pd::pd_torques_into(target, &state.q, &state.dq, &self.limits, &mut self.tau);
-            // Without the limit check a NaN command reaches here; never hand NaN to an engine.
-            self.tau.iter_mut().filter(|t| !t.is_finite()).for_each(|t| *t = 0.0);
+            // Only a defect lets a non-finite command through; never hand NaN to an engine. MuJoCo answers a bad
+            // control value by clearing every control: the whole robot goes limp for that step.
+            if self.tau.iter().any(|t| !t.is_finite()) {
+                if self.config.has(Defect::LimpOnNonFinite) {
+                    self.tau.iter_mut().for_each(|t| *t = 0.0);
+                } else {
+                    self.tau.iter_mut().filter(|t| !t.is_finite()).for_each(|t| *t = 0.0);
+                }
+            }
         } else if self.command.is_none() && self.config.hold_until_first_command {
             pd::pd_torques_into(&self.stand, &state.q, &state.dq, &self.limits, &mut self.tau);
         } else {
@@ -329,7 +440,11 @@ impl SimRobot {
                 *tau = (-self.damping_kd[i] * state.dq[i]).clamp(-self.limits[i], self.limits[i]);
             }
         }
-        self.engine.step(&self.tau)?;
+        self.engine_tau.clone_from(&self.tau);
+        for &(i, angle) in &self.brakes {
+            self.engine_tau[i] += -BRAKE_KP * (state.q[i] - angle) - BRAKE_KD * state.dq[i];
+        }
+        self.engine.step(&self.engine_tau)?;
         let next = self.engine.state();
         let dt = self.engine.common().timestep;
         for i in 0..n {
@@ -343,14 +458,14 @@ impl SimRobot {
     /// A LowState of the current physics state, sealed with its CRC.
     pub fn lowstate(&mut self) -> Result<hg::LowState_, BridgeError> {
         self.counters.states_published += 1;
-        if !self.config.protections.fresh_state {
+        if self.config.has(Defect::StaleState) {
             let tick = self.tick();
             if let Some((snapshot, uses)) = &mut self.stale {
                 if *uses < STALE_REFRESH {
                     *uses += 1;
                     let mut s = snapshot.clone();
                     s.tick = tick;
-                    crc::seal(&mut s);
+                    self.seal(&mut s);
                     return Ok(s);
                 }
             }
@@ -362,8 +477,20 @@ impl SimRobot {
     }
 
     fn tick(&self) -> u32 {
+        if self.config.has(Defect::TickStuck) {
+            return 0;
+        }
         // Milliseconds of simulated time; wraps like the robot's u32 counter.
         ((self.engine.time() * 1000.0).round() as u64 & u64::from(u32::MAX)) as u32
+    }
+
+    /// Seals a LowState with its CRC (or leaves `crc = 0` under [`Defect::NoStateCrc`]).
+    fn seal(&self, s: &mut hg::LowState_) {
+        if self.config.has(Defect::NoStateCrc) {
+            s.crc = 0;
+        } else {
+            crc::seal(s);
+        }
     }
 
     fn build_lowstate(&self) -> Result<hg::LowState_, BridgeError> {
@@ -386,7 +513,7 @@ impl SimRobot {
             m.tau_est = self.tau[i] as f32;
             m.temperature = [35, 35];
         }
-        crc::seal(&mut s);
+        self.seal(&mut s);
         Ok(s)
     }
 

@@ -4,14 +4,21 @@
 
 use diff_physics::{make_engine, CommonSettings, EngineKind, State};
 use lowlevel_codec::{cdr, crc, Encoding};
-use sim_bridge::{BridgeConfig, Protections, SimRobot, Verdict};
+use sim_bridge::{BridgeConfig, Defect, SimRobot, Verdict};
+use std::collections::BTreeSet;
 use unitree_idl::hg;
 
-fn robot(kind: EngineKind, common: CommonSettings, protections: Protections) -> SimRobot {
+fn robot(kind: EngineKind, common: CommonSettings, defects: &[Defect]) -> SimRobot {
     let model = robot_model::RobotModel::h1_2().expect("model");
     let engine = make_engine(kind, &model, &common).expect("engine");
     let initial = State::standing(&model);
-    SimRobot::new(engine, model, BridgeConfig { protections, ..BridgeConfig::default() }, &initial).expect("bridge")
+    SimRobot::new(
+        engine,
+        model,
+        BridgeConfig { defects: defects.iter().copied().collect::<BTreeSet<_>>(), ..BridgeConfig::default() },
+        &initial,
+    )
+    .expect("bridge")
 }
 
 /// A command holding the standing pose with the model's gains, one joint moved to `target`.
@@ -53,7 +60,7 @@ fn free_fall_reads_zero_specific_force_and_rest_reads_g() {
     // Free flight keeps armature: without it, explicit damping (tau = -kd dq of the previous
     // step) is unstable on the light wrist links (kd dt / I > 2).
     let flight = CommonSettings { ground: false, collisions: false, ..CommonSettings::default() };
-    let mut r = robot(EngineKind::Mujoco, flight, Protections::default());
+    let mut r = robot(EngineKind::Mujoco, flight, &[]);
     run(&mut r, None, 200, 0.0);
     let imu = r.imu();
     let norm = imu.accelerometer.iter().map(|a| a * a).sum::<f64>().sqrt();
@@ -61,7 +68,7 @@ fn free_fall_reads_zero_specific_force_and_rest_reads_g() {
     // accelerate the centre of mass but do move the torso slightly): far below g.
     assert!(norm < 0.5, "free fall accelerometer {:?}", imu.accelerometer);
 
-    let mut r = robot(EngineKind::Mujoco, CommonSettings::default(), Protections::default());
+    let mut r = robot(EngineKind::Mujoco, CommonSettings::default(), &[]);
     let state = r.lowstate().expect("state");
     // Upright torso at rest on the ground: +g along the IMU z axis.
     let a = state.imu_state.accelerometer;
@@ -73,7 +80,7 @@ fn free_fall_reads_zero_specific_force_and_rest_reads_g() {
 
 #[test]
 fn valid_command_moves_the_joint_and_bad_crc_does_not() {
-    let mut r = robot(EngineKind::Mujoco, CommonSettings::default(), Protections::default());
+    let mut r = robot(EngineKind::Mujoco, CommonSettings::default(), &[]);
     let start = r.engine().state().q[ELBOW];
     let target = start as f32 + 0.4;
     let mut cmd = hold(&r, ELBOW, target);
@@ -82,7 +89,7 @@ fn valid_command_moves_the_joint_and_bad_crc_does_not() {
     assert!(matches!(r.handle_command(corrupted.clone(), 0.0), Verdict::BadCrc { .. }));
     let t = run(&mut r, Some(&bytes(&corrupted)), 250, 0.0);
     // Never accepted: bit for bit the same motion as with no command at all.
-    let mut silent = robot(EngineKind::Mujoco, CommonSettings::default(), Protections::default());
+    let mut silent = robot(EngineKind::Mujoco, CommonSettings::default(), &[]);
     run(&mut silent, None, 250, 0.0);
     assert_eq!(r.engine().state(), silent.engine().state(), "a bad-CRC command changed the motion");
     assert_eq!(r.counters().accepted, 0);
@@ -102,7 +109,7 @@ fn valid_command_moves_the_joint_and_bad_crc_does_not() {
 
 #[test]
 fn unsafe_commands_are_rejected_and_not_applied() {
-    let mut r = robot(EngineKind::Mujoco, CommonSettings::default(), Protections::default());
+    let mut r = robot(EngineKind::Mujoco, CommonSettings::default(), &[]);
     let base = hold(&r, ELBOW, 0.3);
     let mutate = |f: &dyn Fn(&mut hg::LowCmd_)| {
         let mut c = base.clone();
@@ -130,7 +137,7 @@ fn unsafe_commands_are_rejected_and_not_applied() {
 
 #[test]
 fn mode_zero_gives_no_torque_and_silence_gives_damping() {
-    let mut r = robot(EngineKind::Mujoco, CommonSettings::default(), Protections::default());
+    let mut r = robot(EngineKind::Mujoco, CommonSettings::default(), &[]);
     let mut cmd = hold(&r, ELBOW, 0.3);
     cmd.motor_cmd[ELBOW].mode = 0;
     cmd.motor_cmd[ELBOW].tau = 5.0;
@@ -155,12 +162,8 @@ fn mode_zero_gives_no_torque_and_silence_gives_damping() {
 
 #[test]
 fn state_is_fresh_unless_the_switch_is_off() {
-    let mut fresh = robot(EngineKind::Mujoco, CommonSettings::default(), Protections::default());
-    let mut stale = robot(
-        EngineKind::Mujoco,
-        CommonSettings::default(),
-        Protections { fresh_state: false, ..Protections::default() },
-    );
+    let mut fresh = robot(EngineKind::Mujoco, CommonSettings::default(), &[]);
+    let mut stale = robot(EngineKind::Mujoco, CommonSettings::default(), &[Defect::StaleState]);
     let distinct = |r: &mut SimRobot| {
         let mut seen = Vec::new();
         let mut t = 0.0;
@@ -189,4 +192,82 @@ fn initial_hold_keeps_the_robot_standing() {
     assert!((s.base_pos[2] - State::standing(&model).base_pos[2]).abs() < 0.05, "pelvis at {:?}", s.base_pos);
     let rpy = r.imu().rpy;
     assert!(rpy[0].abs() < 0.1 && rpy[1].abs() < 0.1, "torso rpy {rpy:?}");
+}
+
+/// Each test-only defect does what it says, and only that: the conformance tests rely on it.
+#[test]
+fn defects_break_exactly_their_protection() {
+    let common = CommonSettings::default;
+    // State: no CRC, tick stuck.
+    let mut r = robot(EngineKind::Mujoco, common(), &[Defect::NoStateCrc, Defect::TickStuck]);
+    run(&mut r, None, 10, 0.0);
+    let s = r.lowstate().expect("state");
+    assert_eq!((s.crc, s.tick), (0, 0));
+    assert!(!crc::verify(&s));
+
+    let elbow_index = |r: &SimRobot| r.model().joints.iter().position(|j| j.slot == ELBOW).expect("elbow");
+    // Mode 0 ignored: the disabled motor still produces its PD torque.
+    let mut r = robot(EngineKind::Mujoco, common(), &[Defect::IgnoreMode0]);
+    let mut cmd = hold(&r, ELBOW, 0.3);
+    cmd.motor_cmd[ELBOW].mode = 0;
+    crc::seal(&mut cmd);
+    run(&mut r, Some(&bytes(&cmd)), 2, 0.0);
+    assert!(r.applied_torques()[elbow_index(&r)].abs() > 1.0);
+
+    // Absurd gains applied; a NaN still rejected.
+    let mut r = robot(EngineKind::Mujoco, common(), &[Defect::ApplyAbsurdGains]);
+    let mut c = hold(&r, ELBOW, 0.3);
+    c.motor_cmd[ELBOW].kp = -500.0;
+    crc::seal(&mut c);
+    assert_eq!(r.handle_command(c, 0.0), Verdict::Accepted);
+    let mut c = hold(&r, ELBOW, 0.3);
+    c.motor_cmd[ELBOW].q = f32::NAN;
+    crc::seal(&mut c);
+    assert!(matches!(r.handle_command(c, 0.0), Verdict::Rejected(_)));
+
+    // Limp on a non-finite value: accepted, and every motor gives up.
+    let mut r = robot(EngineKind::Mujoco, common(), &[Defect::LimpOnNonFinite]);
+    let mut c = hold(&r, ELBOW, 0.3);
+    c.motor_cmd[26].q = f32::NAN;
+    crc::seal(&mut c);
+    assert_eq!(r.handle_command(c.clone(), 0.0), Verdict::Accepted);
+    run(&mut r, Some(&bytes(&c)), 1, 0.0);
+    assert!(r.applied_torques().iter().all(|t| *t == 0.0));
+    let mut gains = hold(&r, ELBOW, 0.3);
+    gains.motor_cmd[ELBOW].kp = -500.0;
+    crc::seal(&mut gains);
+    assert!(matches!(r.handle_command(gains, 0.0), Verdict::Rejected(_)));
+
+    // Keep the last command: no damping step however long the silence.
+    let mut r = robot(EngineKind::Mujoco, common(), &[Defect::KeepLastCommand]);
+    let c = hold(&r, ELBOW, 0.3);
+    let t = run(&mut r, Some(&bytes(&c)), 5, 0.0);
+    run(&mut r, None, 500, t);
+    assert_eq!(r.counters().damping_steps, 0);
+
+    // Fallen and pinned: lying on its back, a braked elbow stays put while its motor reports the torque of a step.
+    let model = robot_model::RobotModel::h1_2().expect("model");
+    let engine = make_engine(EngineKind::Mujoco, &model, &common()).expect("engine");
+    let defects = [Defect::FallenPinned].into_iter().collect::<BTreeSet<_>>();
+    let initial = sim_bridge::lying_on_back(&model);
+    let mut r =
+        SimRobot::new(engine, model, BridgeConfig { defects, ..BridgeConfig::default() }, &initial).expect("bridge");
+    let t = run(&mut r, None, 500, 0.0);
+    let rpy = r.imu().rpy;
+    assert!(rpy[1].abs() > 1.2, "lying: torso pitch {rpy:?}");
+    let i = elbow_index(&r);
+    let before = r.engine().state().q[i];
+    let mut step = hold(&r, ELBOW, before as f32 + 0.3);
+    for j in r.model().joints.iter() {
+        // Hold where it lies rather than the standing pose.
+        step.motor_cmd[j.slot].q =
+            r.engine().state().q[r.model().joints.iter().position(|k| k.slot == j.slot).unwrap_or(0)] as f32;
+    }
+    step.motor_cmd[ELBOW].q = before as f32 + 0.3;
+    step.motor_cmd[ELBOW].kp = 40.0;
+    crc::seal(&mut step);
+    run(&mut r, Some(&bytes(&step)), 250, t);
+    let after = r.engine().state().q[i];
+    assert!((after - before).abs() < 0.02, "pinned elbow moved {before} -> {after}");
+    assert!(r.applied_torques()[i] > 8.0, "motor torque {}", r.applied_torques()[i]);
 }

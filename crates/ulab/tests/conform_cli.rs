@@ -5,6 +5,7 @@ mod common;
 
 use common::run_ulab;
 use std::time::Duration;
+use test_support::lease_domain;
 
 fn conform(args: &[&str]) -> (Option<i32>, String) {
     let (code, _out, err) = run_ulab(&[&["conform"], args].concat(), Duration::from_secs(60));
@@ -20,7 +21,8 @@ fn domain_zero_is_refused_without_allow_robot() {
 
 #[test]
 fn non_loopback_interface_is_refused_without_allow_robot() {
-    let (code, err) = conform(&["--domain", "86", "--interface", "eth0"]);
+    let lease = lease_domain();
+    let (code, err) = conform(&["--domain", &lease.arg(), "--interface", "eth0"]);
     assert_eq!(code, Some(2), "{err}");
     assert!(err.contains("--allow-robot"), "{err}");
 }
@@ -43,24 +45,30 @@ fn fuzzing_a_robot_needs_the_second_flag_and_says_what_it_sends() {
 
 #[test]
 fn missing_target_is_a_connection_error() {
-    let (code, err) = conform(&["--domain", "87", "--connect-timeout", "1.5", "--quiet"]);
+    let lease = lease_domain();
+    let (code, err) = conform(&["--domain", &lease.arg(), "--connect-timeout", "1.5", "--quiet"]);
     assert_eq!(code, Some(2), "{err}");
     assert!(err.contains("no LowState"), "{err}");
 }
 
 #[test]
 fn bad_reproducer_and_bad_arguments_are_usage_errors() {
+    let lease = lease_domain();
+    let d = lease.arg();
     let dir = std::env::temp_dir().join(format!("ulab-conform-cli2-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("tmp dir");
     let file = dir.join("bad.json");
     std::fs::write(&file, r#"{"schema_version": 99}"#).expect("write");
-    let (code, err) = conform(&["replay", file.to_str().expect("utf-8"), "--domain", "88"]);
+    let (code, err) = conform(&["replay", file.to_str().expect("utf-8"), "--domain", &d]);
     assert_eq!(code, Some(2), "{err}");
-    let (code, err) = conform(&["replay", dir.join("missing.json").to_str().expect("utf-8"), "--domain", "88"]);
+    let (code, err) = conform(&["replay", dir.join("missing.json").to_str().expect("utf-8"), "--domain", &d]);
     assert_eq!(code, Some(2), "{err}");
-    let (code, err) = conform(&["--robot", "g1", "--domain", "88"]);
+    let (code, err) = conform(&["--robot", "g1", "--domain", &d]);
     assert_eq!(code, Some(2), "{err}");
-    let (code, err) = conform(&["--domain", "88", "--fuzz", "--budget", "-1"]);
+    let (code, err) = conform(&["--domain", &d, "--fuzz", "--budget", "-1"]);
     assert_eq!(code, Some(2), "{err}");
+    let (code, err) = conform(&["--domain", &d, "--checks", "state_crc,no_such_check"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("no_such_check"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -7,7 +7,8 @@
 use super::recording::NetArgs;
 use anyhow::{bail, Context, Result};
 use conformance::fuzz::{self, FuzzOptions, Reproducer};
-use conformance::report::{CheckResult, Group, Report, Settings, Status, TargetInfo, REPORT_SCHEMA_VERSION};
+use conformance::interop::InteropOptions;
+use conformance::report::{CheckId, CheckResult, Report, Settings, Status, TargetInfo, REPORT_SCHEMA_VERSION};
 use conformance::{checks, safety, target::Target};
 use std::collections::BTreeMap;
 use std::io::IsTerminal;
@@ -43,9 +44,18 @@ pub struct RunArgs {
     /// What to print on stdout: the Markdown report (text) or report.json (json).
     #[arg(long, default_value = "text", value_parser = ["text", "json"])]
     pub format: String,
-    /// Nominal LowState rate of the target (Hz); the real robot publishes about 500 Hz.
+    /// Nominal LowState rate of the target (Hz), what `state_rate` is judged against; the real robot publishes about
+    /// 500 Hz. Every other check uses the rate measured at the start.
     #[arg(long, default_value_t = 500.0)]
     pub state_rate: f64,
+    /// Only these checks, comma-separated ids or groups (state_stream, discovery, interop, command_handling,
+    /// robustness); phases nothing asks for are skipped. Default: all.
+    #[arg(long)]
+    pub checks: Option<String>,
+    /// Python with cyclonedds and unitree_sdk2py for the Cyclone 11 interop probe (default: ULAB_PYTHON, else
+    /// python3).
+    #[arg(long)]
+    pub python: Option<PathBuf>,
     /// Seconds to wait for the target's first LowState.
     #[arg(long, default_value_t = 10.0)]
     pub connect_timeout: f64,
@@ -162,6 +172,10 @@ fn run_target(args: RunArgs) -> Result<ExitCode> {
             "--budget must be in (0, 86400] s"
         );
     }
+    let selection = match &args.checks {
+        Some(text) => checks::Selection::parse(text)?,
+        None => checks::Selection::all(),
+    };
     let cfg = args.net.domain_config()?;
     if safety::is_exposed(&cfg) {
         if args.fuzz {
@@ -174,7 +188,7 @@ fn run_target(args: RunArgs) -> Result<ExitCode> {
             if args.fuzz {
                 "a hold command at the measured pose, alternating with mutated LowCmd sequences (non-finite and out-of-limit values, gains up to 1e9, unknown modes, bad CRCs, truncated/oversize/mis-headed samples) for the whole budget"
             } else {
-                "a hold command at the measured pose (legs kp 500-600), 0.5 rad left-elbow steps, bad-CRC / mode-0 / negative-gain / NaN variants of it alternating with the hold, malformed samples, a 5 kHz flood, then silence"
+                "a hold command at the measured pose (legs kp 500-600), 0.3 rad steps of up to four free arm joints, bad-CRC / mode-0 / negative- and huge-gain / NaN variants alternating with the hold, malformed samples, a 5 kHz flood, then silence; no Cyclone 11 probe"
             }
         );
     }
@@ -187,6 +201,7 @@ fn run_target(args: RunArgs) -> Result<ExitCode> {
             .find(|e| e.topic_name == "rt/lowstate")
             .map(|e| e.participant_guid.iter().map(|b| format!("{b:02x}")).collect::<String>())
     });
+
     let seed = args.seed.unwrap_or_else(|| {
         std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(1, |d| d.as_secs())
     });
@@ -197,12 +212,16 @@ fn run_target(args: RunArgs) -> Result<ExitCode> {
             domain: cfg.domain,
             interface: cfg.interface.clone(),
             participant,
+            measured_state_rate_hz: None,
+            rtps_vendor: None,
+            rtps_protocol_version: None,
         },
         settings: Settings {
             mode: if args.fuzz { "fuzz".into() } else { "checks".into() },
             expected_state_rate_hz: args.state_rate,
             budget_s: args.fuzz.then_some(args.budget),
             seed: args.fuzz.then_some(seed),
+            checks: if args.fuzz { Vec::new() } else { selection.ids() },
         },
         versions: versions(),
         duration_s: 0.0,
@@ -229,8 +248,7 @@ fn run_target(args: RunArgs) -> Result<ExitCode> {
             files.push((out_dir.join("reproducers").join(&name), rep.to_json()));
             report.results.push(
                 CheckResult::new(
-                    &format!("fuzz_failure_{k}"),
-                    Group::Fuzz,
+                    CheckId::FuzzFailure(u32::try_from(k).unwrap_or(u32::MAX)),
                     Status::Fail,
                     format!(
                         "{} ({} step(s){})",
@@ -250,8 +268,7 @@ fn run_target(args: RunArgs) -> Result<ExitCode> {
         if outcome.failures.is_empty() {
             report.results.push(
                 CheckResult::new(
-                    "fuzz",
-                    Group::Fuzz,
+                    CheckId::Fuzz,
                     Status::Pass,
                     format!("no failure in {} sequence executions over {:.0} s", outcome.executions, outcome.elapsed_s),
                 )
@@ -272,8 +289,17 @@ fn run_target(args: RunArgs) -> Result<ExitCode> {
             }
         }
     } else {
-        let opts = checks::Options { expected_state_rate_hz: args.state_rate, ..checks::Options::default() };
-        report.results = checks::run_all(&mut target, &opts, &mut |m| progress.say(m))?;
+        let opts = checks::Options {
+            expected_state_rate_hz: args.state_rate,
+            selection,
+            interop: InteropOptions { python: args.python.clone(), ..InteropOptions::default() },
+            ..checks::Options::default()
+        };
+        let outcome = checks::run_all(&mut target, &opts, &mut |m| progress.say(m))?;
+        report.results = outcome.results;
+        report.target.measured_state_rate_hz = outcome.facts.map(|f| (f.rate_hz * 10.0).round() / 10.0);
+        report.target.rtps_vendor = outcome.wire.map(|w| w.vendor_text());
+        report.target.rtps_protocol_version = outcome.wire.map(|w| w.protocol_text());
         progress.finish();
     }
     report.duration_s = (started.elapsed().as_secs_f64() * 10.0).round() / 10.0;

@@ -11,7 +11,7 @@ use dds_transport::{Participant, TopicSpec};
 use diff_physics::mujoco::MujocoSettings;
 use diff_physics::{make_engine, CommonSettings, EngineKind, State};
 use sim_bridge::suspension::{self, SuspendedMujoco};
-use sim_bridge::{BridgeConfig, Protections, SimRobot};
+use sim_bridge::{BridgeConfig, Defect, SimRobot};
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -73,19 +73,23 @@ pub struct Args {
     /// No status line.
     #[arg(long)]
     pub quiet: bool,
-    /// TEST ONLY: apply commands whose CRC is wrong (lets the conformance checks prove they see it).
+    /// TEST ONLY: a deliberate protocol defect, repeatable (lets the conformance checks prove they see exactly it):
+    /// no-state-crc, tick-stuck, stale-state, apply-bad-crc, ignore-mode0, apply-absurd-gains, limp-on-non-finite,
+    /// keep-last-command, fallen-pinned (see sim_bridge::Defect).
+    #[arg(long = "unsafe-defect", hide = true, value_parser = parse_defect)]
+    pub unsafe_defects: Vec<Defect>,
+    /// TEST ONLY: publish LowState on this topic instead of rt/lowstate (a test relay republishes it).
     #[arg(long, hide = true)]
-    pub unsafe_skip_crc_check: bool,
-    /// TEST ONLY: apply commands beyond the robot's limits or with non-finite values.
-    #[arg(long, hide = true)]
-    pub unsafe_skip_limit_check: bool,
-    /// TEST ONLY: republish stale physics state.
-    #[arg(long, hide = true)]
-    pub unsafe_stale_state: bool,
+    pub unsafe_state_topic: Option<String>,
 }
 
 fn parse_engine(s: &str) -> Result<EngineKind, String> {
     EngineKind::parse_available(s).map_err(|e| e.to_string())
+}
+
+fn parse_defect(s: &str) -> Result<Defect, String> {
+    Defect::parse(s)
+        .ok_or_else(|| format!("unknown defect `{s}` (known: {})", Defect::ALL.map(Defect::name).join(", ")))
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
@@ -93,6 +97,8 @@ pub fn run(args: Args) -> Result<ExitCode> {
     anyhow::ensure!(args.dt > 0.0 && args.dt <= 0.05, "--dt must be in (0, 0.05] s");
     let cfg = args.net.domain_config()?;
     let model = robot_model::builtin(&args.robot).with_context(|| format!("loading robot `{}`", args.robot))?;
+    let fallen = args.unsafe_defects.contains(&Defect::FallenPinned);
+    anyhow::ensure!(!(fallen && args.hang), "the fallen-pinned defect and --hang exclude each other");
     let (engine, initial): (Box<dyn diff_physics::Engine>, State) = if args.hang {
         anyhow::ensure!(
             args.engine == EngineKind::Mujoco,
@@ -107,20 +113,22 @@ pub fn run(args: Args) -> Result<ExitCode> {
         let common = CommonSettings { timestep: args.dt, ..CommonSettings::default() };
         let engine = make_engine(args.engine, &model, &common)
             .with_context(|| format!("building the {} engine", args.engine.name()))?;
-        (engine, State::standing(&model))
+        let initial = if fallen { sim_bridge::lying_on_back(&model) } else { State::standing(&model) };
+        (engine, initial)
     };
     let config = BridgeConfig {
         command_timeout: args.command_timeout,
-        hold_until_first_command: !args.no_hold,
+        // A fallen robot is not held up: it lies limp (damping) until the first command.
+        hold_until_first_command: !args.no_hold && !fallen,
         mode_machine: args.mode_machine,
-        protections: Protections {
-            check_crc: !args.unsafe_skip_crc_check,
-            check_limits: !args.unsafe_skip_limit_check,
-            fresh_state: !args.unsafe_stale_state,
-        },
+        defects: args.unsafe_defects.iter().copied().collect(),
     };
-    if config.protections != Protections::default() {
-        eprintln!("sim: WARNING test-only switches active: {:?}", config.protections);
+    if !config.defects.is_empty() || args.unsafe_state_topic.is_some() {
+        eprintln!(
+            "sim: WARNING test-only defects active: {}{}",
+            config.defects.iter().map(|d| d.name()).collect::<Vec<_>>().join(", "),
+            args.unsafe_state_topic.as_ref().map(|t| format!(" (LowState on `{t}`)")).unwrap_or_default()
+        );
     }
     let holding = config.hold_until_first_command;
     let policy = if args.loco_api.0.is_empty() {
@@ -137,7 +145,11 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let participant = Participant::new(cfg.clone()).context("opening the DDS domain")?;
     let family = dds_transport::Family::Hg;
     let commands = participant.reader(&TopicSpec::lowcmd(family)).context("subscribing rt/lowcmd")?;
-    let states = participant.writer(&TopicSpec::lowstate(family)).context("creating the rt/lowstate writer")?;
+    let mut state_topic = TopicSpec::lowstate(family);
+    if let Some(name) = &args.unsafe_state_topic {
+        state_topic.name.clone_from(name);
+    }
+    let states = participant.writer(&state_topic).context("creating the rt/lowstate writer")?;
     let mut loco = if args.loco_api.0.is_empty() {
         None
     } else {
