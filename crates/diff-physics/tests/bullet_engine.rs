@@ -243,7 +243,8 @@ fn feet_do_not_creep_with_two_friction_directions() {
 #[test]
 fn joint_limits_stop_a_pushed_joint() {
     let m = model();
-    let common = CommonSettings { gravity: [0.0; 3], joint_limits: true, armature: true, ..CommonSettings::rigid_body_only() };
+    let common =
+        CommonSettings { gravity: [0.0; 3], joint_limits: true, armature: true, ..CommonSettings::rigid_body_only() };
     let j = m.joint_index("left_elbow_joint").unwrap_or(m.nj() - 3);
     let upper = m.joints[j].upper;
     let mut e = bullet(&m, &common, &BulletSettings::default());

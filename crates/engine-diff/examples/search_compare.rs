@@ -60,8 +60,13 @@ fn main() -> ExitCode {
             for (k, e, q, p, r) in &o.unexplained {
                 eprintln!("{}: not allow-listed: {k} / {e} / {q} / {p}, largest ratio {r:.2}", m.name());
             }
-            let curve: Vec<String> =
-                o.best_so_far.iter().skip((budget / 8).max(1) - 1).step_by((budget / 8).max(1)).map(|x| format!("{x:.3}")).collect();
+            let curve: Vec<String> = o
+                .best_so_far
+                .iter()
+                .skip((budget / 8).max(1) - 1)
+                .step_by((budget / 8).max(1))
+                .map(|x| format!("{x:.3}"))
+                .collect();
             eprintln!("{}: best so far every {} rollouts: {}", m.name(), (budget / 8).max(1), curve.join(" "));
         }
         Ok(())

@@ -200,18 +200,17 @@ impl std::fmt::Debug for DivergenceOracle {
 /// Rollout length per input: two 50 Hz control ticks.
 pub const ORACLE_SECONDS: f64 = 0.04;
 
-/// Every pair of engines of this build, lead first: the lead is the engine earlier in
-/// [`diff_physics::EngineKind::ALL`] (MuJoCo leads every pair it is in, as in `ulab diff`), pairs in
-/// lexicographic order, so the first pair is MuJoCo against Rapier multibody.
+/// The pairs the fuzz target compares: MuJoCo (the lead of `ulab diff`, against which every allow-list entry is
+/// written and measured) against each other engine of this build, in [`diff_physics::EngineKind::ALL`] order, so
+/// the first pair is MuJoCo against Rapier multibody. Pairs of two non-reference engines are left out: their
+/// modelling differences are the sums of two allow-listed differences, which no entry describes or caps, so every
+/// touch-down would read as a candidate bug. Without MuJoCo, the first engine of the build leads.
 pub fn oracle_pairs() -> Vec<[diff_physics::EngineKind; 2]> {
     let kinds = diff_physics::EngineKind::available();
-    let mut pairs = Vec::new();
-    for (i, &a) in kinds.iter().enumerate() {
-        for &b in &kinds[i + 1..] {
-            pairs.push([a, b]);
-        }
+    match kinds.split_first() {
+        Some((&lead, rest)) => rest.iter().map(|&k| [lead, k]).collect(),
+        None => Vec::new(),
     }
-    pairs
 }
 
 /// The pair an input's `engines` byte chooses: `byte % pairs`. Byte 0 is the first pair (MuJoCo against Rapier

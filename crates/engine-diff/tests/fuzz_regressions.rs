@@ -1,8 +1,9 @@
 //! Replays every saved `engine_divergence` fuzz input (`corpus/regressions/engine_divergence/`: inputs that
 //! once aborted the target, named for what they exercise; `corpus/fuzz/engine_divergence/`: the seeds)
 //! through the oracle the fuzz target runs, decoding the bytes the way libFuzzer's typed entry point does. Each
-//! input runs on every pair of engines of this build (an input chooses one pair when fuzzing; inputs saved before
-//! that choice existed were found on MuJoCo against Rapier multibody), so the corpus exercises every engine.
+//! input runs on every pair the target can choose in this build (MuJoCo against each other engine; an input
+//! chooses one pair when fuzzing; inputs saved before that choice existed were found on MuJoCo against Rapier
+//! multibody), so the corpus exercises every engine.
 
 use arbitrary::{Arbitrary, Unstructured};
 use engine_diff::fuzz::{oracle_pair, oracle_pairs, DivergenceOracle};
@@ -38,7 +39,8 @@ fn engine_divergence_inputs_raise_no_candidate_bug() {
                     let key = (f.engine.clone(), f.kind.clone(), f.quantity.clone(), f.phase.clone());
                     let worst = largest.entry(key).or_insert((0.0, String::new()));
                     if f.ratio() > worst.0 {
-                        *worst = (f.ratio(), path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default());
+                        *worst =
+                            (f.ratio(), path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default());
                     }
                 }
                 let bad: Vec<_> = all.into_iter().filter(|f| allow.matching(f).is_none()).collect();

@@ -111,8 +111,23 @@ fn dart_runs_in_diff_and_replays_bit_for_bit() {
     let out = tmp("dart");
     let o = out.to_string_lossy().to_string();
     let (code, stdout, err) = ulab(&[
-        "diff", "--robot", "h1_2", "--engines", "mujoco,dart", "--episodes", "1", "--seconds", "0.3", "--seed", "5",
-        "--window", "25", "--minimize", "2", "--out", &o,
+        "diff",
+        "--robot",
+        "h1_2",
+        "--engines",
+        "mujoco,dart",
+        "--episodes",
+        "1",
+        "--seconds",
+        "0.3",
+        "--seed",
+        "5",
+        "--window",
+        "25",
+        "--minimize",
+        "2",
+        "--out",
+        &o,
     ]);
     assert_eq!(code, Some(0), "{}\n{}", stdout, tail(&err));
     let json: serde_json::Value =

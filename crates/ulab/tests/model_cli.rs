@@ -135,14 +135,29 @@ fn bullet_checks_and_inspects_like_the_reference() {
     }
     let m = |engine: &str| {
         let (code, out, err) = ulab(&[
-            "model", "inspect", "--robot", "h1_2", "--engine", engine, "--q", "random:5", "--armature", "false",
+            "model",
+            "inspect",
+            "--robot",
+            "h1_2",
+            "--engine",
+            engine,
+            "--q",
+            "random:5",
+            "--armature",
+            "false",
         ]);
         assert_eq!(code, 0, "{err}");
         json(&out)
     };
     let (a, b) = (m("bullet"), m("reference"));
     let flat = |v: &serde_json::Value| -> Vec<f64> {
-        v["mass_matrix"].as_array().expect("rows").iter().flat_map(|r| r.as_array().expect("row").clone()).map(|x| x.as_f64().expect("f64")).collect()
+        v["mass_matrix"]
+            .as_array()
+            .expect("rows")
+            .iter()
+            .flat_map(|r| r.as_array().expect("row").clone())
+            .map(|x| x.as_f64().expect("f64"))
+            .collect()
     };
     let (ma, mb) = (flat(&a), flat(&b));
     assert_eq!(ma.len(), 33 * 33);
