@@ -44,8 +44,9 @@ fn fuzz_finds_a_failure_in_the_unprotected_bridge_and_its_reproducer_replays() {
             "--domain",
             &domain,
             "--fuzz",
+            // 60 s: with 30 s the search missed the defects in about 1 of 7 runs on a loaded machine.
             "--budget",
-            "30",
+            "60",
             "--seed",
             "3",
             "--quiet",
@@ -54,7 +55,7 @@ fn fuzz_finds_a_failure_in_the_unprotected_bridge_and_its_reproducer_replays() {
             "--out",
             dir.to_str().expect("utf-8 path"),
         ],
-        120,
+        240,
     );
     assert_eq!(code, Some(1), "fuzz should find a failure\n{out}\n{}", tail(&err));
     let report: serde_json::Value = serde_json::from_str(&out).expect("report JSON");
@@ -65,7 +66,11 @@ fn fuzz_finds_a_failure_in_the_unprotected_bridge_and_its_reproducer_replays() {
         serde_json::from_str(&std::fs::read_to_string(&file).expect("reproducer file")).expect("reproducer JSON");
     assert_eq!(rep["schema_version"], 1);
     assert!(rep["steps"].as_array().is_some_and(|s| !s.is_empty() && s.len() <= 6), "{rep}");
-    let (code, out, err) = conform(&["replay", file.to_str().expect("utf-8 path"), "--domain", &domain], 60);
+    // The minimizer keeps the shortest sequence that still failed once, so the reproducer sits near the failure
+    // threshold (0.3 rad of disturbance; one missed replay measured 0.265 rad) and a real-time peer reproduces it on a
+    // fraction of the attempts (3 attempts missed in about half of 6 runs on a loaded machine): 20 attempts.
+    let (code, out, err) =
+        conform(&["replay", file.to_str().expect("utf-8 path"), "--domain", &domain, "--attempts", "20"], 180);
     assert_eq!(code, Some(1), "the failure should reproduce:\n{out}\n{}", tail(&err));
     assert!(out.contains("REPRODUCED"), "{out}");
     let _ = std::fs::remove_dir_all(&dir);
