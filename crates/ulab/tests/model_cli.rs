@@ -14,6 +14,33 @@ fn json(s: &str) -> serde_json::Value {
     serde_json::from_str(s).expect("valid JSON")
 }
 
+/// `ulab model inspect` of `engine` at the seeded random pose used by every mass-matrix test, plus `extra` flags.
+fn inspect(engine: &str, extra: &[&str]) -> serde_json::Value {
+    let args =
+        [&["model", "inspect", "--robot", "h1_2", "--engine", engine, "--q", "random:5", "--format", "json"], extra]
+            .concat();
+    let (code, out, err) = ulab(&args);
+    assert_eq!(code, 0, "{engine}: {err}");
+    json(&out)
+}
+
+/// The mass matrix of an inspect report, row-major.
+fn mass_matrix(v: &serde_json::Value) -> Vec<f64> {
+    v["mass_matrix"]
+        .as_array()
+        .expect("rows")
+        .iter()
+        .flat_map(|r| r.as_array().expect("row").iter().map(|x| x.as_f64().expect("f64")))
+        .collect()
+}
+
+/// ‖a − b‖ / ‖b‖ (Frobenius): how far an engine's mass matrix is from the reference's.
+fn relative_difference(a: &[f64], b: &[f64]) -> f64 {
+    assert_eq!(a.len(), b.len());
+    let norm = b.iter().map(|x| x * x).sum::<f64>().sqrt();
+    a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum::<f64>().sqrt() / norm
+}
+
 #[test]
 fn check_mujoco_passes_and_reports_errors_and_tolerances() {
     let (code, out, err) =
@@ -48,37 +75,15 @@ fn check_dart_passes_and_reports_its_settings() {
 
 #[test]
 fn inspect_dart_equals_the_reference_mass_matrix() {
-    let m = |engine: &str| {
-        let (code, out, err) =
-            ulab(&["model", "inspect", "--robot", "h1_2", "--engine", engine, "--q", "random:5", "--format", "json"]);
-        assert_eq!(code, 0, "{err}");
-        json(&out)
-    };
-    let (a, b) = (m("dart"), m("reference"));
-    let flat = |v: &serde_json::Value| -> Vec<f64> {
-        v["mass_matrix"]
-            .as_array()
-            .expect("rows")
-            .iter()
-            .flat_map(|r| r.as_array().expect("row").iter().map(|x| x.as_f64().expect("f64")))
-            .collect()
-    };
-    let (ma, mb) = (flat(&a), flat(&b));
+    let (ma, mb) = (mass_matrix(&inspect("dart", &[])), mass_matrix(&inspect("reference", &[])));
     assert_eq!(ma.len(), 33 * 33);
-    let norm = mb.iter().map(|x| x * x).sum::<f64>().sqrt();
-    let diff = ma.iter().zip(&mb).map(|(x, y)| (x - y) * (x - y)).sum::<f64>().sqrt();
-    assert!(diff / norm < 1e-9, "DART vs reference mass matrix: {}", diff / norm);
+    let d = relative_difference(&ma, &mb);
+    assert!(d < 1e-9, "DART vs reference mass matrix: {d}");
 }
 
 #[test]
 fn inspect_mujoco_equals_the_reference_mass_matrix() {
-    let m = |engine: &str| {
-        let (code, out, err) =
-            ulab(&["model", "inspect", "--robot", "h1_2", "--engine", engine, "--q", "random:5", "--format", "json"]);
-        assert_eq!(code, 0, "{err}");
-        json(&out)
-    };
-    let (a, b) = (m("mujoco"), m("reference"));
+    let (a, b) = (inspect("mujoco", &[]), inspect("reference", &[]));
     for v in [&a, &b] {
         assert_eq!(v["nq"], 34);
         assert_eq!(v["nv"], 33);
@@ -86,18 +91,9 @@ fn inspect_mujoco_equals_the_reference_mass_matrix() {
         assert!((v["total_mass"].as_f64().expect("mass") - 66.984).abs() < 1e-9);
         assert_eq!(v["mass_matrix"].as_array().expect("rows").len(), 33);
     }
-    let flat = |v: &serde_json::Value| -> Vec<f64> {
-        v["mass_matrix"]
-            .as_array()
-            .expect("rows")
-            .iter()
-            .flat_map(|r| r.as_array().expect("row").iter().map(|x| x.as_f64().expect("f64")))
-            .collect()
-    };
-    let (ma, mb) = (flat(&a), flat(&b));
-    let norm = mb.iter().map(|x| x * x).sum::<f64>().sqrt();
-    let diff = ma.iter().zip(&mb).map(|(x, y)| (x - y) * (x - y)).sum::<f64>().sqrt();
-    assert!(diff / norm < 1e-9, "MuJoCo vs reference mass matrix: {}", diff / norm);
+    let (ma, mb) = (mass_matrix(&a), mass_matrix(&b));
+    let d = relative_difference(&ma, &mb);
+    assert!(d < 1e-9, "MuJoCo vs reference mass matrix: {d}");
     for i in 0..33 {
         for j in 0..33 {
             assert!((ma[i * 33 + j] - ma[j * 33 + i]).abs() < 1e-12);
@@ -133,38 +129,12 @@ fn bullet_checks_and_inspects_like_the_reference() {
     for c in r["checks"].as_array().expect("checks") {
         assert!(c["passed"] == true || c["known_difference"].is_string(), "{c}");
     }
-    let m = |engine: &str| {
-        let (code, out, err) = ulab(&[
-            "model",
-            "inspect",
-            "--robot",
-            "h1_2",
-            "--engine",
-            engine,
-            "--q",
-            "random:5",
-            "--armature",
-            "false",
-        ]);
-        assert_eq!(code, 0, "{err}");
-        json(&out)
-    };
-    let (a, b) = (m("bullet"), m("reference"));
-    let flat = |v: &serde_json::Value| -> Vec<f64> {
-        v["mass_matrix"]
-            .as_array()
-            .expect("rows")
-            .iter()
-            .flat_map(|r| r.as_array().expect("row").clone())
-            .map(|x| x.as_f64().expect("f64"))
-            .collect()
-    };
-    let (ma, mb) = (flat(&a), flat(&b));
+    let no_armature = ["--armature", "false"];
+    let (ma, mb) = (mass_matrix(&inspect("bullet", &no_armature)), mass_matrix(&inspect("reference", &no_armature)));
     assert_eq!(ma.len(), 33 * 33);
-    let norm = mb.iter().map(|x| x * x).sum::<f64>().sqrt();
-    let diff = ma.iter().zip(&mb).map(|(x, y)| (x - y) * (x - y)).sum::<f64>().sqrt();
+    let d = relative_difference(&ma, &mb);
     // Same tolerance as the oracle's analytic route (M rebuilt from accelerations: one extra inversion).
-    assert!(diff / norm < 1e-8, "Bullet vs reference mass matrix: {}", diff / norm);
+    assert!(d < 1e-8, "Bullet vs reference mass matrix: {d}");
 }
 
 /// Issue 15: `ulab model check` passes on PhysX (f32 tolerances), and `ulab model inspect` shows PhysX's own
@@ -182,21 +152,7 @@ fn check_and_inspect_physx() {
     for c in checks {
         assert!(c["passed"] == true || c["known_difference"].is_string(), "{c}");
     }
-    let inspect = |engine: &str| {
-        let (code, out, err) =
-            ulab(&["model", "inspect", "--robot", "h1_2", "--engine", engine, "--q", "random:5", "--format", "json"]);
-        assert_eq!(code, 0, "{err}");
-        let v = json(&out);
-        v["mass_matrix"]
-            .as_array()
-            .expect("rows")
-            .iter()
-            .flat_map(|r| r.as_array().expect("row").iter().map(|x| x.as_f64().expect("f64")))
-            .collect::<Vec<f64>>()
-    };
-    let (mp, mr) = (inspect("physx"), inspect("reference"));
-    let norm = mr.iter().map(|x| x * x).sum::<f64>().sqrt();
-    let diff = mp.iter().zip(&mr).map(|(x, y)| (x - y) * (x - y)).sum::<f64>().sqrt();
+    let d = relative_difference(&mass_matrix(&inspect("physx", &[])), &mass_matrix(&inspect("reference", &[])));
     // f32 Jacobian and inertias: <= ~8e-6 relative (derivation in diff_physics::physx::f32_tolerance).
-    assert!(diff / norm < 5e-5, "PhysX vs reference mass matrix: {}", diff / norm);
+    assert!(d < 5e-5, "PhysX vs reference mass matrix: {d}");
 }
