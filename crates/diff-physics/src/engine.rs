@@ -366,3 +366,19 @@ pub fn quat_angle(a: [f64; 4], b: [f64; 4]) -> f64 {
     let z = aw * bz - bw * az - (ax * by - ay * bx);
     2.0 * (x * x + y * y + z * z).sqrt().atan2(w.abs())
 }
+
+/// Principal frame of a symmetric inertia matrix: a proper rotation `R` (right-handed eigenvector basis, from
+/// nalgebra's f64 symmetric eigen-solver) and the moments `λ` with `I = R diag(λ) Rᵀ`. Every engine that puts a
+/// body frame on the principal axes (Rapier, Bullet, PhysX) takes it from here.
+pub fn principal_frame(inertia: &nalgebra::Matrix3<f64>) -> (nalgebra::UnitQuaternion<f64>, [f64; 3]) {
+    let sym = (inertia + inertia.transpose()) * 0.5;
+    let eig = sym.symmetric_eigen();
+    let mut vecs = eig.eigenvectors;
+    let mut vals = eig.eigenvalues;
+    if vecs.determinant() < 0.0 {
+        vecs.swap_columns(1, 2);
+        vals.swap_rows(1, 2);
+    }
+    let rot = nalgebra::UnitQuaternion::from_rotation_matrix(&nalgebra::Rotation3::from_matrix_unchecked(vecs));
+    (rot, [vals[0], vals[1], vals[2]])
+}

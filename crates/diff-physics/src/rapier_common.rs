@@ -208,15 +208,7 @@ pub fn link_mass_properties(model: &RobotModel, li: usize, offset: &Vector3<f64>
 /// `MassProperties::with_inertia_matrix`, whose glam eigen-solver reconstructs the H1-2 inertias only to
 /// ~1e-7 relative (measured: mass-matrix error 2e-7, acceleration error 4e-4 on the light wrist links).
 pub fn mass_properties(com: &Vector3<f64>, mass: f64, inertia: &Matrix3<f64>) -> MassProperties {
-    let sym = (inertia + inertia.transpose()) * 0.5;
-    let eig = sym.symmetric_eigen();
-    let mut vecs = eig.eigenvectors;
-    let mut vals = eig.eigenvalues;
-    if vecs.determinant() < 0.0 {
-        vecs.swap_columns(1, 2);
-        vals.swap_rows(1, 2);
-    }
-    let rot = UnitQuaternion::from_rotation_matrix(&nalgebra::Rotation3::from_matrix_unchecked(vecs));
+    let (rot, vals) = crate::engine::principal_frame(inertia);
     MassProperties::with_principal_inertia_frame(
         v_to_r(com),
         mass,

@@ -491,13 +491,7 @@ impl Engine for RapierMultibodyEngine {
         let m = self.rapier_mass_matrix().ok()?;
         let t = self.velocity_map().ok()?;
         let mi = t.transpose() * m * &t;
-        let n = mi.nrows();
-        let mut out = Vec::with_capacity(n * n);
-        for r in 0..n {
-            for c in 0..n {
-                out.push(mi[(r, c)]);
-            }
-        }
-        Some(out)
+        // nalgebra stores column-major: the transpose's storage is the row-major matrix.
+        Some(mi.transpose().as_slice().to_vec())
     }
 }

@@ -151,20 +151,6 @@ impl BodyFrame {
     }
 }
 
-/// Principal frame and moments of a symmetric inertia matrix (right-handed eigenvector basis).
-fn principal(inertia: &Matrix3<f64>) -> (UnitQuaternion<f64>, [f64; 3]) {
-    let sym = (inertia + inertia.transpose()) * 0.5;
-    let eig = sym.symmetric_eigen();
-    let mut vecs = eig.eigenvectors;
-    let mut vals = eig.eigenvalues;
-    if vecs.determinant() < 0.0 {
-        vecs.swap_columns(1, 2);
-        vals.swap_rows(1, 2);
-    }
-    let rot = UnitQuaternion::from_rotation_matrix(&nalgebra::Rotation3::from_matrix_unchecked(vecs));
-    (rot, [vals[0], vals[1], vals[2]])
-}
-
 fn xyzw(q: &UnitQuaternion<f64>) -> [f64; 4] {
     [q.i, q.j, q.k, q.w]
 }
@@ -218,7 +204,7 @@ impl BulletEngine {
         let mut frames = Vec::with_capacity(nl);
         let mut moments = Vec::with_capacity(nl);
         for (li, l) in model.links.iter().enumerate() {
-            let (rot, m) = principal(&(l.inertial.inertia + extra[li]));
+            let (rot, m) = principal_frame(&(l.inertial.inertia + extra[li]));
             if !(l.inertial.mass > 0.0) || m.iter().any(|x| !(*x > 0.0)) {
                 return Err(EngineError::Build(format!(
                     "link {} has mass {} and principal inertia {m:?}: Bullet needs both positive",

@@ -56,7 +56,7 @@ mod ffi;
 
 use crate::engine::{CommonSettings, Contact, Energy, Engine, EngineError, LinkPose, State};
 use ffi::{Geometry, JointDesc, LinkDesc, Pose, RawState, ShapeDesc, World, WorldDesc};
-use nalgebra::{DMatrix, Matrix3, Rotation3, UnitQuaternion, Vector3};
+use nalgebra::{DMatrix, Matrix3, UnitQuaternion, Vector3};
 use robot_model::{RobotModel, Shape};
 use serde::{Deserialize, Serialize};
 
@@ -289,18 +289,6 @@ fn arr(v: &Vector3<f64>) -> [f64; 3] {
 fn x_to(axis: &Vector3<f64>) -> UnitQuaternion<f64> {
     UnitQuaternion::rotation_between(&Vector3::x(), axis)
         .unwrap_or_else(|| UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::PI))
-}
-
-/// Principal moments and a proper rotation `R` with `I = R diag(λ) Rᵀ`.
-fn principal_axes(inertia: &Matrix3<f64>) -> ([f64; 3], UnitQuaternion<f64>) {
-    let sym = (inertia + inertia.transpose()) * 0.5;
-    let eig = sym.symmetric_eigen();
-    let mut r = eig.eigenvectors;
-    if r.determinant() < 0.0 {
-        r.set_column(2, &(-r.column(2)));
-    }
-    let rot = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(r));
-    ([eig.eigenvalues[0], eig.eigenvalues[1], eig.eigenvalues[2]], rot)
 }
 
 impl PhysxEngine {
@@ -641,7 +629,7 @@ fn world_desc(model: &RobotModel, common: &CommonSettings, s: &PhysxSettings) ->
                 link.name, inertial.mass
             )));
         }
-        let (moments, axes) = principal_axes(&inertial.inertia);
+        let (axes, moments) = crate::engine::principal_frame(&inertial.inertia);
         if moments.iter().any(|m| !(m.is_finite() && *m > 0.0)) {
             return Err(EngineError::Build(format!(
                 "link {}: principal inertia {moments:?} must be positive (PhysX reads 0 as infinite)",
@@ -912,14 +900,8 @@ impl Engine for PhysxEngine {
         let m = self.physx_mass_matrix().ok()?;
         let t = self.velocity_map();
         let mi = t.transpose() * m * &t;
-        let n = mi.nrows();
-        let mut out = Vec::with_capacity(n * n);
-        for r in 0..n {
-            for c in 0..n {
-                out.push(mi[(r, c)]);
-            }
-        }
-        Some(out)
+        // nalgebra stores column-major: the transpose's storage is the row-major matrix.
+        Some(mi.transpose().as_slice().to_vec())
     }
 }
 
