@@ -39,10 +39,9 @@ fn start(model: &RobotModel, zero_g: bool) -> State {
     s
 }
 
-fn run_engine(e: &mut dyn Engine, model: &RobotModel, s0: &State, iters: u64) -> Duration {
-    let target = PdTarget::hold_standing(model);
-    let limits: Vec<f64> = model.joints.iter().map(|j| j.torque_limit).collect();
-    let mut tau = vec![0.0; model.nj()];
+/// Times `iters` calls of `step` (each one control step: read state, PD, step), resetting the engine to `s0`
+/// untimed every `RESET_EVERY` steps. `Duration::MAX` when a reset or a step fails.
+fn timed<E: Engine + ?Sized>(e: &mut E, s0: &State, iters: u64, mut step: impl FnMut(&mut E) -> bool) -> Duration {
     let mut total = Duration::ZERO;
     let mut done = 0;
     while done < iters {
@@ -52,9 +51,7 @@ fn run_engine(e: &mut dyn Engine, model: &RobotModel, s0: &State, iters: u64) ->
         let n = RESET_EVERY.min(iters - done);
         let t0 = Instant::now();
         for _ in 0..n {
-            let s = e.state();
-            pd_torques_into(&target, &s.q, &s.dq, &limits, &mut tau);
-            if e.step(&tau).is_err() {
+            if !step(e) {
                 return Duration::MAX;
             }
         }
@@ -62,6 +59,17 @@ fn run_engine(e: &mut dyn Engine, model: &RobotModel, s0: &State, iters: u64) ->
         done += n;
     }
     total
+}
+
+fn run_engine(e: &mut dyn Engine, model: &RobotModel, s0: &State, iters: u64) -> Duration {
+    let target = PdTarget::hold_standing(model);
+    let limits: Vec<f64> = model.joints.iter().map(|j| j.torque_limit).collect();
+    let mut tau = vec![0.0; model.nj()];
+    timed(e, s0, iters, |e| {
+        let s = e.state();
+        pd_torques_into(&target, &s.q, &s.dq, &limits, &mut tau);
+        e.step(&tau).is_ok()
+    })
 }
 
 /// The same loop on raw mujoco-rs calls (the engine is only used to reset, outside the timing).
@@ -70,107 +78,51 @@ fn run_raw(e: &mut MujocoEngine, model: &RobotModel, s0: &State, iters: u64) -> 
     let limits: Vec<f64> = model.joints.iter().map(|j| j.torque_limit).collect();
     let nj = model.nj();
     let (mut q, mut dq, mut tau) = (vec![0.0; nj], vec![0.0; nj], vec![0.0; nj]);
-    let mut total = Duration::ZERO;
-    let mut done = 0;
-    while done < iters {
-        if e.reset(s0).is_err() {
-            return Duration::MAX;
-        }
+    timed(e, s0, iters, |e| {
         let d = e.raw_data();
-        let n = RESET_EVERY.min(iters - done);
-        let t0 = Instant::now();
-        for _ in 0..n {
-            // Our MJCF puts the joints in slot order right after the free joint (checked by the oracles).
-            q.copy_from_slice(&d.qpos()[7..7 + nj]);
-            dq.copy_from_slice(&d.qvel()[6..6 + nj]);
-            pd_torques_into(&target, &q, &dq, &limits, &mut tau);
-            d.ctrl_mut().copy_from_slice(&tau);
-            d.step();
-        }
-        total += t0.elapsed();
-        done += n;
-    }
-    total
+        // Our MJCF puts the joints in slot order right after the free joint (checked by the oracles).
+        q.copy_from_slice(&d.qpos()[7..7 + nj]);
+        dq.copy_from_slice(&d.qvel()[6..6 + nj]);
+        pd_torques_into(&target, &q, &dq, &limits, &mut tau);
+        d.ctrl_mut().copy_from_slice(&tau);
+        d.step();
+        true
+    })
 }
 
 /// The same loop on Bullet's raw joint state and step (link order; the damping torque the layer adds is added
 /// here too so that both loops simulate the same thing). The engine is only used to reset, outside the timing.
 #[cfg(feature = "bullet")]
 fn run_raw_bullet(e: &mut diff_physics::bullet::BulletEngine, model: &RobotModel, s0: &State, iters: u64) -> Duration {
-    let target = PdTarget::hold_standing(model);
     let joint = e.joint_of_link();
-    let pick = |v: &[f64]| joint.iter().map(|&j| v[j]).collect::<Vec<f64>>();
-    let link_target = PdTarget {
-        q_des: pick(&target.q_des),
-        dq_des: pick(&target.dq_des),
-        kp: pick(&target.kp),
-        kd: pick(&target.kd),
-        tau_ff: pick(&target.tau_ff),
-    };
+    let target = PdTarget::hold_standing(model).permuted(&joint);
     let limits: Vec<f64> = joint.iter().map(|&j| model.joints[j].torque_limit).collect();
     let damping: Vec<f64> = joint.iter().map(|&j| model.joints[j].damping).collect();
     let mut tau = vec![0.0; joint.len()];
-    let mut total = Duration::ZERO;
-    let mut done = 0;
-    while done < iters {
-        if e.reset(s0).is_err() {
-            return Duration::MAX;
+    timed(e, s0, iters, |e| {
+        let (q, dq) = e.raw_joint_state();
+        pd_torques_into(&target, &q, &dq, &limits, &mut tau);
+        for (t, (d, v)) in tau.iter_mut().zip(damping.iter().zip(&dq)) {
+            *t -= d * v;
         }
-        let n = RESET_EVERY.min(iters - done);
-        let t0 = Instant::now();
-        for _ in 0..n {
-            let (q, dq) = e.raw_joint_state();
-            pd_torques_into(&link_target, &q, &dq, &limits, &mut tau);
-            for (t, (d, v)) in tau.iter_mut().zip(damping.iter().zip(&dq)) {
-                *t -= d * v;
-            }
-            if e.step_raw(&tau).is_err() {
-                return Duration::MAX;
-            }
-        }
-        total += t0.elapsed();
-        done += n;
-    }
-    total
+        e.step_raw(&tau).is_ok()
+    })
 }
 
 /// The same loop on PhysX's raw cache access (the engine is only used to reset, outside the timing).
 #[cfg(feature = "physx")]
-fn run_physx_raw(e: &mut diff_physics::physx::PhysxEngine, model: &RobotModel, s0: &State, iters: u64) -> Duration {
+fn run_raw_physx(e: &mut diff_physics::physx::PhysxEngine, model: &RobotModel, s0: &State, iters: u64) -> Duration {
     let slot = e.dof_joints().to_vec();
-    let t = PdTarget::hold_standing(model);
-    let perm = |v: &[f64]| slot.iter().map(|&j| v[j]).collect::<Vec<f64>>();
-    let target = PdTarget {
-        q_des: perm(&t.q_des),
-        dq_des: perm(&t.dq_des),
-        kp: perm(&t.kp),
-        kd: perm(&t.kd),
-        tau_ff: perm(&t.tau_ff),
-    };
+    let target = PdTarget::hold_standing(model).permuted(&slot);
     let limits: Vec<f64> = slot.iter().map(|&j| model.joints[j].torque_limit).collect();
     let nj = model.nj();
     let (mut q, mut dq, mut tau) = (vec![0.0; nj], vec![0.0; nj], vec![0.0; nj]);
-    let mut total = Duration::ZERO;
-    let mut done = 0;
-    while done < iters {
-        if e.reset(s0).is_err() {
-            return Duration::MAX;
-        }
-        let n = RESET_EVERY.min(iters - done);
-        let t0 = Instant::now();
-        for _ in 0..n {
-            if e.raw_joints(&mut q, &mut dq).is_err() {
-                return Duration::MAX;
-            }
+    timed(e, s0, iters, |e| {
+        e.raw_joints(&mut q, &mut dq).is_ok() && {
             pd_torques_into(&target, &q, &dq, &limits, &mut tau);
-            if e.raw_step(&tau).is_err() {
-                return Duration::MAX;
-            }
+            e.raw_step(&tau).is_ok()
         }
-        total += t0.elapsed();
-        done += n;
-    }
-    total
+    })
 }
 
 fn mujoco(model: &RobotModel, zero_g: bool) -> MujocoEngine {
@@ -230,7 +182,7 @@ fn summary() {
             #[cfg(feature = "bullet")]
             bullet_raw_rates.push(steps as f64 / run_raw_bullet(&mut bullet_raw, &model, &s0, steps).as_secs_f64());
             #[cfg(feature = "physx")]
-            physx_raw_rates.push(steps as f64 / run_physx_raw(&mut physx_raw_e, &model, &s0, steps).as_secs_f64());
+            physx_raw_rates.push(steps as f64 / run_raw_physx(&mut physx_raw_e, &model, &s0, steps).as_secs_f64());
             for (i, (_, e)) in engines.iter_mut().enumerate() {
                 let t = run_engine(e.as_mut(), &model, &s0, steps).as_secs_f64();
                 rates[i].push(steps as f64 / t);

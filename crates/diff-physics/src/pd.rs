@@ -24,6 +24,19 @@ impl PdTarget {
             tau_ff: vec![0.0; n],
         }
     }
+
+    /// The same command in another joint order: entry `i` of the result is entry `order[i]` of `self` (for engines
+    /// whose raw joint arrays are in link or DoF order, not slot order).
+    pub fn permuted(&self, order: &[usize]) -> Self {
+        let pick = |v: &[f64]| order.iter().map(|&j| v[j]).collect::<Vec<f64>>();
+        PdTarget {
+            q_des: pick(&self.q_des),
+            dq_des: pick(&self.dq_des),
+            kp: pick(&self.kp),
+            kd: pick(&self.kd),
+            tau_ff: pick(&self.tau_ff),
+        }
+    }
 }
 
 /// Computes clamped PD torques into `out` (slot order). `limits` are the per-joint torque limits (>= 0).
