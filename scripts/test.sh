@@ -5,12 +5,22 @@
 #   ULAB_FUZZ_SECONDS=0 skips the fuzz smoke run (default 20 s per target).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# Wall time of each phase, printed so that a CI log shows where its time budget goes.
+phase() { echo "test.sh: $1 done after ${SECONDS} s"; }
 bash scripts/setup.sh
+phase setup
 source scripts/env.sh
 export CARGO_TERM_COLOR=never
 # Snapshot tests must fail on a mismatch, never write new snapshots.
 export INSTA_UPDATE=no
-cargo test --workspace --locked --no-fail-fast
+cargo test --workspace --locked --no-run
+phase build
+# A failing test does not skip the fuzz smoke run: one CI log reports both; the exit status keeps the failure.
+status=0
+cargo test --workspace --locked --no-fail-fast || status=$?
+phase "cargo test (exit $status)"
 if [ "${ULAB_FUZZ_SECONDS:-20}" != 0 ]; then
-  bash scripts/fuzz.sh smoke "${ULAB_FUZZ_SECONDS:-20}"
+  bash scripts/fuzz.sh smoke "${ULAB_FUZZ_SECONDS:-20}" || status=$?
+  phase "fuzz smoke"
 fi
+exit "$status"
