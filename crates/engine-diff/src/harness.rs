@@ -203,6 +203,40 @@ pub struct Outcome {
     pub velocity_tracking_rms: f64,
     /// Set when the engine failed (reported, never silently dropped).
     pub error: Option<String>,
+    /// Simulated time before the fall (or the engine error), else the whole episode (s).
+    #[serde(default)]
+    pub survived_s: f64,
+    /// Horizontal distance of the pelvis from its start (m).
+    #[serde(default)]
+    pub distance_m: f64,
+    /// Positive mechanical work of the joint torques, Σ max(τ·q̇, 0)·dt (J): the effort a motor pays for.
+    #[serde(default)]
+    pub energy_j: f64,
+    /// Steps at which some joint was within [`LIMIT_MARGIN_RAD`] of a position limit.
+    #[serde(default)]
+    pub joint_limit_steps: u64,
+    /// Mean horizontal speed of the links in ground contact (m/s; 0 without contact samples): foot slip.
+    #[serde(default)]
+    pub foot_slip_mps: f64,
+}
+
+/// A joint this close to a position limit (rad) counts as hitting it.
+pub const LIMIT_MARGIN_RAD: f64 = 0.01;
+/// Foot slip is sampled every this many physics steps (link poses are not free in every engine).
+const SLIP_EVERY: usize = 5;
+
+/// Links touching the ground, by index in `model.links`.
+fn grounded_links(model: &RobotModel, contacts: &[Contact]) -> Vec<usize> {
+    let mut v: Vec<usize> = contacts
+        .iter()
+        .filter_map(|c| match (c.body_a.as_str(), c.body_b.as_str()) {
+            ("ground", l) | (l, "ground") => model.link_index(l),
+            _ => None,
+        })
+        .collect();
+    v.sort_unstable();
+    v.dedup();
+    v
 }
 
 /// Time split for the benchmark.
@@ -710,12 +744,23 @@ pub fn free_run(
         joint_tracking_rms: 0.0,
         velocity_tracking_rms: 0.0,
         error: None,
+        survived_s: 0.0,
+        distance_m: 0.0,
+        energy_j: 0.0,
+        joint_limit_steps: 0,
+        foot_slip_mps: 0.0,
     };
     let (mut jsum, mut vsum, mut n) = (0.0, 0.0, 0usize);
     let mut engine_s = 0.0;
     let mut steps = 0u64;
+    let (mut slip_sum, mut slip_n) = (0.0, 0usize);
+    let mut start_xy = [0.0; 2];
+    // Grounded links and their positions at the previous slip sample.
+    let mut grounded: Vec<(usize, [f64; 3])> = Vec::new();
     let res: Result<(), DiffError> = (|| {
-        e.reset(&initial_state(model, s)?)?;
+        let init = initial_state(model, s)?;
+        start_xy = [init.base_pos[0], init.base_pos[1]];
+        e.reset(&init)?;
         for g in 0..total_steps {
             let st = e.state();
             lp.target(g, &st, s)?;
@@ -729,6 +774,28 @@ pub fn free_run(
             engine_s += t0.elapsed().as_secs_f64();
             steps += 1;
             let st = e.state();
+            out.survived_s = (g + 1) as f64 * dt;
+            out.distance_m = (st.base_pos[0] - start_xy[0]).hypot(st.base_pos[1] - start_xy[1]);
+            out.energy_j += tau.iter().zip(&st.dq).map(|(t, v)| (t * v).max(0.0)).sum::<f64>() * dt;
+            if model
+                .joints
+                .iter()
+                .zip(&st.q)
+                .any(|(j, q)| *q < j.lower + LIMIT_MARGIN_RAD || *q > j.upper - LIMIT_MARGIN_RAD)
+            {
+                out.joint_limit_steps += 1;
+            }
+            if g.is_multiple_of(SLIP_EVERY) {
+                let now = grounded_links(model, &e.contacts());
+                let poses = e.link_poses();
+                for &(l, p0) in &grounded {
+                    if let (true, Some(p1)) = (now.contains(&l), poses.get(l)) {
+                        slip_sum += (p1.pos[0] - p0[0]).hypot(p1.pos[1] - p0[1]) / (SLIP_EVERY as f64 * dt);
+                        slip_n += 1;
+                    }
+                }
+                grounded = now.iter().filter_map(|&l| poses.get(l).map(|p| (l, p.pos))).collect();
+            }
             let nj = st.q.len().max(1) as f64;
             jsum += st.q.iter().zip(&lp.active.q_des).map(|(q, d)| (q - d).powi(2)).sum::<f64>() / nj;
             let cmd = s.command_at(g as f64 * dt);
@@ -757,6 +824,7 @@ pub fn free_run(
     }
     out.joint_tracking_rms = (jsum / n.max(1) as f64).sqrt();
     out.velocity_tracking_rms = (vsum / n.max(1) as f64).sqrt();
+    out.foot_slip_mps = if slip_n > 0 { slip_sum / slip_n as f64 } else { 0.0 };
     Ok(((out, engine_s), steps))
 }
 

@@ -24,6 +24,7 @@ pub mod repro;
 pub mod scenario;
 pub mod search;
 pub mod triage;
+pub mod validate;
 
 use thiserror::Error;
 

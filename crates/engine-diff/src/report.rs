@@ -589,7 +589,7 @@ impl Report {
 /// One colour per engine after the lead (up to the six engines of the CLI's build, then repeating).
 const PALETTE_NAMES: [&str; 6] = ["red", "blue", "green", "magenta", "cyan", "black"];
 
-fn palette(i: usize) -> plotters::style::RGBColor {
+pub(crate) fn palette(i: usize) -> plotters::style::RGBColor {
     use plotters::style::colors::*;
     [RED, BLUE, GREEN, MAGENTA, CYAN, BLACK][i % PALETTE_NAMES.len()]
 }

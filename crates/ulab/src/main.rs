@@ -33,6 +33,8 @@ enum Command {
     Conform(cmd::conform::Args),
     /// Differential testing of physics engines driven by policy rollouts (run, fuzz, replay).
     Diff(cmd::diff::Args),
+    /// Cross-engine policy validation: does a policy keep its score outside the engine it was trained in?
+    Validate(cmd::validate::Args),
     /// Sim-to-real gap diagnosis from robot logs (diagnose, excite, bench).
     Gap(cmd::gap::Args),
     /// Why an SDK client sees nothing: interfaces, DDS participants (vendor, version), topics, QoS, diagnosis.
@@ -50,6 +52,7 @@ fn main() -> ExitCode {
         Command::Sim(args) => cmd::sim::run(args),
         Command::Conform(args) => cmd::conform::run(args),
         Command::Diff(args) => cmd::diff::run(args),
+        Command::Validate(args) => cmd::validate::run(args),
         Command::Gap(args) => cmd::gap::run(args),
         Command::Doctor(args) => cmd::doctor::run(args),
     };

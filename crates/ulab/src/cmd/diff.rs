@@ -162,7 +162,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     }
 }
 
-fn load_model(robot: &str) -> Result<RobotModel> {
+pub(crate) fn load_model(robot: &str) -> Result<RobotModel> {
     if robot_model::BUILTIN_ROBOTS.contains(&robot) {
         robot_model::builtin(robot).with_context(|| format!("loading built-in robot {robot}"))
     } else {
@@ -171,7 +171,7 @@ fn load_model(robot: &str) -> Result<RobotModel> {
 }
 
 /// A policy spec as a controller factory (loaded once, cloned per episode and engine).
-fn policy_factory(spec: &Path) -> Result<(String, Box<ControllerFactory>)> {
+pub(crate) fn policy_factory(spec: &Path) -> Result<(String, Box<ControllerFactory>)> {
     let pc = policy_runtime::PolicyController::load(spec)
         .with_context(|| format!("loading policy spec {}", spec.display()))?;
     let name = policy_runtime::Controller::name(&pc).to_string();
@@ -480,6 +480,6 @@ fn search(a: SearchArgs) -> Result<ExitCode> {
 }
 
 /// Every engine compiled into this build, MuJoCo (the lead) first.
-fn default_engines() -> String {
+pub(crate) fn default_engines() -> String {
     diff_physics::EngineKind::available().iter().map(|k| k.name()).collect::<Vec<_>>().join(",")
 }

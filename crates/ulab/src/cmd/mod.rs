@@ -11,6 +11,7 @@ pub mod recording;
 pub mod replay;
 pub mod sim;
 pub mod sim_loco;
+pub mod validate;
 
 /// A help line ending in the engines compiled into this build (they depend on `diff-physics` features), for every
 /// flag that names an engine.

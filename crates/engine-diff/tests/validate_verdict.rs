@@ -1,0 +1,80 @@
+//! The validation verdict on engines whose difference is known (issue 15). The shipped LSTM policy
+//! (unitree_rl_gym, trained in Isaac Gym) runs with MuJoCo as its reference engine against:
+//! - DART (or, in a build without it, Rapier multibody), an independent engine that holds the same robot model:
+//!   the policy must be judged to transfer (measured: it stays up with the same score, see BENCHMARKS.md);
+//! - MuJoCo on a floor with friction 0.02 instead of the model's 1.0, a planted difference that no walking
+//!   policy survives: it must be flagged (degrades or fails), with evidence of where.
+//! The planted floor is the known cause; the verdict does not know it and has to find the drop from the scores.
+use diff_physics::{make_engine, CommonSettings, Engine, EngineError, EngineKind};
+use engine_diff::harness::{builtin_factories, ControllerFactory, EngineFactory, HarnessConfig};
+use engine_diff::scenario::Scenario;
+use engine_diff::triage::AllowList;
+use engine_diff::validate::{standard_commands, validate, ValidateSetup, Verdict};
+use robot_model::RobotModel;
+use std::sync::Arc;
+
+/// MuJoCo on a slippery floor.
+#[derive(Debug)]
+struct MujocoOnIce;
+
+impl EngineFactory for MujocoOnIce {
+    fn name(&self) -> String {
+        "mujoco_on_ice".into()
+    }
+    fn build(&self, model: &RobotModel, common: &CommonSettings) -> Result<Box<dyn Engine>, EngineError> {
+        let mut m = model.clone();
+        m.contact.friction = ICE_FRICTION;
+        make_engine(EngineKind::Mujoco, &m, common)
+    }
+}
+
+const ICE_FRICTION: f64 = 0.02;
+
+fn lstm_policy() -> (String, Box<ControllerFactory>) {
+    let spec =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../robots/h1_2/policies/unitree_rl_gym_lstm.toml");
+    let pc = policy_runtime::PolicyController::load(&spec).expect("shipped policy spec");
+    let name = policy_runtime::Controller::name(&pc).to_string();
+    (name, Box::new(move |_s: &Scenario| Ok(Box::new(pc.clone()) as Box<dyn policy_runtime::Controller>)))
+}
+
+#[test]
+fn flags_the_planted_floor_and_passes_an_independent_engine() {
+    let model = RobotModel::h1_2().expect("model");
+    let other = if EngineKind::parse_available("dart").is_ok() { "dart" } else { "rapier_multibody" };
+    let mut factories = builtin_factories(&["mujoco".to_string(), other.to_string()]).expect("engines");
+    factories.push(Arc::new(MujocoOnIce));
+    let (name, ctrl) = lstm_policy();
+    let commands: Vec<_> =
+        standard_commands().into_iter().filter(|c| c.name == "stand" || c.name == "forward").collect();
+    let seeds = [1, 2, 3, 4];
+    let allow = AllowList::builtin().expect("allow-list");
+    let cfg = HarnessConfig::default();
+    let r = validate(&ValidateSetup {
+        model: &model,
+        factories: &factories,
+        train_engine: "mujoco",
+        controller: ctrl.as_ref(),
+        controller_name: &name,
+        commands: &commands,
+        seeds: &seeds,
+        seconds: 4.0,
+        cfg: &cfg,
+        allow: &allow,
+        evidence: true,
+    })
+    .expect("validation");
+    let md = r.markdown();
+    let by = |n: &str| r.engines.iter().find(|e| e.engine == n).unwrap_or_else(|| panic!("{n} missing\n{md}"));
+    assert_eq!(by("mujoco").verdict, Verdict::TrainingEngine, "{md}");
+    assert_eq!(by("mujoco").fall_rate, 0.0, "the shipped policy stands and walks in MuJoCo\n{md}");
+    assert_eq!(by(other).verdict, Verdict::Transfers, "{md}");
+    let ice = by("mujoco_on_ice");
+    assert!(matches!(ice.verdict, Verdict::Degrades | Verdict::Fails), "{md}");
+    let ev = ice.evidence.as_ref().unwrap_or_else(|| panic!("flagged engines carry evidence\n{md}"));
+    assert!(!ev.phase.is_empty() && !ev.joint.is_empty() && ev.phase_share > 0.0, "{md}");
+    // 8 pairs: the exact sign-flip test cannot go below 2/256.
+    assert!(ice.p_value.is_some_and(|p| p >= 2.0 / 256.0 - 1e-12 && p < 0.05) || ice.verdict == Verdict::Fails, "{md}");
+    assert!(md.contains("mujoco_on_ice") && md.contains("Where it degrades"), "{md}");
+    println!("{md}");
+}

@@ -1,0 +1,132 @@
+//! `ulab validate --policy SPEC [--train-engine E] [--engines ...] [--episodes N] [--seconds T] --out DIR`:
+//! cross-engine validation of a policy (issue 15). Closed-loop episodes in every engine over a grid of commands
+//! and seeds; per engine the task score, falls, tracking, energy per metre, foot slip and joint-limit time, the
+//! score drop against the training engine with a paired significance test, and a verdict (transfers / degrades /
+//! fails) with the windowed divergence that points at where it degrades. The computation is
+//! `engine_diff::validate`.
+//!
+//! Exit codes: 0 report written, 1 some engine degrades or fails and `--fail-on-degrade` was given, 2 errors.
+use anyhow::{bail, Context, Result};
+use engine_diff::harness::{builtin_factories, HarnessConfig};
+use engine_diff::triage::AllowList;
+use engine_diff::validate::{standard_commands, validate as run_validation, write_validation, ValidateSetup};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Built-in robot name, or a path to a sidecar TOML.
+    #[arg(long, default_value = "h1_2")]
+    robot: String,
+    /// Policy spec TOML (robots/h1_2/policies/*.toml).
+    #[arg(long)]
+    policy: PathBuf,
+    /// The engine the policy was trained in: the scores of every other engine are compared with its scores.
+    /// Both shipped H1-2 policies were trained in PhysX (Isaac Lab, Isaac Gym).
+    #[arg(long, default_value = "physx")]
+    train_engine: String,
+    #[arg(long, help = super::engines_help("Engines (comma-separated; the training engine is added if missing); default: every engine of this build:"))]
+    engines: Option<String>,
+    /// Commands of the grid (comma-separated names: stand, forward, lateral, turn).
+    #[arg(long, default_value = "stand,forward,lateral,turn")]
+    commands: String,
+    /// Episodes (seeds S, S+1, ...) per command and engine.
+    #[arg(long, default_value_t = 3)]
+    episodes: u64,
+    /// Seconds per episode (the command starts after 1 s of standing).
+    #[arg(long, default_value_t = 6.0)]
+    seconds: f64,
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Output directory (report.md, report.json, scores.svg).
+    #[arg(long)]
+    out: PathBuf,
+    /// Skip the windowed-divergence evidence for engines that degrade (faster).
+    #[arg(long)]
+    no_evidence: bool,
+    /// Exit 1 when some engine degrades or fails.
+    #[arg(long)]
+    fail_on_degrade: bool,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    jobs: Option<usize>,
+}
+
+pub fn run(a: Args) -> Result<ExitCode> {
+    if !(a.seconds.is_finite() && a.seconds >= 2.0 && a.seconds <= 600.0) {
+        bail!("--seconds must be in [2, 600] (the command starts after 1 s)");
+    }
+    if a.episodes == 0 || a.episodes > 1000 {
+        bail!("--episodes must be in 1..=1000");
+    }
+    if let Some(j) = a.jobs {
+        if j == 0 {
+            bail!("--jobs must be at least 1");
+        }
+        let _ = rayon::ThreadPoolBuilder::new().num_threads(j).build_global();
+    }
+    let grid = standard_commands();
+    let mut commands = Vec::new();
+    for name in a.commands.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+        let c = grid.iter().find(|c| c.name == name).with_context(|| {
+            format!(
+                "--commands: unknown command {name} (known: {})",
+                grid.iter().map(|c| c.name.as_str()).collect::<Vec<_>>().join(", ")
+            )
+        })?;
+        commands.push(c.clone());
+    }
+    if commands.is_empty() {
+        bail!("--commands names no command");
+    }
+    let model = super::diff::load_model(&a.robot)?;
+    let mut names: Vec<String> = a
+        .engines
+        .clone()
+        .unwrap_or_else(super::diff::default_engines)
+        .split(',')
+        .map(|s| s.trim().to_string())
+        .filter(|s| !s.is_empty())
+        .collect();
+    if !names.contains(&a.train_engine) {
+        names.insert(0, a.train_engine.clone());
+    }
+    if names.len() < 2 {
+        bail!("--engines needs at least one engine besides the training engine");
+    }
+    let factories = builtin_factories(&names).context("--engines / --train-engine")?;
+    let (ctrl_name, ctrl) = super::diff::policy_factory(&a.policy)?;
+    let seeds: Vec<u64> = (0..a.episodes).map(|i| a.seed + i).collect();
+    let cfg = HarnessConfig::default();
+    let allow = AllowList::builtin().context("allow-list")?;
+    let setup = ValidateSetup {
+        model: &model,
+        factories: &factories,
+        train_engine: &a.train_engine,
+        controller: ctrl.as_ref(),
+        controller_name: &ctrl_name,
+        commands: &commands,
+        seeds: &seeds,
+        seconds: a.seconds,
+        cfg: &cfg,
+        allow: &allow,
+        evidence: !a.no_evidence,
+    };
+    let report = run_validation(&setup).context("running the validation episodes")?;
+    write_validation(&a.out, &report).with_context(|| format!("writing {}", a.out.display()))?;
+    for e in &report.engines {
+        println!(
+            "{:<18} {:<15} score {:.3}  drop {}  falls {:.0} %",
+            e.engine,
+            e.verdict.label(),
+            e.score.map_or(f64::NAN, |s| s.mean),
+            e.drop.map_or("-".into(), |d| format!("{:+.3} (p {:.3})", d.mean, e.p_value.unwrap_or(1.0))),
+            100.0 * e.fall_rate
+        );
+    }
+    println!("report in {}", a.out.join("report.md").display());
+    if a.fail_on_degrade && !report.flagged().is_empty() {
+        return Ok(ExitCode::from(1));
+    }
+    Ok(ExitCode::SUCCESS)
+}
