@@ -218,6 +218,9 @@ pub struct Outcome {
     /// Mean horizontal speed of the links in ground contact (m/s; 0 without contact samples): foot slip.
     #[serde(default)]
     pub foot_slip_mps: f64,
+    /// RMS of each velocity-tracking error: forward (m/s), lateral (m/s), yaw rate (rad/s).
+    #[serde(default)]
+    pub velocity_error_rms: [f64; 3],
 }
 
 /// A joint this close to a position limit (rad) counts as hitting it.
@@ -749,8 +752,10 @@ pub fn free_run(
         energy_j: 0.0,
         joint_limit_steps: 0,
         foot_slip_mps: 0.0,
+        velocity_error_rms: [0.0; 3],
     };
     let (mut jsum, mut vsum, mut n) = (0.0, 0.0, 0usize);
+    let mut vcomp = [0.0; 3];
     let mut engine_s = 0.0;
     let mut steps = 0u64;
     let (mut slip_sum, mut slip_n) = (0.0, 0usize);
@@ -803,7 +808,9 @@ pub fn free_run(
             let (c, sn) = (yaw.cos(), yaw.sin());
             let vx = c * st.base_lin_vel[0] + sn * st.base_lin_vel[1];
             let vy = -sn * st.base_lin_vel[0] + c * st.base_lin_vel[1];
-            vsum += ((vx - cmd[0]).powi(2) + (vy - cmd[1]).powi(2) + (st.base_ang_vel[2] - cmd[2]).powi(2)) / 3.0;
+            let err = [(vx - cmd[0]).powi(2), (vy - cmd[1]).powi(2), (st.base_ang_vel[2] - cmd[2]).powi(2)];
+            vsum += err.iter().sum::<f64>() / 3.0;
+            vcomp.iter_mut().zip(err).for_each(|(a, e)| *a += e);
             n += 1;
             if fallen(model, &st) {
                 out.fell = true;
@@ -825,6 +832,7 @@ pub fn free_run(
     out.joint_tracking_rms = (jsum / n.max(1) as f64).sqrt();
     out.velocity_tracking_rms = (vsum / n.max(1) as f64).sqrt();
     out.foot_slip_mps = if slip_n > 0 { slip_sum / slip_n as f64 } else { 0.0 };
+    out.velocity_error_rms = vcomp.map(|a| (a / n.max(1) as f64).sqrt());
     Ok(((out, engine_s), steps))
 }
 

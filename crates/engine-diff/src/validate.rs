@@ -184,6 +184,10 @@ pub struct Evidence {
     pub covered_by: Option<String>,
     /// Allow-list entries recorded for this engine (against MuJoCo): its known modelling differences.
     pub known_differences: Vec<String>,
+    /// Mean RMS velocity-tracking error per component (forward m/s, lateral m/s, yaw rate rad/s) over this engine's
+    /// episodes, and over the training engine's: which part of the task the score drop comes from.
+    pub tracking_error: [f64; 3],
+    pub train_tracking_error: [f64; 3],
 }
 
 /// One engine's figures.
@@ -280,6 +284,7 @@ fn run_one(
             energy_j: 0.0,
             joint_limit_steps: 0,
             foot_slip_mps: 0.0,
+            velocity_error_rms: [0.0; 3],
         },
     };
     let score = task_score(&outcome, s.seconds);
@@ -443,6 +448,9 @@ fn evidence(
     let joint_total: f64 = by_joint.iter().sum();
     let (jix, jv) = by_joint.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1)).map_or((0, 0.0), |(i, v)| (i, *v));
     let worst_f = ep.findings.iter().max_by(|a, b| a.ratio().total_cmp(&b.ratio()));
+    let mean_err = |v: &[&EpisodeScore]| -> [f64; 3] {
+        std::array::from_fn(|k| v.iter().map(|e| e.outcome.velocity_error_rms[k]).sum::<f64>() / v.len().max(1) as f64)
+    };
     let engine_name = s.factories[engine_ix].name();
     Ok(Evidence {
         case: case.name.clone(),
@@ -460,6 +468,8 @@ fn evidence(
             .filter(|e| e.engines.iter().any(|x| x == &engine_name))
             .map(|e| e.id.clone())
             .collect(),
+        tracking_error: mean_err(mine),
+        train_tracking_error: mean_err(train_scores),
     })
 }
 
@@ -495,10 +505,14 @@ impl ValidationReport {
             )
         } else {
             let list: Vec<String> = flagged.iter().map(|e| format!("{} ({})", e.engine, e.verdict.label())).collect();
+            let agree: Vec<&str> =
+                self.engines.iter().filter(|e| e.verdict == Verdict::Transfers).map(|e| e.engine.as_str()).collect();
             format!(
-                "**Degrades outside its training engine ({})**: {}. A policy that scores well only in the engine it was trained in may exploit that engine.",
+                "**Degrades outside its training engine ({})**: {}. A policy that scores well only in the engine it was trained in may exploit that engine; \
+                 where other independent engines agree with the training engine ({}), the flagged engines' own modelling differences are the first suspect.",
                 self.train_engine,
-                list.join(", ")
+                list.join(", "),
+                if agree.is_empty() { "none here".to_string() } else { agree.join(", ") }
             )
         };
         let _ = writeln!(s, "{verdict}\n");
@@ -573,10 +587,14 @@ impl ValidationReport {
                     ),
                     None => "no bound exceeded".into(),
                 };
+                let [a, b, c] = ev.tracking_error;
+                let [ta, tb, tc] = ev.train_tracking_error;
                 let _ = writeln!(
                     s,
-                    "- **{}** ({} seed {}): {:.0} % of the link divergence in phase `{}`, {:.0} % of the joint divergence at {}; {}; known modelling differences of this engine: {}.",
+                    "- **{}**: velocity-tracking error RMS forward {a:.3} m/s, lateral {b:.3} m/s, yaw rate {c:.3} rad/s \
+                     (in {}: {ta:.3}, {tb:.3}, {tc:.3}). In {} seed {}: {:.0} % of the link divergence in phase `{}`, {:.0} % of the joint divergence at {}; {}; known modelling differences of this engine: {}.",
                     e.engine,
+                    self.train_engine,
                     ev.case,
                     ev.seed,
                     100.0 * ev.phase_share,
@@ -689,6 +707,7 @@ mod tests {
             energy_j: 0.0,
             joint_limit_steps: 0,
             foot_slip_mps: 0.0,
+            velocity_error_rms: [0.0; 3],
         };
         assert_eq!(task_score(&o(4.0, 0.0), 4.0), 1.0);
         assert_eq!(task_score(&o(2.0, 0.0), 4.0), 0.5);
