@@ -300,6 +300,9 @@ pub fn validate(s: &ValidateSetup<'_>) -> Result<ValidationReport, DiffError> {
         return Err(DiffError::Input("at least one command and one seed are needed".into()));
     }
     let names: Vec<String> = s.factories.iter().map(|f| f.name()).collect();
+    if let Some(dup) = names.iter().enumerate().find(|(i, n)| names[..*i].contains(n)).map(|(_, n)| n) {
+        return Err(DiffError::Input(format!("engine {dup} is listed twice")));
+    }
     let Some(train_ix) = names.iter().position(|n| n == s.train_engine) else {
         return Err(DiffError::Input(format!(
             "training engine {} is not among the engines ({})",

@@ -80,7 +80,12 @@ pub fn run(a: Args) -> Result<ExitCode> {
         bail!("--commands names no command");
     }
     let model = super::diff::load_model(&a.robot)?;
-    let mut names: Vec<String> = a
+    // Canonical engine names (`rapier-multibody` is `rapier_multibody`): reports and the pairing use them.
+    let canonical = |n: &str| -> Result<String> {
+        Ok(diff_physics::EngineKind::parse_available(n).with_context(|| format!("engine {n}"))?.name().to_string())
+    };
+    let train = canonical(&a.train_engine).context("--train-engine")?;
+    let listed: Vec<String> = a
         .engines
         .clone()
         .unwrap_or_else(super::diff::default_engines)
@@ -88,8 +93,15 @@ pub fn run(a: Args) -> Result<ExitCode> {
         .map(|s| s.trim().to_string())
         .filter(|s| !s.is_empty())
         .collect();
-    if !names.contains(&a.train_engine) {
-        names.insert(0, a.train_engine.clone());
+    let mut names: Vec<String> = Vec::new();
+    for n in listed {
+        let n = canonical(&n).context("--engines")?;
+        if !names.contains(&n) {
+            names.push(n);
+        }
+    }
+    if !names.contains(&train) {
+        names.insert(0, train.clone());
     }
     if names.len() < 2 {
         bail!("--engines needs at least one engine besides the training engine");
@@ -102,7 +114,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let setup = ValidateSetup {
         model: &model,
         factories: &factories,
-        train_engine: &a.train_engine,
+        train_engine: &train,
         controller: ctrl.as_ref(),
         controller_name: &ctrl_name,
         commands: &commands,
