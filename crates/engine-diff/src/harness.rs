@@ -223,6 +223,26 @@ pub struct Outcome {
     pub velocity_error_rms: [f64; 3],
 }
 
+impl Outcome {
+    /// The outcome of `engine` before its first step: nothing measured, no fall, no error.
+    pub fn before_start(engine: &str) -> Outcome {
+        Outcome {
+            engine: engine.into(),
+            fell: false,
+            fall_time: None,
+            joint_tracking_rms: 0.0,
+            velocity_tracking_rms: 0.0,
+            error: None,
+            survived_s: 0.0,
+            distance_m: 0.0,
+            energy_j: 0.0,
+            joint_limit_steps: 0,
+            foot_slip_mps: 0.0,
+            velocity_error_rms: [0.0; 3],
+        }
+    }
+}
+
 /// A joint this close to a position limit (rad) counts as hitting it.
 pub const LIMIT_MARGIN_RAD: f64 = 0.01;
 /// Foot slip is sampled every this many physics steps (link poses are not free in every engine).
@@ -740,20 +760,7 @@ pub fn free_run(
     let mut lp = Loop::new(ctrl_factory, model, s, dt)?;
     let limits: Vec<f64> = model.joints.iter().map(|j| j.torque_limit).collect();
     let mut tau = vec![0.0; model.nj()];
-    let mut out = Outcome {
-        engine: name.into(),
-        fell: false,
-        fall_time: None,
-        joint_tracking_rms: 0.0,
-        velocity_tracking_rms: 0.0,
-        error: None,
-        survived_s: 0.0,
-        distance_m: 0.0,
-        energy_j: 0.0,
-        joint_limit_steps: 0,
-        foot_slip_mps: 0.0,
-        velocity_error_rms: [0.0; 3],
-    };
+    let mut out = Outcome::before_start(name);
     let (mut jsum, mut vsum, mut n) = (0.0, 0.0, 0usize);
     let mut vcomp = [0.0; 3];
     let mut engine_s = 0.0;

@@ -272,20 +272,9 @@ fn run_one(
     let name = f.name();
     let outcome = match f.build(&m, &s.cfg.common) {
         Ok(mut e) => free_run(e.as_mut(), &name, &m, s.controller, &sc, dt, steps)?.0 .0,
-        Err(err) => Outcome {
-            engine: name.clone(),
-            fell: true,
-            fall_time: Some(0.0),
-            joint_tracking_rms: 0.0,
-            velocity_tracking_rms: 0.0,
-            error: Some(err.to_string()),
-            survived_s: 0.0,
-            distance_m: 0.0,
-            energy_j: 0.0,
-            joint_limit_steps: 0,
-            foot_slip_mps: 0.0,
-            velocity_error_rms: [0.0; 3],
-        },
+        Err(err) => {
+            Outcome { fell: true, fall_time: Some(0.0), error: Some(err.to_string()), ..Outcome::before_start(&name) }
+        }
     };
     let score = task_score(&outcome, s.seconds);
     Ok(EpisodeScore { engine: name, case: case.name.clone(), seed, score, outcome })
@@ -699,18 +688,10 @@ mod tests {
     #[test]
     fn task_score_combines_survival_and_tracking() {
         let o = |survived_s: f64, e: f64| Outcome {
-            engine: "x".into(),
             fell: survived_s < 4.0,
-            fall_time: None,
-            joint_tracking_rms: 0.0,
             velocity_tracking_rms: e,
-            error: None,
             survived_s,
-            distance_m: 0.0,
-            energy_j: 0.0,
-            joint_limit_steps: 0,
-            foot_slip_mps: 0.0,
-            velocity_error_rms: [0.0; 3],
+            ..Outcome::before_start("x")
         };
         assert_eq!(task_score(&o(4.0, 0.0), 4.0), 1.0);
         assert_eq!(task_score(&o(2.0, 0.0), 4.0), 0.5);

@@ -9,7 +9,7 @@ use diff_physics::{make_engine, CommonSettings, Engine, EngineError, EngineKind}
 use engine_diff::harness::{builtin_factories, ControllerFactory, EngineFactory, HarnessConfig};
 use engine_diff::scenario::Scenario;
 use engine_diff::triage::AllowList;
-use engine_diff::validate::{standard_commands, validate, ValidateSetup, Verdict};
+use engine_diff::validate::{standard_commands, validate, ValidateSetup, ValidationReport, Verdict};
 use robot_model::RobotModel;
 use std::sync::Arc;
 
@@ -38,32 +38,35 @@ fn lstm_policy() -> (String, Box<ControllerFactory>) {
     (name, Box::new(move |_s: &Scenario| Ok(Box::new(pc.clone()) as Box<dyn policy_runtime::Controller>)))
 }
 
-#[test]
-fn flags_the_planted_floor_and_passes_an_independent_engine() {
+/// The LSTM policy over stand + forward, seeds 1-4, 4 s, MuJoCo as the reference engine.
+fn validate_lstm(factories: &[Arc<dyn EngineFactory>]) -> ValidationReport {
     let model = RobotModel::h1_2().expect("model");
-    let other = if EngineKind::parse_available("dart").is_ok() { "dart" } else { "rapier_multibody" };
-    let mut factories = builtin_factories(&["mujoco".to_string(), other.to_string()]).expect("engines");
-    factories.push(Arc::new(MujocoOnIce));
     let (name, ctrl) = lstm_policy();
     let commands: Vec<_> =
         standard_commands().into_iter().filter(|c| c.name == "stand" || c.name == "forward").collect();
-    let seeds = [1, 2, 3, 4];
     let allow = AllowList::builtin().expect("allow-list");
-    let cfg = HarnessConfig::default();
-    let r = validate(&ValidateSetup {
+    validate(&ValidateSetup {
         model: &model,
-        factories: &factories,
+        factories,
         train_engine: "mujoco",
         controller: ctrl.as_ref(),
         controller_name: &name,
         commands: &commands,
-        seeds: &seeds,
+        seeds: &[1, 2, 3, 4],
         seconds: 4.0,
-        cfg: &cfg,
+        cfg: &HarnessConfig::default(),
         allow: &allow,
         evidence: true,
     })
-    .expect("validation");
+    .expect("validation")
+}
+
+#[test]
+fn flags_the_planted_floor_and_passes_an_independent_engine() {
+    let other = if EngineKind::parse_available("dart").is_ok() { "dart" } else { "rapier_multibody" };
+    let mut factories = builtin_factories(&["mujoco".to_string(), other.to_string()]).expect("engines");
+    factories.push(Arc::new(MujocoOnIce));
+    let r = validate_lstm(&factories);
     let md = r.markdown();
     let by = |n: &str| r.engines.iter().find(|e| e.engine == n).unwrap_or_else(|| panic!("{n} missing\n{md}"));
     assert_eq!(by("mujoco").verdict, Verdict::TrainingEngine, "{md}");
@@ -102,30 +105,10 @@ impl EngineFactory for MujocoWithoutArmature {
 #[test]
 #[ignore = "experiment: prints the validation with MuJoCo without armature beside Bullet and Rapier impulse"]
 fn armature_share_of_the_degradation() {
-    let model = RobotModel::h1_2().expect("model");
     let mut factories = builtin_factories(&["mujoco".to_string(), "bullet".to_string(), "rapier_impulse".to_string()])
         .expect("engines");
     factories.push(Arc::new(MujocoWithoutArmature));
-    let (name, ctrl) = lstm_policy();
-    let commands: Vec<_> =
-        standard_commands().into_iter().filter(|c| c.name == "stand" || c.name == "forward").collect();
-    let seeds = [1, 2, 3, 4];
-    let allow = AllowList::builtin().expect("allow-list");
-    let cfg = HarnessConfig::default();
-    let r = validate(&ValidateSetup {
-        model: &model,
-        factories: &factories,
-        train_engine: "mujoco",
-        controller: ctrl.as_ref(),
-        controller_name: &name,
-        commands: &commands,
-        seeds: &seeds,
-        seconds: 4.0,
-        cfg: &cfg,
-        allow: &allow,
-        evidence: true,
-    })
-    .expect("validation");
+    let r = validate_lstm(&factories);
     for e in &r.engines {
         let mine: Vec<_> = r.episodes.iter().filter(|x| x.engine == e.engine).collect();
         let m: Vec<f64> = (0..3)
