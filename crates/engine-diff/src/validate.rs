@@ -316,12 +316,7 @@ pub fn validate(s: &ValidateSetup<'_>) -> Result<ValidationReport, DiffError> {
         if i == train_ix {
             summary.verdict = Verdict::TrainingEngine;
         } else {
-            let diffs: Vec<f64> = mine
-                .iter()
-                .filter_map(|e| {
-                    train_scores.iter().find(|t| t.case == e.case && t.seed == e.seed).map(|t| t.score - e.score)
-                })
-                .collect();
+            let diffs: Vec<f64> = paired_drops(&train_scores, &mine).map(|(d, _)| d).collect();
             summary.drop = Interval::of(&diffs, 0xD0 + i as u64);
             let p = paired_p_value(&diffs, 0x9E + i as u64);
             summary.p_value = Some(p);
@@ -351,6 +346,16 @@ pub fn validate(s: &ValidateSetup<'_>) -> Result<ValidationReport, DiffError> {
         commands: s.commands.to_vec(),
         engines,
         episodes,
+    })
+}
+
+/// (training-engine score − this engine's score, this engine's episode) for every (command, seed) both ran.
+fn paired_drops<'a>(
+    train: &'a [&EpisodeScore],
+    mine: &'a [&'a EpisodeScore],
+) -> impl Iterator<Item = (f64, &'a EpisodeScore)> + 'a {
+    mine.iter().filter_map(move |e| {
+        train.iter().find(|t| t.case == e.case && t.seed == e.seed).map(|t| (t.score - e.score, *e))
     })
 }
 
@@ -404,13 +409,9 @@ fn evidence(
     train_scores: &[&EpisodeScore],
     mine: &[&EpisodeScore],
 ) -> Result<Evidence, DiffError> {
-    let worst = mine
-        .iter()
-        .filter_map(|e| {
-            train_scores.iter().find(|t| t.case == e.case && t.seed == e.seed).map(|t| (t.score - e.score, e))
-        })
+    let worst = paired_drops(train_scores, mine)
         .max_by(|a, b| a.0.total_cmp(&b.0))
-        .map(|(_, e)| *e)
+        .map(|(_, e)| e)
         .ok_or_else(|| DiffError::Input("no paired episode".into()))?;
     let case = s
         .commands

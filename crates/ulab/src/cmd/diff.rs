@@ -189,26 +189,34 @@ struct Setup {
     is_policy: bool,
 }
 
-fn setup(c: &Common) -> Result<Setup> {
-    if let Some(j) = c.jobs {
+/// `--jobs`: the size of rayon's global pool (default: all cores).
+pub(crate) fn set_jobs(jobs: Option<usize>) -> Result<()> {
+    if let Some(j) = jobs {
         if j == 0 {
             bail!("--jobs must be at least 1");
         }
         // Only the first call configures the global pool; later ones (tests in one process) keep it.
         let _ = rayon::ThreadPoolBuilder::new().num_threads(j).build_global();
     }
+    Ok(())
+}
+
+/// `--engines`: the comma-separated names as given, or every engine of this build.
+pub(crate) fn engine_names(list: Option<&str>) -> Vec<String> {
+    list.map_or_else(default_engines, str::to_string)
+        .split(',')
+        .map(|s| s.trim().to_string())
+        .filter(|s| !s.is_empty())
+        .collect()
+}
+
+fn setup(c: &Common) -> Result<Setup> {
+    set_jobs(c.jobs)?;
     if c.window == 0 || c.window > 10_000 {
         bail!("--window must be in 1..=10000 steps");
     }
     let model = load_model(&c.robot)?;
-    let names: Vec<String> = c
-        .engines
-        .clone()
-        .unwrap_or_else(default_engines)
-        .split(',')
-        .map(|s| s.trim().to_string())
-        .filter(|s| !s.is_empty())
-        .collect();
+    let names = engine_names(c.engines.as_deref());
     if names.len() < 2 {
         bail!("--engines needs at least two engines (the first is the lead)");
     }

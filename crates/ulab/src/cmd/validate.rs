@@ -59,12 +59,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     if a.episodes == 0 || a.episodes > 1000 {
         bail!("--episodes must be in 1..=1000");
     }
-    if let Some(j) = a.jobs {
-        if j == 0 {
-            bail!("--jobs must be at least 1");
-        }
-        let _ = rayon::ThreadPoolBuilder::new().num_threads(j).build_global();
-    }
+    super::diff::set_jobs(a.jobs)?;
     let grid = standard_commands();
     let mut commands = Vec::new();
     for name in a.commands.split(',').map(str::trim).filter(|s| !s.is_empty()) {
@@ -85,16 +80,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
         Ok(diff_physics::EngineKind::parse_available(n).with_context(|| format!("engine {n}"))?.name().to_string())
     };
     let train = canonical(&a.train_engine).context("--train-engine")?;
-    let listed: Vec<String> = a
-        .engines
-        .clone()
-        .unwrap_or_else(super::diff::default_engines)
-        .split(',')
-        .map(|s| s.trim().to_string())
-        .filter(|s| !s.is_empty())
-        .collect();
     let mut names: Vec<String> = Vec::new();
-    for n in listed {
+    for n in super::diff::engine_names(a.engines.as_deref()) {
         let n = canonical(&n).context("--engines")?;
         if !names.contains(&n) {
             names.push(n);
