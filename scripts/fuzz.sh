@@ -3,18 +3,26 @@
 # instrumentation cargo-fuzz asks rustc for (`-s none`: no address sanitizer, which needs nightly).
 #   scripts/fuzz.sh build               build every target
 #   scripts/fuzz.sh run TARGET SECONDS  fuzz TARGET from its seed corpus for SECONDS
-#   scripts/fuzz.sh smoke SECONDS       run every target for SECONDS each (CI), with a fixed libFuzzer seed
-#                                       so that a red smoke run replays the same inputs on the same commit
+#   scripts/fuzz.sh smoke SECONDS       run the protocol targets for SECONDS each (CI), with a fixed libFuzzer
+#                                       seed so that a red smoke run replays the same inputs on the same commit
+#   scripts/fuzz.sh smoke-all SECONDS   the same for every target, engine_divergence included (nightly: its
+#                                       release build of three engines with coverage takes minutes)
 # New crashes land in fuzz/artifacts/TARGET/; copy minimized ones to corpus/regressions/TARGET/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-TARGETS=(decode_any crc roundtrip engine_divergence)
+PROTOCOL_TARGETS=(decode_any crc roundtrip)
+TARGETS=("${PROTOCOL_TARGETS[@]}" engine_divergence)
 export RUSTFLAGS="--cfg fuzzing -Cpasses=sancov-module -Cllvm-args=-sanitizer-coverage-level=4 \
 -Cllvm-args=-sanitizer-coverage-inline-8bit-counters -Cllvm-args=-sanitizer-coverage-pc-table \
 -Cllvm-args=-sanitizer-coverage-trace-compares -Cdebug-assertions -Coverflow-checks"
 BIN=fuzz/target/x86_64-unknown-linux-gnu/release
 
-build() { cargo build --quiet --release --manifest-path fuzz/Cargo.toml --target x86_64-unknown-linux-gnu --bins; }
+# build [TARGET...]: the named targets (default: every target).
+build() {
+  local bins=(--bins)
+  if [ $# -gt 0 ]; then bins=(); for t in "$@"; do bins+=(--bin "$t"); done; fi
+  cargo build --quiet --release --manifest-path fuzz/Cargo.toml --target x86_64-unknown-linux-gnu "${bins[@]}"
+}
 
 run() {
   local target=$1 seconds=$2 seed=${3:-0} work
@@ -37,9 +45,12 @@ run() {
 
 case "${1:-}" in
   build) build ;;
-  run) build; run "$2" "$3" ;;
+  run) build "$2"; run "$2" "$3" ;;
   smoke)
+    build "${PROTOCOL_TARGETS[@]}"
+    for t in "${PROTOCOL_TARGETS[@]}"; do echo "fuzz: $t for ${2}s"; run "$t" "$2" 1; done ;;
+  smoke-all)
     build
     for t in "${TARGETS[@]}"; do echo "fuzz: $t for ${2}s"; run "$t" "$2" 1; done ;;
-  *) echo "usage: $0 build | run TARGET SECONDS | smoke SECONDS" >&2; exit 2 ;;
+  *) echo "usage: $0 build | run TARGET SECONDS | smoke SECONDS | smoke-all SECONDS" >&2; exit 2 ;;
 esac

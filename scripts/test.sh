@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The project's test command: installs what a fresh machine lacks (scripts/setup.sh), then runs
 # every test of the workspace (unit, golden-byte, property, snapshot, fuzz-regression, engine,
-# DDS interop), then builds the fuzz targets on stable and runs each briefly.
+# DDS interop), then builds the protocol fuzz targets on stable and runs each briefly. What does not fit CI's
+# time budget (PhysX, the other gap-effect cases, the engine fuzz target) runs in scripts/nightly.sh.
 #   ULAB_FUZZ_SECONDS=0 skips the fuzz smoke run (default 20 s per target).
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -20,7 +20,7 @@ use thiserror::Error;
 /// Errors from engines.
 #[derive(Debug, Error)]
 pub enum EngineError {
-    #[error("engine {0} is not compiled into this build (this build has: {names})", names = EngineKind::available_names())]
+    #[error("engine {0} is not compiled into this build (its cargo feature is off, e.g. PhysX: `cargo build -p ulab --features physx`; this build has: {names})", names = EngineKind::available_names())]
     Unavailable(String),
     #[error("model cannot be built in the engine: {0}")]
     Build(String),

@@ -2,6 +2,9 @@
 //! command jitter) with one hidden effect writes an MCAP like `ulab record`; the diagnosis (MuJoCo implicitfast)
 //! reads it back and must name that effect first, on the right joint or group, with a parameter near the truth.
 //! A log without any effect must give no confident attribution.
+//!
+//! Each case takes ~25 s of a core: CI runs the no-effect control and three effects (armature, friction, latency); the
+//! other nine are ignored here and run by `scripts/nightly.sh` (issue 21: the CI time budget).
 use gap_diagnosis::bench::{generate_log, RealConfig};
 use gap_diagnosis::effects::Scope;
 use gap_diagnosis::plant::{joint_groups, Effects, GROUPS};
@@ -80,6 +83,7 @@ fn armature() {
     check(EffectKind::Armature, "right_arm", 2.5, "right_arm", 2.5);
 }
 #[test]
+#[ignore = "nightly (scripts/nightly.sh): CI keeps the control and three effects"]
 fn damping() {
     check(EffectKind::Damping, "left_leg", 2.5, "left_leg", 2.5);
 }
@@ -88,6 +92,7 @@ fn friction() {
     check(EffectKind::Friction, "left_arm", 2.0, "left_arm", 2.0);
 }
 #[test]
+#[ignore = "nightly (scripts/nightly.sh): CI keeps the control and three effects"]
 fn torque_saturation() {
     check(EffectKind::TorqueSaturation, "right_leg", 0.35, "right_leg", 0.35);
 }
@@ -97,32 +102,39 @@ fn latency() {
     check(EffectKind::Latency, "robot", 10.0, "robot", 20.0);
 }
 #[test]
+#[ignore = "nightly (scripts/nightly.sh): CI keeps the control and three effects"]
 fn gain_scale() {
     check(EffectKind::GainScale, "left_arm", 0.65, "left_arm", 0.65);
 }
 #[test]
+#[ignore = "nightly (scripts/nightly.sh): CI keeps the control and three effects"]
 fn backlash() {
     check(EffectKind::Backlash, "right_arm", 0.03, "right_arm", 0.03);
 }
 #[test]
+#[ignore = "nightly (scripts/nightly.sh): CI keeps the control and three effects"]
 fn encoder_offset() {
     // A hip pitch carries the leg's weight: its offset changes a gravity torque the rig can see (a knee offset of this
     // size is below what a 5 s log resolves).
     check(EffectKind::EncoderOffset, "left_hip_pitch", 0.06, "left_hip_pitch", 0.06);
 }
 #[test]
+#[ignore = "nightly (scripts/nightly.sh): CI keeps the control and three effects"]
 fn imu_bias() {
     check(EffectKind::ImuBias, "2", 0.1, "imu_z", 0.1);
 }
 #[test]
+#[ignore = "nightly (scripts/nightly.sh): CI keeps the control and three effects"]
 fn imu_misalignment() {
     check(EffectKind::ImuMisalignment, "0", 0.06, "imu_x", 0.06);
 }
 #[test]
+#[ignore = "nightly (scripts/nightly.sh): CI keeps the control and three effects"]
 fn link_mass() {
     check(EffectKind::LinkMass, "left_arm", 1.5, "left_arm", 1.5);
 }
 #[test]
+#[ignore = "nightly (scripts/nightly.sh): CI keeps the control and three effects"]
 fn link_com() {
     check(EffectKind::LinkCom, "right_leg", 0.05, "right_leg", 0.05);
 }

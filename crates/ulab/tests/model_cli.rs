@@ -139,6 +139,8 @@ fn bullet_checks_and_inspects_like_the_reference() {
 
 /// Issue 15: `ulab model check` passes on PhysX (f32 tolerances), and `ulab model inspect` shows PhysX's own
 /// mass matrix (built from its dense Jacobian) equal to the reference's within f32 rounding.
+// PhysX is opt-in (`--features physx`, `scripts/nightly.sh`): its SDK build does not fit the CI budget.
+#[cfg(feature = "physx")]
 #[test]
 fn check_and_inspect_physx() {
     let (code, out, err) =

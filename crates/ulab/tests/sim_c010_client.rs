@@ -185,6 +185,8 @@ fn cyclone_0_10_2_client_drives_mujoco() {
     drive("mujoco");
 }
 
+// PhysX is opt-in (`--features physx`, `scripts/nightly.sh`): its SDK build does not fit the CI budget.
+#[cfg(feature = "physx")]
 #[test]
 fn cyclone_0_10_2_client_drives_physx() {
     drive("physx");

@@ -191,6 +191,8 @@ fn python_sdk_drives_dart() {
     check_engine("dart", false);
 }
 
+// PhysX is opt-in (`--features physx`, `scripts/nightly.sh`): its SDK build does not fit the CI budget.
+#[cfg(feature = "physx")]
 #[test]
 fn python_sdk_drives_physx() {
     check_engine("physx", false);
