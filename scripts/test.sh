@@ -14,6 +14,12 @@ source scripts/env.sh
 export CARGO_TERM_COLOR=never
 # Snapshot tests must fail on a mismatch, never write new snapshots.
 export INSTA_UPDATE=no
+# Hygiene gate (issue 18), before the tests: formatting, clippy with the workspace lints and warnings denied, and
+# the docs of every crate without a broken link.
+cargo fmt --all --check
+cargo clippy --workspace --all-targets --locked -- -D warnings
+RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --locked --quiet
+phase "hygiene gate"
 cargo test --workspace --locked --no-run
 phase build
 # A failing test does not skip the fuzz smoke run: one CI log reports both; the exit status keeps the failure.

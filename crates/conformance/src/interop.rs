@@ -287,8 +287,8 @@ pub fn start_c010(target: &Target, opts: &InteropOptions) -> C010Probe {
     let running = c010_probe_binary(opts).and_then(|bin| {
         let mut cmd = Command::new(bin);
         cmd.args([
-            cfg.domain.to_string(),
-            cfg.interface.clone(),
+            cfg.domain_id().to_string(),
+            cfg.interface_name().to_owned(),
             format!("{}", opts.seconds),
             opts.min_samples.to_string(),
         ]);
@@ -338,8 +338,8 @@ pub fn start_cyclone11(target: &Target, opts: &InteropOptions) -> Cyclone11Probe
         }
         let mut cmd = Command::new(opts.python());
         cmd.arg(&script).args([
-            cfg.domain.to_string(),
-            cfg.interface.clone(),
+            cfg.domain_id().to_string(),
+            cfg.interface_name().to_owned(),
             format!("{}", opts.seconds),
             opts.min_samples.to_string(),
         ]);
@@ -428,10 +428,7 @@ fn judge(id: CheckId, who: &str, done: &Finished, target: &Target) -> CheckResul
         CheckResult::new(
             id,
             Status::Inconclusive,
-            format!(
-                "{who} could not run: {}",
-                log.lines().filter(|l| !l.trim().is_empty()).last().unwrap_or("no output")
-            ),
+            format!("{who} could not run: {}", log.lines().rfind(|l| !l.trim().is_empty()).unwrap_or("no output")),
         )
     } else if let Some(p) = &report {
         let ours = target.samples.len();

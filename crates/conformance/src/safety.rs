@@ -3,7 +3,6 @@
 //! wrong commands, so on anything but loopback it needs a second, explicit permission.
 
 use crate::ConformError;
-use dds_transport::config::is_loopback_interface;
 use dds_transport::DomainConfig;
 
 /// Whether `cfg` may be opened at all (the transport's rule: loopback and a non-zero domain,
@@ -21,7 +20,7 @@ pub fn check_fuzz(cfg: &DomainConfig, allow_robot_fuzz: bool) -> Result<(), Conf
     if is_exposed(cfg) && !allow_robot_fuzz {
         return Err(ConformError::Refused(format!(
             "fuzzing domain {} on `{}` may send harmful commands to a real robot; it needs --allow-robot-fuzz as well as --allow-robot",
-            cfg.domain, cfg.interface
+            cfg.domain_id(), cfg.interface_name()
         )));
     }
     Ok(())
@@ -29,7 +28,7 @@ pub fn check_fuzz(cfg: &DomainConfig, allow_robot_fuzz: bool) -> Result<(), Conf
 
 /// Whether the target may be a real robot (the run then prints what it will send first).
 pub fn is_exposed(cfg: &DomainConfig) -> bool {
-    cfg.domain == 0 || !is_loopback_interface(&cfg.interface)
+    cfg.may_reach_robot()
 }
 
 #[cfg(test)]

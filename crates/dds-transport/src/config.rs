@@ -26,6 +26,10 @@ pub enum ParticipantIndex {
 
 /// Configuration of one DDS domain as seen by this process.
 ///
+/// Built with [`DomainConfig::loopback`] / [`DomainConfig::new`] and the builder methods; the fields are private so
+/// that every configuration goes through [`DomainConfig::validate`] (run by `Participant::new`), which refuses
+/// domain 0 and non-loopback interfaces without [`DomainConfig::allow_robot`]. Read them with the getters.
+///
 /// Cyclone DDS 0.10.2 (Unitree's SDK and robot) disables multicast on `lo` and then discovers
 /// peers only by unicast to the well-known ports of participant indices 0..=9 on the peer
 /// addresses. So on loopback we take a participant index ourselves and list 127.0.0.1 as a peer,
@@ -33,19 +37,19 @@ pub enum ParticipantIndex {
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct DomainConfig {
     /// DDS domain id.
-    pub domain: u32,
+    pub(crate) domain: u32,
     /// Network interface name (e.g. `lo`, `eth0`).
-    pub interface: String,
+    pub(crate) interface: String,
     /// Permit domain 0 or a non-loopback interface.
-    pub allow_robot: bool,
+    pub(crate) allow_robot: bool,
     /// Participant index policy.
-    pub participant_index: ParticipantIndex,
+    pub(crate) participant_index: ParticipantIndex,
     /// Highest participant index probed / taken with [`ParticipantIndex::Auto`].
-    pub max_auto_participant_index: u32,
+    pub(crate) max_auto_participant_index: u32,
     /// Unicast discovery peers (addresses). Defaults to `127.0.0.1` on loopback, none otherwise.
-    pub peers: Vec<String>,
+    pub(crate) peers: Vec<String>,
     /// Optional Cyclone tracing: (verbosity, output file), e.g. ("finest", "/tmp/cdds.log").
-    pub tracing: Option<(String, String)>,
+    pub(crate) tracing: Option<(String, String)>,
 }
 
 impl Default for DomainConfig {
@@ -121,6 +125,36 @@ impl DomainConfig {
     pub fn tracing(mut self, verbosity: impl Into<String>, file: impl Into<String>) -> Self {
         self.tracing = Some((verbosity.into(), file.into()));
         self
+    }
+
+    /// DDS domain id.
+    pub fn domain_id(&self) -> u32 {
+        self.domain
+    }
+
+    /// Network interface name.
+    pub fn interface_name(&self) -> &str {
+        &self.interface
+    }
+
+    /// Whether domain 0 and non-loopback interfaces are permitted.
+    pub fn robot_allowed(&self) -> bool {
+        self.allow_robot
+    }
+
+    /// Participant index policy.
+    pub fn participant_index_policy(&self) -> ParticipantIndex {
+        self.participant_index
+    }
+
+    /// Unicast discovery peers.
+    pub fn peer_addresses(&self) -> &[String] {
+        &self.peers
+    }
+
+    /// Whether this configuration may reach a real robot: domain 0 or a non-loopback interface.
+    pub fn may_reach_robot(&self) -> bool {
+        self.domain == unitree_idl::topics::ROBOT_DOMAIN || !is_loopback_interface(&self.interface)
     }
 
     /// Checks the safety rule and the values.

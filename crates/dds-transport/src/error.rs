@@ -3,6 +3,7 @@
 /// Everything that can go wrong in the transport. Nothing here is produced from received bytes:
 /// a reader hands over whatever arrived and never fails on its content.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum Error {
     /// The configuration would reach a real robot (domain 0, or a non-loopback interface)
     /// and `allow_robot` was not set.

@@ -229,19 +229,19 @@ impl Participant {
             received: Arc::new(AtomicU64::new(0)),
         });
         let received = queue.received.clone();
-        self.make_reader(topic, opts, queue.clone(), Some(queue), received)
+        Ok(RawReader { core: self.make_reader(topic, opts, queue.clone(), received)?, queue })
     }
 
-    /// A reader that hands every sample to `callback` on a Cyclone thread, as it arrives.
-    /// The callback must not block for long; a panic in it is caught and the sample lost.
-    /// [`RawReader::take`] on such a reader always returns `None`.
-    pub fn reader_with_callback<F>(&self, topic: &TopicSpec, opts: ReaderOptions, callback: F) -> Result<RawReader>
+    /// A reader that hands every sample to `callback` on a Cyclone thread, as it arrives (no queue: a
+    /// [`CallbackReader`] has nothing to take). The callback must not block for long; a panic in it is caught
+    /// and the sample lost.
+    pub fn reader_with_callback<F>(&self, topic: &TopicSpec, opts: ReaderOptions, callback: F) -> Result<CallbackReader>
     where
         F: FnMut(Sample) + Send + 'static,
     {
         let received = Arc::new(AtomicU64::new(0));
         let sink = Arc::new(CallbackSink { f: Mutex::new(Box::new(callback)), received: received.clone() });
-        self.make_reader(topic, opts, sink, None, received)
+        Ok(CallbackReader { core: self.make_reader(topic, opts, sink, received)? })
     }
 
     fn make_reader(
@@ -249,12 +249,11 @@ impl Participant {
         topic: &TopicSpec,
         opts: ReaderOptions,
         sink: Arc<dyn ffi::SampleSink>,
-        queue: Option<Arc<Queue>>,
         received: Arc<AtomicU64>,
-    ) -> Result<RawReader> {
+    ) -> Result<ReaderCore> {
         let t = self.topic(topic)?;
         let handle = ffi::create_reader(self.inner.entity, t, qos(opts.reliability, opts.history_depth), sink)?;
-        Ok(RawReader { handle, queue, received, topic: topic.clone(), _participant: self.inner.clone() })
+        Ok(ReaderCore { handle, received, topic: topic.clone(), _participant: self.inner.clone() })
     }
 }
 
@@ -360,14 +359,59 @@ impl ffi::SampleSink for CallbackSink {
     }
 }
 
-/// Receives serialized samples on one topic.
+/// What every reader has: the Cyclone reader, its counter and topic, and the participant kept alive.
 #[derive(Debug)]
-pub struct RawReader {
+struct ReaderCore {
     handle: ffi::ReaderHandle,
-    queue: Option<Arc<Queue>>,
     received: Arc<AtomicU64>,
     topic: TopicSpec,
     _participant: Arc<ParticipantInner>,
+}
+
+impl ReaderCore {
+    fn received(&self) -> u64 {
+        self.received.load(Ordering::Relaxed)
+    }
+
+    fn wait_for_writers(&self, n: u32, timeout: Duration) -> Result<bool> {
+        wait_until(timeout, || Ok(self.handle.matched_writers()? >= n))
+    }
+}
+
+/// Receives serialized samples on one topic into a bounded queue, for [`RawReader::take`] and its kin.
+#[derive(Debug)]
+pub struct RawReader {
+    core: ReaderCore,
+    queue: Arc<Queue>,
+}
+
+/// Receives serialized samples on one topic by handing each to a callback ([`Participant::reader_with_callback`]).
+/// A distinct type from [`RawReader`] because it has no queue: there is nothing to take from it.
+#[derive(Debug)]
+pub struct CallbackReader {
+    core: ReaderCore,
+}
+
+impl CallbackReader {
+    /// Samples handed to the callback so far.
+    pub fn received(&self) -> u64 {
+        self.core.received()
+    }
+
+    /// Number of writers currently matched.
+    pub fn matched_writers(&self) -> Result<u32> {
+        self.core.handle.matched_writers()
+    }
+
+    /// Waits until at least `n` writers are matched; `Ok(false)` on timeout.
+    pub fn wait_for_writers(&self, n: u32, timeout: Duration) -> Result<bool> {
+        self.core.wait_for_writers(n, timeout)
+    }
+
+    /// The topic.
+    pub fn topic(&self) -> &TopicSpec {
+        &self.core.topic
+    }
 }
 
 impl std::fmt::Debug for Queue {
@@ -379,7 +423,7 @@ impl std::fmt::Debug for Queue {
 impl RawReader {
     /// The oldest queued sample, waiting up to `timeout` for one.
     pub fn take(&self, timeout: Duration) -> Option<Sample> {
-        let q = self.queue.as_ref()?;
+        let q = &self.queue;
         let deadline = Instant::now() + timeout;
         let mut st = q.lock();
         loop {
@@ -399,13 +443,12 @@ impl RawReader {
 
     /// The oldest queued sample, without waiting.
     pub fn try_take(&self) -> Option<Sample> {
-        self.queue.as_ref()?.lock().samples.pop_front()
+        self.queue.lock().samples.pop_front()
     }
 
     /// Empties the queue, returning the newest sample and how many older ones were discarded.
     pub fn take_latest(&self) -> Option<(Sample, usize)> {
-        let q = self.queue.as_ref()?;
-        let mut st = q.lock();
+        let mut st = self.queue.lock();
         let n = st.samples.len();
         let last = st.samples.pop_back()?;
         st.samples.clear();
@@ -414,27 +457,27 @@ impl RawReader {
 
     /// Samples dropped because the queue was full.
     pub fn dropped(&self) -> u64 {
-        self.queue.as_ref().map_or(0, |q| q.lock().dropped)
+        self.queue.lock().dropped
     }
 
-    /// Samples received so far (queued or handed to the callback).
+    /// Samples received so far (queued, taken or dropped).
     pub fn received(&self) -> u64 {
-        self.received.load(Ordering::Relaxed)
+        self.core.received()
     }
 
     /// Number of writers currently matched.
     pub fn matched_writers(&self) -> Result<u32> {
-        self.handle.matched_writers()
+        self.core.handle.matched_writers()
     }
 
     /// Waits until at least `n` writers are matched; `Ok(false)` on timeout.
     pub fn wait_for_writers(&self, n: u32, timeout: Duration) -> Result<bool> {
-        wait_until(timeout, || Ok(self.matched_writers()? >= n))
+        self.core.wait_for_writers(n, timeout)
     }
 
     /// The topic.
     pub fn topic(&self) -> &TopicSpec {
-        &self.topic
+        &self.core.topic
     }
 }
 
@@ -578,3 +621,8 @@ impl Drop for DiscoveryMonitor {
         ffi::delete(self.subscriptions);
     }
 }
+
+// The README's example is compiled (and, where it needs no network, run) as a doctest.
+#[doc = include_str!("../README.md")]
+#[cfg(doctest)]
+pub struct ReadmeDoctests;

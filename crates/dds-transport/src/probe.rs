@@ -40,6 +40,7 @@ pub fn multicast_discovery_port(domain: u32) -> u32 {
 
 /// Errors of the probe.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum ProbeError {
     #[error("refusing {what}: a real robot may be there; pass allow_robot (--allow-robot) to probe it")]
     RobotNotAllowed { what: String },
@@ -481,11 +482,10 @@ fn parse_spdp_data(
             }
             PID_PARTICIPANT_GUID if len >= 12 => p.guid_prefix = guid_prefix_hex(v),
             PID_DOMAIN_ID if len >= 4 => p.domain = rd32(v, le),
-            PID_METATRAFFIC_UNICAST_LOCATOR if len >= 24 => {
-                if rd32(v, le) == 1 {
-                    let port = rd32(&v[4..], le);
-                    p.metatraffic_unicast.push(format!("{}.{}.{}.{}:{port}", v[20], v[21], v[22], v[23]));
-                }
+            // Locator kind 1: UDPv4.
+            PID_METATRAFFIC_UNICAST_LOCATOR if len >= 24 && rd32(v, le) == 1 => {
+                let port = rd32(&v[4..], le);
+                p.metatraffic_unicast.push(format!("{}.{}.{}.{}:{port}", v[20], v[21], v[22], v[23]));
             }
             PID_PROPERTY_LIST if len >= 4 => {
                 let count = rd32(v, le) as usize;

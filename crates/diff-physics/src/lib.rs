@@ -66,6 +66,10 @@ pub fn make_engine(
         #[cfg(feature = "physx")]
         EngineKind::Physx => Ok(Box::new(physx::PhysxEngine::new(model, common, &physx::PhysxSettings::default())?)),
         #[allow(unreachable_patterns)]
-        other => Err(EngineError::Unavailable(other.name().to_string())),
+        other => {
+            // Without any engine feature, nothing uses the model and settings.
+            let _ = (model, common);
+            Err(EngineError::Unavailable(other.name().to_string()))
+        }
     }
 }

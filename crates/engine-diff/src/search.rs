@@ -234,8 +234,8 @@ pub fn search(s: &SearchSetup<'_>, method: Method, c: &SearchConfig) -> Result<S
         Method::Cem => {
             let pop = c.population.clamp(2, c.budget.max(2));
             let n_elite = ((pop as f64 * c.elite_fraction).round() as usize).clamp(1, pop);
-            let mut mean = vec![0.0; DIM];
-            let mut std = vec![0.5; DIM];
+            let mut mean = [0.0; DIM];
+            let mut std = [0.5; DIM];
             while tally.evaluated < c.budget {
                 let n = pop.min(c.budget - tally.evaluated);
                 let thetas: Vec<Vec<f64>> = (0..n)

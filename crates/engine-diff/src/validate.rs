@@ -114,7 +114,7 @@ impl Interval {
 }
 
 /// Two-sided sign-flip permutation test of "the paired differences have mean 0": exact for up to 16 pairs,
-/// else [`PERMUTATIONS`] random sign vectors (p includes the observed one, so it is never 0).
+/// else `PERMUTATIONS` random sign vectors (p includes the observed one, so it is never 0).
 pub fn paired_p_value(diffs: &[f64], seed: u64) -> f64 {
     let n = diffs.len();
     if n == 0 {

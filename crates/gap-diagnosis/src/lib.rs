@@ -4,9 +4,9 @@
 //! * [`plant`]: engine on a suspension rig + actuator/sensor effect layer + model-level effects;
 //! * [`floating`]: the robot on the ground (floating base): base-state estimate from a log sample, plant, windows;
 //! * [`effects`]: the effect library (parameters, ranges, scopes);
-//! * [`diagnose`]: where the gap lies, which effect explains it, how much it shrinks (held-out, with intervals);
+//! * [`diagnose()`]: where the gap lies, which effect explains it, how much it shrinks (held-out, with intervals);
 //! * [`rig_check`]: does the log fit the rig assumption (pelvis held still)? Otherwise the diagnosis abstains;
-//! * [`excite`]: safe excitation plans; [`bench`]: the blind benchmark; [`report`]: Markdown, JSON and SVG plots.
+//! * [`excite`]: safe excitation plans; [`mod@bench`]: the blind benchmark; [`report`]: Markdown, JSON and SVG plots.
 #![forbid(unsafe_code)]
 
 pub mod bench;

@@ -165,6 +165,7 @@ impl Encoding {
 
 /// Why a byte string is not a valid CDR encoding of the requested type.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
 pub enum DecodeError {
     #[error("input is {len} bytes, shorter than the 4-byte encapsulation header")]
     MissingHeader { len: usize },
@@ -194,6 +195,7 @@ pub enum DecodeError {
 
 /// What is wrong with a CDR string.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
 pub enum StringFault {
     /// The length word is 0: a CDR string always counts its terminating NUL.
     #[error("length 0 (a CDR string counts its terminating NUL)")]

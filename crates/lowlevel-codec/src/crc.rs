@@ -154,15 +154,16 @@ impl<const SWAP: bool> Visitor for CImage<SWAP> {
     fn string(&mut self, _name: &'static str, _value: &str) {}
 }
 
-/// A message whose last member is Unitree's CRC of everything before it.
-pub trait Sealed: IdlStruct {
+/// A message whose last member is Unitree's CRC of everything before it (hg/go `LowCmd_` and `LowState_`). Implemented
+/// here for those four types only.
+pub trait Checksummed: IdlStruct {
     fn crc(&self) -> u32;
     fn crc_mut(&mut self) -> &mut u32;
 }
 
 macro_rules! sealed {
     ($($t:ty),*) => {$(
-        impl Sealed for $t {
+        impl Checksummed for $t {
             fn crc(&self) -> u32 { self.crc }
             fn crc_mut(&mut self) -> &mut u32 { &mut self.crc }
         }
@@ -173,25 +174,25 @@ macro_rules! sealed {
 sealed!(hg::LowCmd_, hg::LowState_, go::LowCmd_, go::LowState_);
 
 /// Unitree's CRC of `value` (its stored `crc` is not part of the input).
-pub fn compute<T: Sealed>(value: &T) -> u32 {
+pub fn compute<T: Checksummed>(value: &T) -> u32 {
     let image = c_image_word_swapped(value);
     crc_fast::checksum(crc_fast::CrcAlgorithm::Crc32Mpeg2, &image[..image.len() - 4]) as u32
 }
 
 /// Sets the `crc` member so that the message verifies.
-pub fn seal<T: Sealed>(value: &mut T) {
+pub fn seal<T: Checksummed>(value: &mut T) {
     let crc = compute(value);
     *value.crc_mut() = crc;
 }
 
 /// Whether the stored `crc` member matches the message.
-pub fn verify<T: Sealed>(value: &T) -> bool {
+pub fn verify<T: Checksummed>(value: &T) -> bool {
     compute(value) == value.crc()
 }
 
 /// `(computed, stored)` CRC of a message of any type, `None` for the types without a CRC.
 fn sealed_pair<T: IdlStruct>(value: &T) -> Option<(u32, u32)> {
-    fn pair<S: Sealed>(v: &S) -> (u32, u32) {
+    fn pair<S: Checksummed>(v: &S) -> (u32, u32) {
         (compute(v), v.crc())
     }
     let any = value as &dyn core::any::Any;

@@ -13,7 +13,8 @@ use serde_json::{Map, Value};
 use std::fmt::Write as _;
 use unitree_idl::{IdlStruct, MessageType, PrimKind, Primitive, Visitor, VisitorMut};
 
-const CANONICAL_NAN: u32 = 0x7fc0_0000;
+pub use crate::text::float_text;
+use crate::text::CANONICAL_NAN;
 
 /// A parsed JSON document: the value plus whatever header fields it carried.
 #[derive(Debug, Clone, PartialEq)]
@@ -25,6 +26,7 @@ pub struct Document<T> {
 
 /// Why a JSON text is not a valid message document.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
 pub enum JsonError {
     #[error("not valid JSON: {0}")]
     Syntax(String),
@@ -75,24 +77,6 @@ pub fn document_to_json<T: IdlStruct>(
         crc,
         w.out
     )
-}
-
-/// Text of one float: shortest round-trip decimal, or the string forms for non-finite values.
-pub fn float_text(x: f32) -> String {
-    if x.is_finite() {
-        let mut buf = ryu::Buffer::new();
-        buf.format_finite(x).to_owned()
-    } else if x.is_nan() {
-        if x.to_bits() == CANONICAL_NAN {
-            "\"NaN\"".to_owned()
-        } else {
-            format!("\"NaN:{:#010x}\"", x.to_bits())
-        }
-    } else if x > 0.0 {
-        "\"Infinity\"".to_owned()
-    } else {
-        "\"-Infinity\"".to_owned()
-    }
 }
 
 fn primitive_text<P: Primitive>(value: P) -> String {

@@ -6,7 +6,9 @@
 //!   allocates in proportion to a length read from the input.
 //! * [`crc`]: Unitree's CRC over the C struct image (padding zeroed), a fast table-driven
 //!   implementation and the bit-serial reference; [`crc::seal`] and [`crc::verify`].
-//! * [`json`]: the JSON document form used by `ulab codec` (exact float round trip).
+//! * `json` (feature `json`): the JSON document form used by `ulab codec` (exact float round trip); it turns on
+//!   `serde_json`'s `arbitrary_precision` so that decimals parse straight to `f32`, hence opt-in. [`text`]: the
+//!   float text it prints, always available.
 //! * [`view`](mod@view): zero-copy views of fixed-layout samples (hg/go `LowCmd`, `LowState`, ...):
 //!   the same validation as [`decode`] at the cost of a length check, then typed accessors
 //!   named after the IDL members that read on demand.
@@ -17,10 +19,17 @@
 pub mod cdr;
 pub mod crc;
 pub mod fuzzing;
+#[cfg(feature = "json")]
 pub mod json;
+pub mod text;
 pub mod validate;
 pub mod view;
 
 pub use cdr::{decode, encode, DecodeError, Decoded, Encoding, Endianness, Representation, StringFault};
-pub use crc::{seal, verify, Sealed};
+pub use crc::{seal, verify, Checksummed};
 pub use view::{view, MessageView, Viewable};
+
+// The README's example is compiled (and, where it needs no network, run) as a doctest.
+#[doc = include_str!("../README.md")]
+#[cfg(doctest)]
+pub struct ReadmeDoctests;

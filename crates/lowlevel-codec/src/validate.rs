@@ -33,6 +33,7 @@ impl core::fmt::Display for CmdField {
 
 /// One problem found in a message.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum Finding {
     #[error("`{path}` is not finite ({value})")]
     NonFinite { path: String, value: f32 },

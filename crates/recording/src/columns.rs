@@ -9,7 +9,7 @@ fn prim_text<P: Primitive>(v: &P) -> String {
         PrimKind::F32 => {
             let x = f32::from_bits(bits as u32);
             if x.is_finite() {
-                lowlevel_codec::json::float_text(x)
+                lowlevel_codec::text::float_text(x)
             } else if x.is_nan() {
                 "NaN".to_owned()
             } else if x > 0.0 {

@@ -182,7 +182,7 @@ const STAND_ANKLE_KP: f64 = 600.0;
 const STAND_ANKLE_KD: f64 = 10.0;
 
 /// PD target holding the standing pose: the model's default pose and gains, with leg gains
-/// raised to [`STAND_LEG_KP`]/[`STAND_ANKLE_KP`] so that the robot stays up until a controller
+/// raised to `STAND_LEG_KP`/`STAND_ANKLE_KP` so that the robot stays up until a controller
 /// takes over.
 pub fn stand_target(model: &RobotModel) -> PdTarget {
     let mut t = PdTarget::hold_standing(model);

@@ -23,3 +23,8 @@ pub mod topics;
 
 pub use reflect::{align_up, Element, Field, IdlStruct, PrimKind, Primitive, Visitor, VisitorMut};
 pub use registry::{MessageType, UnknownMessageType};
+
+// The README's example is compiled (and, where it needs no network, run) as a doctest.
+#[doc = include_str!("../README.md")]
+#[cfg(doctest)]
+pub struct ReadmeDoctests;

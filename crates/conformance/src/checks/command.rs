@@ -1087,10 +1087,11 @@ impl<'a> Session<'a> {
             let mut decided = true;
             for k in 0..4 {
                 let apart = rms(laws[k].1.iter().zip(&laws[best].1).map(|(a, b)| a - b));
-                if k != best && laws[k].0.keeps() != laws[best].0.keeps() {
-                    if apart < MIN_SEPARATION_NM || residual[k] < 2.0 * residual[best] + 0.3 {
-                        decided = false;
-                    }
+                if k != best
+                    && laws[k].0.keeps() != laws[best].0.keeps()
+                    && (apart < MIN_SEPARATION_NM || residual[k] < 2.0 * residual[best] + 0.3)
+                {
+                    decided = false;
                 }
             }
             if decided {

@@ -2,15 +2,15 @@
 //! of the peer fails one check and not its neighbours:
 //!
 //! * the **state stream** is judged once: CRC on every sample, rate, jitter and tick while nothing is sent
-//!   ([`stream`]); freshness, finiteness, quaternion and joint ranges only on *clean* traffic (before any probe that
+//!   (`stream`); freshness, finiteness, quaternion and joint ranges only on *clean* traffic (before any probe that
 //!   a conformant peer refuses), so that the consequences of a wrongly applied probe are reported by that probe's
 //!   check alone;
 //! * everything else uses the samples as they come, CRC or not, with durations scaled to the rate the peer was
 //!   measured to publish at ([`Timing`]);
-//! * **command handling** ([`command`]) steps several free arm joints in both directions and reads the evidence a
+//! * **command handling** (`command`) steps several free arm joints in both directions and reads the evidence a
 //!   command leaves: the joint's motion where it can move, and the `tau_est` it reports, compared with the torque
 //!   Unitree's PD law gives for each candidate interpretation of the command;
-//! * **robustness** ([`robust`]): malformed samples alternate with a valid hold; the peer must keep publishing
+//! * **robustness** (`robust`): malformed samples alternate with a valid hold; the peer must keep publishing
 //!   (relative to its own measured rate) and keep the robot where it was;
 //! * **interop** ([`crate::interop`]): Cyclone DDS 0.10.2 and Cyclone 11 participants of our own try to read the
 //!   peer's state.
@@ -155,8 +155,8 @@ pub fn run_all(
     progress: &mut dyn FnMut(&str),
 ) -> Result<RunOutcome, ConformError> {
     let sel = &opts.selection;
-    let domain = target.config().domain;
-    let sniff = dds_transport::config::is_loopback_interface(&target.config().interface).then(|| {
+    let domain = target.config().domain_id();
+    let sniff = dds_transport::config::is_loopback_interface(target.config().interface_name()).then(|| {
         std::thread::spawn(move || crate::wire::answering_participants(domain, std::time::Duration::from_millis(1500)))
     });
     let mut results: Vec<CheckResult> = Vec::new();

@@ -331,7 +331,7 @@ impl<'a, T: Viewable> MessageView<'a, T> {
     /// CRC covers the C struct image, not the CDR bytes, so this builds the owned value.
     pub fn verify_crc(&self) -> bool
     where
-        T: crate::crc::Sealed,
+        T: crate::crc::Checksummed,
     {
         crate::crc::verify(&self.to_owned())
     }

@@ -183,8 +183,8 @@ fn run_target(args: RunArgs) -> Result<ExitCode> {
         }
         eprintln!(
             "conform: target may be a real robot (domain {}, {}). Will send on rt/lowcmd: {}",
-            cfg.domain,
-            cfg.interface,
+            cfg.domain_id(),
+            cfg.interface_name(),
             if args.fuzz {
                 "a hold command at the measured pose, alternating with mutated LowCmd sequences (non-finite and out-of-limit values, gains up to 1e9, unknown modes, bad CRCs, truncated/oversize/mis-headed samples) for the whole budget"
             } else {
@@ -209,8 +209,8 @@ fn run_target(args: RunArgs) -> Result<ExitCode> {
         schema_version: REPORT_SCHEMA_VERSION,
         target: TargetInfo {
             robot: args.robot.clone(),
-            domain: cfg.domain,
-            interface: cfg.interface.clone(),
+            domain: cfg.domain_id(),
+            interface: cfg.interface_name().to_owned(),
             participant,
             measured_state_rate_hz: None,
             rtps_vendor: None,

@@ -130,8 +130,8 @@ pub fn run(args: Args) -> Result<ExitCode> {
         eprintln!(
             "recording {} on domain {} / {} into {} ({})",
             channels.iter().map(|c| c.choice.spec.name.as_str()).collect::<Vec<_>>().join(", "),
-            cfg.domain,
-            cfg.interface,
+            cfg.domain_id(),
+            cfg.interface_name(),
             args.out.display(),
             match args.duration {
                 Some(d) => format!("{d} s"),
@@ -190,8 +190,8 @@ pub fn run(args: Args) -> Result<ExitCode> {
 
     let report = Report::build(&channels, overflow.load(Ordering::Relaxed), started.elapsed().as_secs_f64());
     let mut meta = BTreeMap::new();
-    meta.insert("domain".to_owned(), cfg.domain.to_string());
-    meta.insert("interface".to_owned(), cfg.interface.clone());
+    meta.insert("domain".to_owned(), cfg.domain_id().to_string());
+    meta.insert("interface".to_owned(), cfg.interface_name().to_owned());
     meta.insert("start_ns".to_owned(), started_ns.to_string());
     meta.insert("report".to_owned(), report.text.clone());
     let _ = writer.write_metadata(&mcap::records::Metadata { name: "ulab.record".to_owned(), metadata: meta });

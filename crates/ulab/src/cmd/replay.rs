@@ -120,8 +120,8 @@ pub fn run(args: Args) -> Result<ExitCode> {
     eprintln!(
         "replaying {} messages ({span:.2} s of recording) on domain {} / {} at speed {}",
         msgs.len(),
-        cfg.domain,
-        cfg.interface,
+        cfg.domain_id(),
+        cfg.interface_name(),
         args.speed
     );
 

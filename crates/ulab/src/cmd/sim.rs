@@ -170,8 +170,8 @@ pub fn run(args: Args) -> Result<ExitCode> {
             args.robot,
             if args.hang { " hung on the suspension stand" } else { "" },
             robot.engine().version(),
-            cfg.domain,
-            cfg.interface,
+            cfg.domain_id(),
+            cfg.interface_name(),
             args.state_rate,
             args.dt,
             if args.fast { "fast" } else { "real time" }
