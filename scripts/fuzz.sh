@@ -17,10 +17,11 @@ export RUSTFLAGS="--cfg fuzzing -Cpasses=sancov-module -Cllvm-args=-sanitizer-co
 -Cllvm-args=-sanitizer-coverage-trace-compares -Cdebug-assertions -Coverflow-checks"
 BIN=fuzz/target/x86_64-unknown-linux-gnu/release
 
-# build [TARGET...]: the named targets (default: every target).
+# build [TARGET...]: the named targets (default: every target; engine_divergence needs the fuzz crate's `engine`
+# feature, which pulls in the physics engines).
 build() {
-  local bins=(--bins)
-  if [ $# -gt 0 ]; then bins=(); for t in "$@"; do bins+=(--bin "$t"); done; fi
+  local bins=(--bins --features engine)
+  if [ $# -gt 0 ]; then bins=(); for t in "$@"; do bins+=(--bin "$t"); [ "$t" = engine_divergence ] && bins+=(--features engine); done; fi
   cargo build --quiet --release --manifest-path fuzz/Cargo.toml --target x86_64-unknown-linux-gnu "${bins[@]}"
 }
 
