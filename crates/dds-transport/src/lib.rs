@@ -368,16 +368,6 @@ struct ReaderCore {
     _participant: Arc<ParticipantInner>,
 }
 
-impl ReaderCore {
-    fn received(&self) -> u64 {
-        self.received.load(Ordering::Relaxed)
-    }
-
-    fn wait_for_writers(&self, n: u32, timeout: Duration) -> Result<bool> {
-        wait_until(timeout, || Ok(self.handle.matched_writers()? >= n))
-    }
-}
-
 /// Receives serialized samples on one topic into a bounded queue, for [`RawReader::take`] and its kin.
 #[derive(Debug)]
 pub struct RawReader {
@@ -392,26 +382,35 @@ pub struct CallbackReader {
     core: ReaderCore,
 }
 
+/// The status methods every reader has, written once for [`RawReader`] and [`CallbackReader`] (both wrap a
+/// `ReaderCore` in a field named `core`).
+macro_rules! reader_status_methods {
+    () => {
+        /// Samples received so far (for a [`RawReader`]: queued, taken or dropped; for a [`CallbackReader`]: handed
+        /// to the callback).
+        pub fn received(&self) -> u64 {
+            self.core.received.load(Ordering::Relaxed)
+        }
+
+        /// Number of writers currently matched.
+        pub fn matched_writers(&self) -> Result<u32> {
+            self.core.handle.matched_writers()
+        }
+
+        /// Waits until at least `n` writers are matched; `Ok(false)` on timeout.
+        pub fn wait_for_writers(&self, n: u32, timeout: Duration) -> Result<bool> {
+            wait_until(timeout, || Ok(self.matched_writers()? >= n))
+        }
+
+        /// The topic.
+        pub fn topic(&self) -> &TopicSpec {
+            &self.core.topic
+        }
+    };
+}
+
 impl CallbackReader {
-    /// Samples handed to the callback so far.
-    pub fn received(&self) -> u64 {
-        self.core.received()
-    }
-
-    /// Number of writers currently matched.
-    pub fn matched_writers(&self) -> Result<u32> {
-        self.core.handle.matched_writers()
-    }
-
-    /// Waits until at least `n` writers are matched; `Ok(false)` on timeout.
-    pub fn wait_for_writers(&self, n: u32, timeout: Duration) -> Result<bool> {
-        self.core.wait_for_writers(n, timeout)
-    }
-
-    /// The topic.
-    pub fn topic(&self) -> &TopicSpec {
-        &self.core.topic
-    }
+    reader_status_methods!();
 }
 
 impl std::fmt::Debug for Queue {
@@ -460,25 +459,7 @@ impl RawReader {
         self.queue.lock().dropped
     }
 
-    /// Samples received so far (queued, taken or dropped).
-    pub fn received(&self) -> u64 {
-        self.core.received()
-    }
-
-    /// Number of writers currently matched.
-    pub fn matched_writers(&self) -> Result<u32> {
-        self.core.handle.matched_writers()
-    }
-
-    /// Waits until at least `n` writers are matched; `Ok(false)` on timeout.
-    pub fn wait_for_writers(&self, n: u32, timeout: Duration) -> Result<bool> {
-        self.core.wait_for_writers(n, timeout)
-    }
-
-    /// The topic.
-    pub fn topic(&self) -> &TopicSpec {
-        &self.core.topic
-    }
+    reader_status_methods!();
 }
 
 /// Durability kind.
