@@ -320,7 +320,7 @@ pub struct Cyclone11Probe {
 
 /// Starts the Python probe (it imports, then waits).
 pub fn start_cyclone11(target: &Target, opts: &InteropOptions) -> Cyclone11Probe {
-    if crate::safety::is_exposed(target.config()) {
+    if target.config().may_reach_robot() {
         return Cyclone11Probe {
             running: Err("not run against what may be a robot (domain 0 or a real interface): a Cyclone 11 participant's XTypes type information can crash Cyclone DDS 0.10 stacks".into()),
             seconds: opts.seconds,

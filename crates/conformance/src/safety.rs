@@ -17,18 +17,13 @@ pub fn check_network(cfg: &DomainConfig) -> Result<(), ConformError> {
 /// otherwise only with `allow_robot` and `allow_robot_fuzz` both set.
 pub fn check_fuzz(cfg: &DomainConfig, allow_robot_fuzz: bool) -> Result<(), ConformError> {
     check_network(cfg)?;
-    if is_exposed(cfg) && !allow_robot_fuzz {
+    if cfg.may_reach_robot() && !allow_robot_fuzz {
         return Err(ConformError::Refused(format!(
             "fuzzing domain {} on `{}` may send harmful commands to a real robot; it needs --allow-robot-fuzz as well as --allow-robot",
             cfg.domain_id(), cfg.interface_name()
         )));
     }
     Ok(())
-}
-
-/// Whether the target may be a real robot (the run then prints what it will send first).
-pub fn is_exposed(cfg: &DomainConfig) -> bool {
-    cfg.may_reach_robot()
 }
 
 #[cfg(test)]
@@ -40,7 +35,7 @@ mod tests {
         let cfg = DomainConfig::loopback(81);
         assert!(check_network(&cfg).is_ok());
         assert!(check_fuzz(&cfg, false).is_ok());
-        assert!(!is_exposed(&cfg));
+        assert!(!cfg.may_reach_robot());
     }
 
     #[test]
