@@ -18,6 +18,7 @@
 pub mod bench;
 pub mod excitation;
 pub mod fuzz;
+pub mod gait;
 pub mod harness;
 pub mod report;
 pub mod repro;

@@ -222,6 +222,10 @@ pub struct ValidationReport {
     pub controller: String,
     pub robot: String,
     pub train_engine: String,
+    /// Allow-list entries recorded for the training engine: its known modelling differences, what a policy
+    /// trained there may exploit (named when every other engine flags the policy).
+    #[serde(default)]
+    pub train_known_differences: Vec<String>,
     pub seconds: f64,
     pub seeds: Vec<u64>,
     pub commands: Vec<CommandCase>,
@@ -264,19 +268,33 @@ fn run_one(
     case: &CommandCase,
     seed: u64,
 ) -> Result<EpisodeScore, DiffError> {
-    let sc = scenario_for(case, seed, s.seconds);
+    episode_score(s.model, f.as_ref(), s.controller, case, seed, s.seconds, s.cfg)
+}
+
+/// One closed-loop episode of (command, seed) in one engine, scored. An engine that cannot be built for the
+/// model scores as a fall at t = 0 (with its error), so that one engine's failure does not hide the others.
+pub fn episode_score(
+    model: &RobotModel,
+    f: &dyn EngineFactory,
+    controller: &ControllerFactory,
+    case: &CommandCase,
+    seed: u64,
+    seconds: f64,
+    cfg: &HarnessConfig,
+) -> Result<EpisodeScore, DiffError> {
+    let sc = scenario_for(case, seed, seconds);
     sc.validate()?;
-    let m = scenario_model(s.model, &sc);
-    let dt = s.cfg.common.timestep;
-    let steps = (s.seconds / dt).round() as usize;
+    let m = scenario_model(model, &sc);
+    let dt = cfg.common.timestep;
+    let steps = (seconds / dt).round() as usize;
     let name = f.name();
-    let outcome = match f.build(&m, &s.cfg.common) {
-        Ok(mut e) => free_run(e.as_mut(), &name, &m, s.controller, &sc, dt, steps)?.0 .0,
+    let outcome = match f.build(&m, &cfg.common) {
+        Ok(mut e) => free_run(e.as_mut(), &name, &m, controller, &sc, dt, steps)?.0 .0,
         Err(err) => {
             Outcome { fell: true, fall_time: Some(0.0), error: Some(err.to_string()), ..Outcome::before_start(&name) }
         }
     };
-    let score = task_score(&outcome, s.seconds);
+    let score = task_score(&outcome, seconds);
     Ok(EpisodeScore { engine: name, case: case.name.clone(), seed, score, outcome })
 }
 
@@ -341,6 +359,7 @@ pub fn validate(s: &ValidateSetup<'_>) -> Result<ValidationReport, DiffError> {
         controller: s.controller_name.into(),
         robot: s.model.name.clone(),
         train_engine: train.clone(),
+        train_known_differences: known_differences(s.allow, train),
         seconds: s.seconds,
         seeds: s.seeds.to_vec(),
         commands: s.commands.to_vec(),
@@ -454,16 +473,15 @@ fn evidence(
         joint_share: share(jv, joint_total),
         worst_finding: worst_f.map(|f| (f.kind.clone(), f.quantity.clone(), f.phase.clone(), f.ratio())),
         covered_by: worst_f.and_then(|f| s.allow.matching(f)).map(|e| e.id.clone()),
-        known_differences: s
-            .allow
-            .entries
-            .iter()
-            .filter(|e| e.engines.iter().any(|x| x == &engine_name))
-            .map(|e| e.id.clone())
-            .collect(),
+        known_differences: known_differences(s.allow, &engine_name),
         tracking_error: mean_err(mine),
         train_tracking_error: mean_err(train_scores),
     })
+}
+
+/// Ids of the allow-list entries recorded for `engine`.
+fn known_differences(allow: &AllowList, engine: &str) -> Vec<String> {
+    allow.entries.iter().filter(|e| e.engines.iter().any(|x| x == engine)).map(|e| e.id.clone()).collect()
 }
 
 fn fmt_interval(i: &Option<Interval>) -> String {
@@ -500,13 +518,28 @@ impl ValidationReport {
             let list: Vec<String> = flagged.iter().map(|e| format!("{} ({})", e.engine, e.verdict.label())).collect();
             let agree: Vec<&str> =
                 self.engines.iter().filter(|e| e.verdict == Verdict::Transfers).map(|e| e.engine.as_str()).collect();
-            format!(
+            let mut v = format!(
                 "**Degrades outside its training engine ({})**: {}. A policy that scores well only in the engine it was trained in may exploit that engine; \
                  where other independent engines agree with the training engine ({}), the flagged engines' own modelling differences are the first suspect.",
                 self.train_engine,
                 list.join(", "),
                 if agree.is_empty() { "none here".to_string() } else { agree.join(", ") }
-            )
+            );
+            if agree.is_empty() && flagged.len() >= 2 {
+                let _ = write!(
+                    v,
+                    " Here every other engine ({}) flags it: the policy most likely relies on its training engine's own modelling \
+                     (known modelling differences of {}: {}).",
+                    flagged.len(),
+                    self.train_engine,
+                    if self.train_known_differences.is_empty() {
+                        "none recorded".to_string()
+                    } else {
+                        self.train_known_differences.join(", ")
+                    }
+                );
+            }
+            v
         };
         let _ = writeln!(s, "{verdict}\n");
         let cmds: Vec<String> = self

@@ -59,6 +59,46 @@ fn short_run_writes_a_report_with_a_verdict_per_engine() {
     let _ = std::fs::remove_dir_all(&out);
 }
 
+/// `--gait-search`: one short search in MuJoCo, then the validation of what it found; the search's result
+/// is saved and the report names the gait. (The verdict on a gait searched in one engine is tested in
+/// `engine-diff/tests/planted_cheat.rs`.)
+#[test]
+fn gait_search_saves_the_gait_and_validates_it() {
+    let out = std::env::temp_dir().join(format!("ulab_validate_gait_{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&out);
+    let o = out.to_str().expect("utf-8 path");
+    let (code, stdout, stderr) = ulab(&[
+        "validate",
+        "--gait-search",
+        "--gait-iterations",
+        "1",
+        "--train-engine",
+        "mujoco",
+        "--engines",
+        "mujoco,dart",
+        "--commands",
+        "forward",
+        "--episodes",
+        "1",
+        "--seconds",
+        "4",
+        "--out",
+        o,
+    ]);
+    assert_eq!(code, Some(0), "{stdout}\n{}", tail(&stderr));
+    let gait: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("gait.json")).expect("gait.json")).expect("JSON");
+    assert_eq!(gait["engine"], "mujoco");
+    assert_eq!(gait["params"]["theta"].as_array().map(Vec::len), Some(16));
+    // 16 candidates and the incumbent, 2 search seeds each.
+    assert_eq!(gait["episodes"], 34);
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).expect("report.json")).expect("JSON");
+    assert_eq!(report["controller"], "gait optimised in mujoco");
+    assert_eq!(report["episodes"].as_array().map(Vec::len), Some(2));
+    let _ = std::fs::remove_dir_all(&out);
+}
+
 #[test]
 fn bad_arguments_exit_2_with_a_message() {
     let out = std::env::temp_dir().join(format!("ulab_validate_bad_{}", std::process::id()));
@@ -67,6 +107,9 @@ fn bad_arguments_exit_2_with_a_message() {
         (vec!["validate", "--policy", "SPEC", "--out", o, "--commands", "moonwalk"], "unknown command moonwalk"),
         (vec!["validate", "--policy", "SPEC", "--out", o, "--seconds", "1"], "--seconds"),
         (vec!["validate", "--policy", "SPEC", "--out", o, "--episodes", "0"], "--episodes"),
+        (vec!["validate", "--policy", "SPEC", "--gait-search", "--out", o], "cannot be used with"),
+        (vec!["validate", "--out", o], "--policy"),
+        (vec!["validate", "--gait-search", "--gait-iterations", "0", "--out", o], "--gait-iterations"),
         (vec!["validate", "--policy", "SPEC", "--out", o, "--train-engine", "ode"], "--train-engine"),
         (
             vec![

@@ -19,8 +19,16 @@ pub struct Args {
     #[arg(long, default_value = "h1_2")]
     robot: String,
     /// Policy spec TOML (robots/h1_2/policies/*.toml).
+    #[arg(long, required_unless_present = "gait_search", conflicts_with = "gait_search")]
+    policy: Option<PathBuf>,
+    /// Instead of a policy, optimise the built-in parameterised gait (`engine_diff::gait`, 16 parameters,
+    /// cross-entropy method) for the forward command in the training engine alone, save it as `gait.json` and
+    /// validate it: a probe of how much a controller tuned in that engine leans on it.
     #[arg(long)]
-    policy: PathBuf,
+    gait_search: bool,
+    /// Iterations of the gait search (16 candidates and 2 seeds each).
+    #[arg(long, default_value_t = 10, requires = "gait_search")]
+    gait_iterations: usize,
     /// The engine the policy was trained in: the scores of every other engine are compared with its scores.
     /// Both shipped H1-2 policies were trained in PhysX (Isaac Lab, Isaac Gym).
     #[arg(long, default_value = "physx")]
@@ -59,6 +67,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
     if a.episodes == 0 || a.episodes > 1000 {
         bail!("--episodes must be in 1..=1000");
     }
+    if a.gait_iterations == 0 || a.gait_iterations > 1000 {
+        bail!("--gait-iterations must be in 1..=1000");
+    }
     super::diff::set_jobs(a.jobs)?;
     let grid = standard_commands();
     let mut commands = Vec::new();
@@ -94,9 +105,12 @@ pub fn run(a: Args) -> Result<ExitCode> {
         bail!("--engines needs at least one engine besides the training engine");
     }
     let factories = builtin_factories(&names).context("--engines / --train-engine")?;
-    let (ctrl_name, ctrl) = super::diff::policy_factory(&a.policy)?;
-    let seeds: Vec<u64> = (0..a.episodes).map(|i| a.seed + i).collect();
     let cfg = HarnessConfig::default();
+    let (ctrl_name, ctrl) = match &a.policy {
+        Some(p) => super::diff::policy_factory(p)?,
+        None => gait_controller(&a, &model, &factories, &train, &cfg)?,
+    };
+    let seeds: Vec<u64> = (0..a.episodes).map(|i| a.seed + i).collect();
     let allow = AllowList::builtin().context("allow-list")?;
     let setup = ValidateSetup {
         model: &model,
@@ -128,4 +142,28 @@ pub fn run(a: Args) -> Result<ExitCode> {
         return Ok(ExitCode::from(1));
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Optimises the gait in the training engine (on search seeds the validation does not use) and writes
+/// `gait.json` (parameters, fitness history) into the output directory.
+fn gait_controller(
+    a: &Args,
+    model: &robot_model::RobotModel,
+    factories: &[std::sync::Arc<dyn engine_diff::harness::EngineFactory>],
+    train: &str,
+    cfg: &HarnessConfig,
+) -> Result<(String, Box<engine_diff::harness::ControllerFactory>)> {
+    use engine_diff::gait::{optimise, GaitController, GaitSearchConfig};
+    let forward = standard_commands().into_iter().find(|c| c.name == "forward").context("forward command")?;
+    let engine = factories.iter().find(|f| f.name() == train).context("training engine")?;
+    let seeds = vec![a.seed.wrapping_add(100_000), a.seed.wrapping_add(100_001)];
+    let search = GaitSearchConfig { iterations: a.gait_iterations, seeds, ..GaitSearchConfig::default() };
+    let opt = optimise(model, engine.as_ref(), &forward, &search, cfg).context("gait search")?;
+    println!("gait search in {train}: {} episodes, fitness {:.3}", opt.episodes, opt.fitness);
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    let path = a.out.join("gait.json");
+    std::fs::write(&path, serde_json::to_string_pretty(&opt).context("gait.json")?)
+        .with_context(|| format!("writing {}", path.display()))?;
+    let ctrl = GaitController::factory(model, opt.params).context("gait")?;
+    Ok((format!("gait optimised in {train}"), ctrl))
 }
