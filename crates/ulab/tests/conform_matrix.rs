@@ -260,6 +260,36 @@ fn mismatches(case: &Case, report: &serde_json::Value) -> Vec<String> {
     problems
 }
 
+/// Keys of the report and of its target, and per check its id, group, fields, verdict and evidence keys.
+fn report_shape(report: &serde_json::Value) -> serde_json::Value {
+    let keys = |v: &serde_json::Value| -> Vec<String> {
+        v.as_object().map(|o| o.keys().cloned().collect()).unwrap_or_default()
+    };
+    let results: Vec<serde_json::Value> = report["results"]
+        .as_array()
+        .map(|r| {
+            r.iter()
+                .map(|x| {
+                    let status = if x["id"] == "state_jitter" { "[host timing]".into() } else { x["status"].clone() };
+                    serde_json::json!({
+                        "id": x["id"],
+                        "group": x["group"],
+                        "fields": keys(x),
+                        "status": status,
+                        "evidence": keys(&x["evidence"]),
+                    })
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    serde_json::json!({
+        "keys": keys(report),
+        "schema_version": report["schema_version"].to_string(),
+        "target": keys(&report["target"]),
+        "results": results,
+    })
+}
+
 #[test]
 fn each_defect_peer_fails_exactly_the_checks_its_defect_implies() {
     let _slot = RealtimeSlot::acquire();
@@ -273,6 +303,12 @@ fn each_defect_peer_fails_exactly_the_checks_its_defect_implies() {
         for attempt in 0..2 {
             let (report, wall) = conform(case);
             let p = mismatches(case, &report);
+            if case.name == "our bridge" && p.is_empty() {
+                // Safety net for refactoring (issue 18): the report's shape for the conformant peer. Its figures are
+                // measured on a live peer and vary run to run; ids, verdicts and what each check gives as evidence
+                // do not (jitter's verdict depends on this host's load, see `mismatches`).
+                insta::assert_json_snapshot!("our_bridge_report_shape", report_shape(&report));
+            }
             println!("{:<28} {:>5.1} s  {}", case.name, wall, if p.is_empty() { "as expected" } else { "MISMATCH" });
             times.push(wall);
             if p.is_empty() {

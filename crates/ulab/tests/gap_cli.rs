@@ -3,7 +3,7 @@
 //! `ulab gap diagnose` finds the hidden effect in it, also from the CSV pair `ulab log export` writes; the
 //! excitation plan stays within the joint limits; bad input fails cleanly.
 mod common;
-use common::{python, root, run_ulab, tail, wait_with_timeout};
+use common::{pinned, python, root, run_ulab, tail, wait_with_timeout};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::Duration;
@@ -76,6 +76,8 @@ fn simulated_log_is_a_recording_and_diagnose_finds_the_effect() {
     let r: serde_json::Value = serde_json::from_str(&out).expect("JSON report on stdout");
     assert_eq!(r["schema_version"], gap_diagnosis::diagnose::SCHEMA_VERSION);
     assert_eq!(r["ranked"][0], "damping", "ranked {}", r["ranked"]);
+    // Safety net for refactoring the diagnosis (issue 18): the whole report of this seeded log, 3 digits.
+    insta::assert_json_snapshot!("rig_report", pinned(&r, 3, &["elapsed_s"]));
     for f in ["report.md", "report.json", "by_joint.svg", "effects.svg"] {
         assert!(out_dir.join(f).is_file(), "{f} missing");
     }
@@ -242,6 +244,7 @@ fn walking_log_is_diagnosed_on_the_floating_base() {
     );
     assert_eq!(r["windows_down"], 0);
     assert_eq!(r["ranked"][0], injected[0]["kind"], "ranked {} for {injected}", r["ranked"]);
+    insta::assert_json_snapshot!("floating_report", pinned(&r, 3, &["elapsed_s"]));
 
     let (code, _, err) = ulab(&[
         "gap",

@@ -39,3 +39,31 @@ pub fn spawn_ulab(args: &[&str]) -> Child {
 pub fn sim_summary(stderr: &str) -> Option<serde_json::Value> {
     stderr.lines().rev().find_map(|l| l.strip_prefix("sim: summary ")).and_then(|j| serde_json::from_str(j).ok())
 }
+
+/// A report as a refactoring safety net (issue 18): every number rounded to `sig` significant digits (so that
+/// a change in the last bits of a sum does not count, a change of behaviour does) and the named keys replaced
+/// by `"[redacted]"` wherever they occur (wall-clock times, temporary paths).
+#[allow(dead_code)]
+pub fn pinned(v: &serde_json::Value, sig: i32, redact: &[&str]) -> serde_json::Value {
+    use serde_json::Value;
+    match v {
+        Value::Number(n) => match (n.as_i64(), n.as_f64()) {
+            (Some(i), _) => Value::String(i.to_string()),
+            // Numbers as strings (floats with `sig` significant digits): the snapshot holds no float noise, and serde_json's
+            // arbitrary_precision (on in this workspace) cannot change how they print.
+            (None, Some(f)) => Value::String(format!("{f:.*e}", (sig - 1).max(0) as usize)),
+            _ => v.clone(),
+        },
+        Value::Array(a) => Value::Array(a.iter().map(|x| pinned(x, sig, redact)).collect()),
+        Value::Object(o) => Value::Object(
+            o.iter()
+                .map(|(k, x)| {
+                    let x =
+                        if redact.contains(&k.as_str()) { Value::from("[redacted]") } else { pinned(x, sig, redact) };
+                    (k.clone(), x)
+                })
+                .collect(),
+        ),
+        _ => v.clone(),
+    }
+}
