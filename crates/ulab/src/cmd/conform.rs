@@ -42,8 +42,8 @@ pub struct RunArgs {
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// What to print on stdout: the Markdown report (text) or report.json (json).
-    #[arg(long, default_value = "text", value_parser = ["text", "json"])]
-    pub format: String,
+    #[arg(long, value_enum, default_value_t = super::OutputFormat::Text)]
+    pub format: super::OutputFormat,
     /// Nominal LowState rate of the target (Hz), what `state_rate` is judged against; the real robot publishes about
     /// 500 Hz. Every other check uses the rate measured at the start.
     #[arg(long, default_value_t = 500.0)]
@@ -93,8 +93,8 @@ pub struct ReplayArgs {
     #[arg(long)]
     pub allow_robot_fuzz: bool,
     /// Print the outcome as JSON.
-    #[arg(long, default_value = "text", value_parser = ["text", "json"])]
-    pub format: String,
+    #[arg(long, value_enum, default_value_t = super::OutputFormat::Text)]
+    pub format: super::OutputFormat,
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
@@ -311,7 +311,7 @@ fn run_target(args: RunArgs) -> Result<ExitCode> {
             write_file(path, text)?;
         }
     }
-    if args.format == "json" {
+    if args.format == super::OutputFormat::Json {
         println!("{}", report.to_json());
     } else {
         print!("{}", report.to_markdown());
@@ -335,7 +335,7 @@ fn replay(args: ReplayArgs) -> Result<ExitCode> {
     anyhow::ensure!((1..=100).contains(&args.attempts), "--attempts must be in 1..=100");
     let mut target = connect(&args.net, args.connect_timeout, true, args.allow_robot_fuzz)?;
     let outcome = fuzz::replay(&mut target, &rep, args.attempts)?;
-    if args.format == "json" {
+    if args.format == super::OutputFormat::Json {
         println!("{}", serde_json::to_string_pretty(&outcome).context("serialising the outcome")?);
     } else {
         println!(

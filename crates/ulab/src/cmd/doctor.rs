@@ -39,8 +39,8 @@ pub struct Args {
     #[arg(long, default_value_t = 32)]
     pub max_participant_index: u32,
     /// Output: text or json.
-    #[arg(long, default_value = "text", value_parser = ["text", "json"])]
-    pub format: String,
+    #[arg(long, value_enum, default_value_t = super::OutputFormat::Text)]
+    pub format: super::OutputFormat,
 }
 
 /// A list of domain ids.
@@ -119,7 +119,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     anyhow::ensure!(args.max_participant_index <= 119, "--max-participant-index is at most 119");
     let report = diagnose(&args)?;
     let problems = report.findings.iter().any(|f| f.severity == Severity::Problem);
-    if args.format == "json" {
+    if args.format == super::OutputFormat::Json {
         println!("{}", serde_json::to_string_pretty(&report).context("writing the report")?);
     } else {
         print!("{}", text(&report));

@@ -20,6 +20,17 @@ use robot_model::RobotModel;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
+/// `--plant`: which plant the diagnosis simulates (see `gap_diagnosis::diagnose::PlantChoice`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum PlantArg {
+    /// The rig when the log passes the rig-assumption check, floating otherwise.
+    Auto,
+    /// The suspended robot (pelvis held still).
+    Rig,
+    /// The robot on flat ground, base state estimated from the log.
+    Floating,
+}
+
 #[derive(Debug, clap::Args)]
 pub struct Args {
     #[command(subcommand)]
@@ -54,14 +65,14 @@ struct DiagnoseArgs {
     engine: String,
     /// Plant: rig (suspended robot), floating (standing/walking on flat ground, base state estimated from the log),
     /// or auto: the rig when the log passes the rig-assumption check, floating otherwise.
-    #[arg(long, default_value = "auto", value_parser = ["auto", "rig", "floating"])]
-    plant: String,
+    #[arg(long, value_enum, default_value_t = PlantArg::Auto)]
+    plant: PlantArg,
     /// Output directory (report.md, report.json, SVG plots).
     #[arg(long)]
     out: PathBuf,
     /// What to print: a summary (text) or the whole report (json).
-    #[arg(long, default_value = "text", value_parser = ["text", "json"])]
-    format: String,
+    #[arg(long, value_enum, default_value_t = super::OutputFormat::Text)]
+    format: super::OutputFormat,
     /// Window length (s).
     #[arg(long, default_value_t = 0.1)]
     window: f64,
@@ -125,8 +136,8 @@ struct BenchArgs {
     /// Directory for the logs, seals, reports and the table (default: a temporary directory).
     #[arg(long)]
     out: Option<PathBuf>,
-    #[arg(long, default_value = "text", value_parser = ["text", "json"])]
-    format: String,
+    #[arg(long, value_enum, default_value_t = super::OutputFormat::Text)]
+    format: super::OutputFormat,
     /// Policy spec TOML (e.g. robots/h1_2/policies/gepetto_demo_rsl.toml); repeatable. With policies, half the
     /// trials are driven by a policy rollout (legs; torso and arms follow the excitation plan), the others by the
     /// excitation plan.
@@ -184,7 +195,11 @@ fn diagnose(a: DiagnoseArgs) -> Result<ExitCode> {
         bail!("--window and --block must be positive numbers of seconds");
     }
     let log = read_log(&a.log, &model)?;
-    let plant = PlantChoice::parse(&a.plant).context("--plant")?;
+    let plant = match a.plant {
+        PlantArg::Auto => PlantChoice::Auto,
+        PlantArg::Rig => PlantChoice::Rig,
+        PlantArg::Floating => PlantChoice::Floating,
+    };
     let opts = DiagnoseOptions {
         engine,
         window_s: a.window,
@@ -200,7 +215,7 @@ fn diagnose(a: DiagnoseArgs) -> Result<ExitCode> {
     if violated {
         eprintln!("gap diagnose: ABSTAINED (exit {EXIT_RIG_VIOLATED}): {}", report.rig_check.message);
     }
-    if a.format == "json" {
+    if a.format == super::OutputFormat::Json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
         if !violated {
@@ -431,7 +446,7 @@ fn bench_cmd(a: BenchArgs) -> Result<ExitCode> {
     std::fs::write(dir.join("seals.json"), serde_json::to_string_pretty(&seals)?)?;
     std::fs::write(dir.join("scores.json"), serde_json::to_string_pretty(&scores)?)?;
     std::fs::write(dir.join("table.md"), &table)?;
-    if a.format == "json" {
+    if a.format == super::OutputFormat::Json {
         println!("{}", serde_json::to_string_pretty(&serde_json::json!({"summary": summary, "trials": scores}))?);
     } else {
         let (flag, what) = if a.floating {

@@ -18,3 +18,10 @@ pub mod validate;
 pub(crate) fn engines_help(lead: &str) -> String {
     format!("{lead} {}", diff_physics::EngineKind::available_names())
 }
+
+/// `--format` of the commands that print a report: a human summary or the whole report as JSON.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum OutputFormat {
+    Text,
+    Json,
+}

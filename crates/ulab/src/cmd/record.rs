@@ -19,6 +19,35 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{mpsc, Arc};
 use std::time::{Duration, Instant};
 
+/// `--compression`: MCAP chunk compression (`recording::Compression`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum CompressionArg {
+    /// Cheapest while recording.
+    None,
+    /// About 5x smaller; what the official writers use by default.
+    Zstd,
+    Lz4,
+}
+
+/// `--family`: the message family of rt/lowcmd and rt/lowstate.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum FamilyArg {
+    /// `unitree_hg` (H1-2, G1).
+    Hg,
+    /// `unitree_go` (Go2, H1, B2).
+    Go,
+}
+
+impl FamilyArg {
+    /// The codec's family prefix (`hg/LowCmd`).
+    pub fn name(self) -> &'static str {
+        match self {
+            FamilyArg::Hg => "hg",
+            FamilyArg::Go => "go",
+        }
+    }
+}
+
 /// Arguments of `ulab record`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -35,8 +64,8 @@ pub struct Args {
     #[arg(long, num_args = 1.., value_delimiter = ',')]
     pub topics: Vec<String>,
     /// Message family of rt/lowcmd and rt/lowstate: hg (H1-2, G1) or go (Go2, H1, B2).
-    #[arg(long, default_value = "hg", value_parser = ["hg", "go"])]
-    pub family: String,
+    #[arg(long, value_enum, default_value_t = FamilyArg::Hg)]
+    pub family: FamilyArg,
     /// Overwrite the output file if it exists.
     #[arg(long)]
     pub force: bool,
@@ -44,8 +73,8 @@ pub struct Args {
     #[arg(long)]
     pub quiet: bool,
     /// Chunk compression: none (cheapest while recording), zstd (about 5x smaller) or lz4.
-    #[arg(long, default_value = "none", value_parser = ["none", "zstd", "lz4"])]
-    pub compression: String,
+    #[arg(long, value_enum, default_value_t = CompressionArg::None)]
+    pub compression: CompressionArg,
 }
 
 struct Channel {
@@ -78,7 +107,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         if args.topics.is_empty() { vec!["rt/lowcmd".into(), "rt/lowstate".into()] } else { args.topics.clone() };
     let mut choices: Vec<TopicChoice> = Vec::new();
     for t in &texts {
-        let c = parse_topic(t, &args.family)?;
+        let c = parse_topic(t, args.family.name())?;
         if choices.iter().any(|o| o.spec.name == c.spec.name) {
             bail!("topic {} listed twice", c.spec.name);
         }
@@ -89,8 +118,11 @@ pub fn run(args: Args) -> Result<ExitCode> {
     }
 
     let file = File::create(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
-    let compression = recording::Compression::parse(&args.compression)
-        .with_context(|| format!("--compression {}: none, zstd or lz4", args.compression))?;
+    let compression = match args.compression {
+        CompressionArg::None => recording::Compression::None,
+        CompressionArg::Zstd => recording::Compression::Zstd,
+        CompressionArg::Lz4 => recording::Compression::Lz4,
+    };
     let opts = recording::write_options(concat!("ulab ", env!("CARGO_PKG_VERSION")), compression);
     let mut writer = opts.create(BufWriter::new(file)).context("starting the MCAP file")?;
     let mut channels = Vec::new();
