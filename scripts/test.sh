@@ -15,9 +15,11 @@ export CARGO_TERM_COLOR=never
 # Snapshot tests must fail on a mismatch, never write new snapshots.
 export INSTA_UPDATE=no
 # Hygiene gate (issue 18), before the tests: formatting, clippy with the workspace lints and warnings denied, and
-# the docs of every crate without a broken link; no dependency its sources never name (scripts/unused_deps.py).
+# the docs of every crate without a broken link; no dependency its sources never name (scripts/unused_deps.py); no import cycle
+# between the top-level modules of a crate (scripts/module_cycles.py).
 cargo fmt --all --check
 python3 scripts/unused_deps.py
+python3 scripts/module_cycles.py
 cargo clippy --workspace --all-targets --locked -- -D warnings
 RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --locked --quiet
 phase "hygiene gate"

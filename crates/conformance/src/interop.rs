@@ -13,9 +13,9 @@
 //! Each probe reports whether it discovered (matched) the peer's writer, how many samples it received and decoded,
 //! and whether it survived; a probe that cannot be built or run gives an inconclusive result with the reason.
 
-use crate::checks::Timing;
 use crate::report::{CheckId, CheckResult, Status};
 use crate::target::Target;
+use crate::timing::Timing;
 use crate::ConformError;
 use std::io::{BufRead, BufReader, Read, Write};
 use std::path::PathBuf;

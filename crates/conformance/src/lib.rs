@@ -24,6 +24,7 @@ pub mod interop;
 pub mod report;
 pub mod safety;
 pub mod target;
+pub mod timing;
 pub mod wire;
 
 /// Why a conformance run could not be carried out (as opposed to a check that failed).

@@ -15,24 +15,7 @@ use robot_model::RobotModel;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
-/// Standard deviations of the sensor noise of the reference plant.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct SensorNoise {
-    pub q: f64,
-    pub dq: f64,
-    pub tau: f64,
-    pub gyro: f64,
-    pub quat: f64,
-    /// Accelerometer (m/s²).
-    #[serde(default)]
-    pub acc: f64,
-}
-
-impl Default for SensorNoise {
-    fn default() -> Self {
-        SensorNoise { q: 2e-4, dq: 0.01, tau: 0.1, gyro: 0.003, quat: 5e-4, acc: 0.05 }
-    }
-}
+pub use crate::noise::SensorNoise;
 
 /// The reference ("real") plant.
 #[derive(Debug, Clone)]

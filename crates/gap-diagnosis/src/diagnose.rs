@@ -18,13 +18,7 @@ use serde::{Deserialize, Serialize};
 /// `/4`: adds `windows_down` and `rig_check.foot_load_fraction`.
 pub const SCHEMA_VERSION: &str = "ulab-gap-report/4";
 
-/// Residual scales (what counts as "one unit" of gap per channel).
-pub const SIGMA_Q: f64 = 2e-3;
-pub const SIGMA_DQ: f64 = 0.1;
-/// Torque scale as a fraction of each joint's torque limit.
-pub const SIGMA_TAU_FRAC: f64 = 0.01;
-pub const SIGMA_QUAT: f64 = 5e-3;
-pub const SIGMA_GYRO: f64 = 0.02;
+pub use crate::noise::{SIGMA_DQ, SIGMA_GYRO, SIGMA_Q, SIGMA_QUAT, SIGMA_TAU_FRAC};
 
 /// Every this many samples of a floating-base window are checked for a robot that is down.
 const DOWN_CHECK_STRIDE: usize = 5;
@@ -1102,10 +1096,7 @@ pub const COMMAND_STALE_S: f64 = 0.1;
 
 /// Largest spread (s) of a window's state log times around a regular grid at the median rate (see `diagnose`).
 pub const TIMING_TOL_S: f64 = 0.005;
-/// State intervals outside `[TIMING_LO, TIMING_HI]` x the median interval are irregular (the rig check's
-/// differentiated accelerometer prediction skips them).
-pub const TIMING_LO: f64 = 0.5;
-pub const TIMING_HI: f64 = 2.0;
+pub use crate::noise::{TIMING_HI, TIMING_LO};
 
 /// A unit must cut its own held-out residual by at least this fraction (lower bound of the interval).
 pub const UNIT_FLOOR_FRAC: f64 = 0.10;

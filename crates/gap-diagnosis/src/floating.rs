@@ -13,8 +13,8 @@
 //!   rolls on), so the pelvis moves opposite to that point's motion relative to the pelvis (leg kinematics,
 //!   measured joint speeds); weighted mean over stance feet;
 //! * horizontal position and heading are free on flat ground: x = y = 0, heading as the IMU reports it.
-use crate::diagnose::{SIGMA_DQ, SIGMA_GYRO, SIGMA_Q, SIGMA_QUAT, SIGMA_TAU_FRAC};
 use crate::log::{Command, Measurement, RobotLog};
+use crate::noise::{SIGMA_DQ, SIGMA_GYRO, SIGMA_Q, SIGMA_QUAT, SIGMA_TAU_FRAC};
 use crate::plant::{
     actuator_torques, idle_command, imu_reading_floating, imu_site_relative, joint_groups, replay_window, sensed,
     true_joint_angles, Effects, EngineChoice, DT,
@@ -565,7 +565,7 @@ pub fn window_residual(model: &RobotModel, log: &RobotLog, start: usize, pred: &
 pub struct FloatingRealConfig {
     pub engine: EngineChoice,
     pub effects: Effects,
-    pub noise: crate::bench::SensorNoise,
+    pub noise: crate::noise::SensorNoise,
     /// Controller period (s).
     pub cmd_period: f64,
     /// Each command reaches the log (and the motors) up to this long after it was computed (uniform, s).
@@ -580,7 +580,7 @@ impl FloatingRealConfig {
         FloatingRealConfig {
             engine: EngineChoice { integrator: "RK4".into() },
             effects: Effects::none(model.nj()),
-            noise: crate::bench::SensorNoise::default(),
+            noise: crate::noise::SensorNoise::default(),
             cmd_period: 0.02,
             jitter_s: 0.002,
             duration,

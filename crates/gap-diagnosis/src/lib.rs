@@ -3,7 +3,7 @@
 //! * [`log`]: the robot log (MCAP as `ulab record` writes it, or CSV);
 //! * [`plant`]: engine on a suspension rig + actuator/sensor effect layer + model-level effects;
 //! * [`floating`]: the robot on the ground (floating base): base-state estimate from a log sample, plant, windows;
-//! * [`effects`]: the effect library (parameters, ranges, scopes);
+//! * [`effects`]: the effect library (parameters, ranges, scopes); [`noise`]: sensor noise and residual scales;
 //! * [`diagnose()`]: where the gap lies, which effect explains it, how much it shrinks (held-out, with intervals);
 //! * [`rig_check`]: does the log fit the rig assumption (pelvis held still)? Otherwise the diagnosis abstains;
 //! * [`excite`]: safe excitation plans; [`mod@bench`]: the blind benchmark; [`report`]: Markdown, JSON and SVG plots.
@@ -15,6 +15,7 @@ pub mod effects;
 pub mod excite;
 pub mod floating;
 pub mod log;
+pub mod noise;
 pub mod plant;
 pub mod report;
 pub mod rig_check;

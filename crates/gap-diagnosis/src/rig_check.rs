@@ -236,7 +236,7 @@ pub fn check(model: &RobotModel, log: &RobotLog) -> Result<RigCheck, GapError> {
     let dt_med = median(log.states.windows(2).map(|w| w[1].t - w[0].t).collect());
     let regular = |a: usize, b: usize| {
         let d = log.states[b].t - log.states[a].t;
-        d >= crate::diagnose::TIMING_LO * dt_med && d <= crate::diagnose::TIMING_HI * dt_med
+        d >= crate::noise::TIMING_LO * dt_med && d <= crate::noise::TIMING_HI * dt_med
     };
     let acc_res: Vec<Option<Vector3<f64>>> = (0..n)
         .map(|i| {

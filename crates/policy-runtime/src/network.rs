@@ -4,7 +4,6 @@
 
 use crate::spec::LstmInitialState;
 use crate::PolicyError;
-use std::collections::BTreeMap;
 use std::path::Path;
 
 fn model_err(path: &Path, reason: impl std::fmt::Display) -> PolicyError {
@@ -193,8 +192,7 @@ pub struct LstmPolicy {
     c: Vec<f64>,
 }
 
-/// Named float arrays (`f64` values, shape) read from a model file.
-pub type NamedArrays = BTreeMap<String, (Vec<f64>, Vec<usize>)>;
+pub use crate::torchscript::NamedArrays;
 
 /// Every array of an `.npz` archive (all must be `float32`).
 pub fn read_npz(path: &Path) -> Result<NamedArrays, PolicyError> {

@@ -8,11 +8,13 @@
 //! every tensor attribute by its path (`memory.weight_ih_l0`, `actor.0.bias`, …), as `state_dict()` would.
 //! Only float32 storages are supported (what policies are exported in).
 
-use crate::network::NamedArrays;
 use crate::PolicyError;
 use std::collections::HashMap;
 use std::io::Read;
 use std::path::Path;
+
+/// Named float arrays (`f64` values, shape) read from a model file.
+pub type NamedArrays = std::collections::BTreeMap<String, (Vec<f64>, Vec<usize>)>;
 
 fn err(path: &Path, reason: impl std::fmt::Display) -> PolicyError {
     PolicyError::Model { path: path.display().to_string(), reason: format!("TorchScript archive: {reason}") }

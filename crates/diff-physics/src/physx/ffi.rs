@@ -729,11 +729,11 @@ impl World {
         let c = *self.cache();
         let q: Vec<f64> = {
             let s = self.dof_slice_mut(c.jointPosition);
-            s.to_vec().into_iter().map(f64::from).collect()
+            s.iter().copied().map(f64::from).collect()
         };
         let dq: Vec<f64> = {
             let s = self.dof_slice_mut(c.jointVelocity);
-            s.to_vec().into_iter().map(f64::from).collect()
+            s.iter().copied().map(f64::from).collect()
         };
         // SAFETY: see above.
         let root = unsafe { *c.rootLinkData };

@@ -12,6 +12,9 @@ use rand_chacha::ChaCha8Rng;
 use robot_model::{GenCoords, RobotModel};
 use serde::Serialize;
 
+#[cfg(feature = "physx")]
+mod physx_native;
+
 /// One measured check.
 #[derive(Debug, Clone, Serialize)]
 pub struct CheckResult {
@@ -258,7 +261,7 @@ pub fn run_checks(model: &RobotModel, kinds: &[EngineKind], opts: &CheckOptions)
         // PhysX's own inverse-dynamics API (floating base), against the same reference.
         #[cfg(feature = "physx")]
         if k == EngineKind::Physx {
-            crate::physx::native_checks(model, opts, &mut checks);
+            physx_native::native_checks(model, opts, &mut checks);
         }
     }
     one_step_cross(model, &available, opts, &mut checks);
