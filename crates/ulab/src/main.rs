@@ -33,6 +33,8 @@ enum Command {
     Conform(cmd::conform::Args),
     /// Differential testing of physics engines driven by policy rollouts (run, fuzz, replay).
     Diff(cmd::diff::Args),
+    /// A policy as the robot's low-level controller over DDS (start sequence, limits, safety stops).
+    Deploy(cmd::deploy::Args),
     /// Cross-engine policy validation: does a policy keep its score outside the engine it was trained in?
     Validate(cmd::validate::Args),
     /// Sim-to-real gap diagnosis from robot logs (diagnose, excite, bench).
@@ -52,6 +54,7 @@ fn main() -> ExitCode {
         Command::Sim(args) => cmd::sim::run(args),
         Command::Conform(args) => cmd::conform::run(args),
         Command::Diff(args) => cmd::diff::run(args),
+        Command::Deploy(args) => cmd::deploy::run(args),
         Command::Validate(args) => cmd::validate::run(args),
         Command::Gap(args) => cmd::gap::run(args),
         Command::Doctor(args) => cmd::doctor::run(args),

@@ -1,6 +1,7 @@
 //! Subcommands. One module per subcommand; each exposes `Args` and `run(Args) -> anyhow::Result<ExitCode>`.
 pub mod codec;
 pub mod conform;
+pub mod deploy;
 pub mod diff;
 pub mod doctor;
 pub mod gap;

@@ -183,6 +183,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let mut next_publish = 0.0;
     let mut sim_time = 0.0;
     let mut window = (Instant::now(), 0.0_f64, robot.counters().states_published);
+    // The pelvis as the simulator sees it (ground truth for programs that judge a controller: how far it walked,
+    // whether it stayed up), sampled every 10 ms of simulated time.
+    let mut base = BaseTrack::new(&robot.engine().state());
     loop {
         let wall = start.elapsed().as_secs_f64();
         if stop.load(Ordering::SeqCst) || args.duration.is_some_and(|d| wall >= d) {
@@ -214,6 +217,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         }
         robot.step(start.elapsed().as_secs_f64()).context("physics step")?;
         sim_time += args.dt;
+        base.sample(sim_time, || robot.engine().state());
         if !args.on_time_state {
             publish_due(&mut robot, &states, sim_time, &mut next_publish, publish_period)?;
         }
@@ -262,9 +266,58 @@ pub fn run(args: Args) -> Result<ExitCode> {
         "state_rate_hz": args.state_rate,
         "counters": c,
         "loco": loco.as_ref().map(|l| l.summary()),
+        "base": base.summary(&robot.engine().state()),
     });
     eprintln!("sim: summary {summary}");
     Ok(ExitCode::SUCCESS)
+}
+
+/// The pelvis over the run: start and end positions, lowest height and largest tilt (sampled).
+struct BaseTrack {
+    start: [f64; 3],
+    min_height: f64,
+    max_tilt_rad: f64,
+    next_sample: f64,
+}
+
+impl BaseTrack {
+    const SAMPLE_S: f64 = 0.01;
+
+    fn new(s: &State) -> Self {
+        BaseTrack { start: s.base_pos, min_height: s.base_pos[2], max_tilt_rad: tilt(s.base_quat), next_sample: 0.0 }
+    }
+
+    fn sample(&mut self, sim_time: f64, state: impl FnOnce() -> State) {
+        if sim_time < self.next_sample {
+            return;
+        }
+        self.next_sample = sim_time + Self::SAMPLE_S;
+        let s = state();
+        self.min_height = self.min_height.min(s.base_pos[2]);
+        self.max_tilt_rad = self.max_tilt_rad.max(tilt(s.base_quat));
+    }
+
+    fn summary(&self, end: &State) -> serde_json::Value {
+        serde_json::json!({
+            "start": self.start,
+            "end": end.base_pos,
+            "end_yaw_rad": yaw(end.base_quat),
+            "min_height": self.min_height,
+            "max_tilt_rad": self.max_tilt_rad,
+        })
+    }
+}
+
+/// Angle (rad) between the pelvis z axis and the world's vertical, from `[w, x, y, z]`.
+fn tilt(q: [f64; 4]) -> f64 {
+    let [_, x, y, _] = q;
+    (1.0 - 2.0 * (x * x + y * y)).clamp(-1.0, 1.0).acos()
+}
+
+/// Heading (rad) of the pelvis x axis, from `[w, x, y, z]`.
+fn yaw(q: [f64; 4]) -> f64 {
+    let [w, x, y, z] = q;
+    (2.0 * (w * z + x * y)).atan2(1.0 - 2.0 * (y * y + z * z))
 }
 
 /// Publishes the robot's LowState when `sim_time` has reached the next publication time.
