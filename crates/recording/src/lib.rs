@@ -15,9 +15,11 @@
 pub mod columns;
 mod idl;
 pub mod read;
+pub mod recover;
 
 pub use idl::idl_text;
 pub use read::{messages, ReadError};
+pub use recover::{recover, RecoverError, Recovered};
 use std::collections::BTreeMap;
 use std::io::{Seek, Write};
 use unitree_idl::MessageType;
@@ -73,7 +75,13 @@ pub const CHUNK_SIZE: u64 = 256 * 1024;
 /// Writer options of every recording the project writes: `library` in the header, chunks of [`CHUNK_SIZE`],
 /// the given compression (never the `mcap` crate's default, which is zstd when its `zstd` feature is on).
 pub fn write_options(library: &str, compression: Compression) -> mcap::WriteOptions {
-    mcap::WriteOptions::new().library(library).chunk_size(Some(CHUNK_SIZE)).compression(compression.to_mcap())
+    write_options_with_chunk_size(library, compression, CHUNK_SIZE)
+}
+
+/// [`write_options`] with another chunk size: a recorder that crashes loses at most the chunk it was filling
+/// (see [`recover()`]), so a smaller chunk bounds the loss tighter at the cost of more index records.
+pub fn write_options_with_chunk_size(library: &str, compression: Compression, chunk_size: u64) -> mcap::WriteOptions {
+    mcap::WriteOptions::new().library(library).chunk_size(Some(chunk_size)).compression(compression.to_mcap())
 }
 
 /// The codec's type for a DDS type name, if it knows it.

@@ -15,7 +15,8 @@ pub enum ReadError {
     /// A chunk uses a compression this build has no decoder for.
     #[error("a chunk is compressed with {0:?}, which ulab cannot read (it reads {READABLE_COMPRESSIONS})")]
     UnsupportedCompression(String),
-    /// The file ends in the middle of a record (e.g. a recorder killed before it finished the file).
+    /// The file ends in the middle of a record (e.g. a recorder killed before it finished the file, which leaves
+    /// the chunk it was filling with a placeholder length).
     #[error("the MCAP file is truncated: it ends in the middle of a record after {messages} messages")]
     Truncated {
         messages: usize,
@@ -32,11 +33,18 @@ pub enum ReadError {
 }
 
 impl ReadError {
-    fn from_mcap(e: mcap::McapError, messages: usize) -> Self {
+    /// `finished`: the file ends with the MCAP magic (its footer was written).
+    fn from_mcap(e: mcap::McapError, messages: usize, finished: bool) -> Self {
         match e {
             mcap::McapError::BadMagic if messages == 0 => ReadError::NotMcap(e),
             mcap::McapError::UnsupportedCompression(c) => ReadError::UnsupportedCompression(c),
             mcap::McapError::UnexpectedEof => ReadError::Truncated { messages, source: e },
+            // The `mcap` writer streams a chunk into the file with a placeholder length (u64::MAX) and patches it
+            // when the chunk is complete: a file without its footer that ends inside such a chunk was cut off while
+            // recording, not corrupted.
+            mcap::McapError::UnexpectedEoc | mcap::McapError::RecordTooLarge { len: u64::MAX, .. } if !finished => {
+                ReadError::Truncated { messages, source: e }
+            }
             e => ReadError::Corrupt { messages, source: e },
         }
     }
@@ -52,6 +60,8 @@ pub const MIN_RECORD_LIMIT: usize = 256 << 20;
 pub struct Messages<'a> {
     inner: Option<mcap::io::MessageReader<&'a [u8]>>,
     read: usize,
+    /// The file ends with the MCAP magic (a finished file).
+    finished: bool,
 }
 
 impl std::fmt::Debug for Messages<'_> {
@@ -73,7 +83,7 @@ impl<'a> Iterator for Messages<'a> {
             Err(e) => {
                 // The stream may keep failing on the same bytes: one error ends the iteration.
                 self.inner = None;
-                Some(Err(ReadError::from_mcap(e, self.read)))
+                Some(Err(ReadError::from_mcap(e, self.read, self.finished)))
             }
         }
     }
@@ -89,5 +99,6 @@ pub fn messages(bytes: &[u8]) -> Result<Messages<'_>, ReadError> {
         .with_record_length_limit(bytes.len().max(MIN_RECORD_LIMIT))
         .with_validate_chunk_crcs(true)
         .with_prevalidate_chunk_crcs(true);
-    Ok(Messages { inner: Some(mcap::io::MessageReader::new_with_options(bytes, options)), read: 0 })
+    let finished = bytes.len() >= 2 * mcap::MAGIC.len() && bytes.ends_with(mcap::MAGIC);
+    Ok(Messages { inner: Some(mcap::io::MessageReader::new_with_options(bytes, options)), read: 0, finished })
 }

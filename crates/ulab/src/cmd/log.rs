@@ -26,6 +26,14 @@ pub enum LogCommand {
         /// The MCAP file.
         file: PathBuf,
     },
+    /// Copy what can be read of an unfinished recording (a recorder killed or a power cut) into a finished file.
+    Recover {
+        /// The unfinished MCAP file.
+        file: PathBuf,
+        /// The finished copy (default: FILE_STEM_recovered.mcap next to the input).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
 }
 
 /// Arguments of `ulab log export`.
@@ -49,7 +57,29 @@ pub fn run(args: Args) -> Result<ExitCode> {
     match args.command {
         LogCommand::Export(a) => export(a),
         LogCommand::Info { file } => info(&file),
+        LogCommand::Recover { file, out } => recover(&file, out),
     }
+}
+
+fn recover(file: &Path, out: Option<PathBuf>) -> Result<ExitCode> {
+    let bytes = std::fs::read(file).with_context(|| format!("reading {}", file.display()))?;
+    let out = out.unwrap_or_else(|| {
+        let stem = file.file_stem().map_or_else(|| "log".into(), |s| s.to_string_lossy().into_owned());
+        file.with_file_name(format!("{stem}_recovered.mcap"))
+    });
+    if out == file {
+        bail!("--out must differ from the input");
+    }
+    let w = std::io::BufWriter::new(create(&out)?);
+    let opts =
+        recording::write_options(concat!("ulab ", env!("CARGO_PKG_VERSION"), " log recover"), Default::default());
+    let r = recording::recover(&bytes, w, opts).with_context(|| format!("recovering {}", file.display()))?;
+    match &r.stopped_by {
+        None => eprintln!("{}: read to its end (a finished file); {} messages copied", file.display(), r.messages),
+        Some(why) => eprintln!("{}: {why}; the {} messages before it copied", file.display(), r.messages),
+    }
+    println!("{}", out.display());
+    Ok(ExitCode::SUCCESS)
 }
 
 fn csv_field(s: &str) -> String {

@@ -1,0 +1,103 @@
+//! Crash safety of `ulab record` (issue 19, item 4): a recorder killed with SIGKILL while `ulab sim` publishes
+//! rt/lowstate at 500 Hz leaves an unfinished file; the official Python `mcap` streaming reader (independent code)
+//! reads it up to the cut; `ulab log recover` copies exactly those messages into a finished file that the official
+//! reader opens with its summary; and no more than one chunk was lost.
+mod common;
+
+use common::{lease_domain, python, root, run_ulab, tail, wait_with_timeout, KillOnDrop, PATIENCE};
+use serde_json::Value;
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// Chunk size given to the recorder: 64 KiB, about 31 hg LowState samples (~2.1 KiB each, ~0.06 s at 500 Hz).
+const CHUNK: u64 = 64 * 1024;
+
+fn python_json(script: &str, file: &Path) -> Value {
+    let child = Command::new(python())
+        .arg(root().join("crates/ulab/tests/py").join(script))
+        .arg(file)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn python");
+    let (status, out, err) = wait_with_timeout(child, Duration::from_secs(120));
+    assert!(status.is_some_and(|s| s.success()), "{script} failed:\n{}\n{}", tail(&out), tail(&err));
+    serde_json::from_str(out.lines().last().unwrap_or("")).expect("the script prints JSON")
+}
+
+#[test]
+fn a_killed_recording_is_readable_up_to_its_last_chunk_and_recovers() {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("ulab-record-crash");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let file = dir.join("killed.mcap");
+    let domain = lease_domain();
+    let sim = Command::new(env!("CARGO_BIN_EXE_ulab"))
+        .args(["sim", "--engine", "mujoco", "--domain", &domain.arg(), "--loco-api", "none", "--quiet"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("start ulab sim");
+    let _sim = KillOnDrop(Some(sim));
+    let rec = Command::new(env!("CARGO_BIN_EXE_ulab"))
+        .args(["record", "--domain", &domain.arg(), "--quiet", "--chunk-size", &CHUNK.to_string(), "--out"])
+        .arg(&file)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("start ulab record");
+    let mut rec = KillOnDrop(Some(rec));
+    // Kill once the file holds several chunks (judged by its size, not by the clock: a slow machine only waits longer).
+    let deadline = Instant::now() + PATIENCE;
+    while std::fs::metadata(&file).map_or(0, |m| m.len()) < 6 * CHUNK {
+        assert!(Instant::now() < deadline, "the recorder wrote {:?} bytes", std::fs::metadata(&file).map(|m| m.len()));
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    std::thread::sleep(Duration::from_millis(137)); // somewhere inside a chunk
+    let mut child = rec.0.take().expect("recorder");
+    child.kill().expect("SIGKILL");
+    let _ = child.wait();
+    let size = std::fs::metadata(&file).expect("killed file").len();
+
+    // The official streaming reader on the killed file: messages up to the cut, then an error (no footer).
+    let killed = python_json("count_mcap_stream.py", &file);
+    let readable = killed["messages"].as_u64().expect("count");
+    assert!(killed["error"].is_string(), "an unfinished file ends in an error: {killed}");
+    // At most the chunk being filled was lost (the `mcap` writer streams a chunk into the file with a placeholder
+    // length and patches it when the chunk is complete, so an unfinished chunk is unreadable as a whole), plus the
+    // recorder's 8 KiB output buffer, which never reached the file.
+    let lowstate = killed["per_topic"]["rt/lowstate"].as_u64().unwrap_or(0);
+    let readable_bytes = killed["readable_bytes"].as_u64().unwrap_or(0);
+    assert!(
+        lowstate > 0 && size - readable_bytes <= CHUNK + 4096,
+        "{size} bytes, readable up to {readable_bytes}: {killed}"
+    );
+
+    let out = dir.join("recovered.mcap");
+    let (code, stdout, stderr) =
+        run_ulab(&["log", "recover", file.to_str().expect("utf-8"), "--out", out.to_str().expect("utf-8")], PATIENCE);
+    assert_eq!(code, Some(0), "{stdout}\n{stderr}");
+    assert!(stderr.contains("truncated"), "{stderr}");
+    // The copy is a finished file: the official reader opens it through its summary and decodes every message
+    // with Unitree's types; it holds exactly what could be read before the cut.
+    let v = python_json("read_mcap.py", &out);
+    assert_eq!(v["errors"].as_array().map(Vec::len), Some(0), "{}", v["errors"]);
+    assert_eq!(v["message_count"].as_u64(), Some(readable), "{v}");
+    assert_eq!(v["topics"]["rt/lowstate"]["count"].as_u64(), Some(lowstate));
+    let ticks: Vec<u64> =
+        v["topics"]["rt/lowstate"]["ticks"].as_array().expect("ticks").iter().filter_map(Value::as_u64).collect();
+    assert!(ticks.windows(2).all(|w| w[1] > w[0]), "ticks increase: nothing reordered or duplicated");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn recover_refuses_what_is_not_mcap() {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("ulab-record-crash-bad");
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let bad = dir.join("not.mcap");
+    std::fs::write(&bad, b"definitely not an mcap file").expect("write");
+    let (code, _, err) = run_ulab(&["log", "recover", bad.to_str().expect("utf-8")], Duration::from_secs(60));
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("not an MCAP file") && !err.contains("panicked"), "{err}");
+}
