@@ -2,6 +2,7 @@
 # Builds and runs the fuzz targets on stable Rust without cargo-fuzz: the same sanitizer-coverage
 # instrumentation cargo-fuzz asks rustc for (`-s none`: no address sanitizer, which needs nightly).
 #   scripts/fuzz.sh build               build every target
+#   scripts/fuzz.sh build-protocol      build the protocol targets only (no physics engine; .clusterfuzzlite/build.sh)
 #   scripts/fuzz.sh run TARGET SECONDS  fuzz TARGET from its seed corpus for SECONDS
 #   scripts/fuzz.sh smoke SECONDS       run the protocol targets for SECONDS each (CI), with a fixed libFuzzer
 #                                       seed so that a red smoke run replays the same inputs on the same commit
@@ -46,6 +47,7 @@ run() {
 
 case "${1:-}" in
   build) build ;;
+  build-protocol) build "${PROTOCOL_TARGETS[@]}" ;;
   run) build "$2"; run "$2" "$3" ;;
   smoke)
     build "${PROTOCOL_TARGETS[@]}"
@@ -53,5 +55,5 @@ case "${1:-}" in
   smoke-all)
     build
     for t in "${TARGETS[@]}"; do echo "fuzz: $t for ${2}s"; run "$t" "$2" 1; done ;;
-  *) echo "usage: $0 build | run TARGET SECONDS | smoke SECONDS | smoke-all SECONDS" >&2; exit 2 ;;
+  *) echo "usage: $0 build | build-protocol | run TARGET SECONDS | smoke SECONDS | smoke-all SECONDS" >&2; exit 2 ;;
 esac
