@@ -50,7 +50,7 @@ fn splice(text: &str, at: f64, len: usize, insert: &str) -> String {
 fn physical(m: &RobotModel) -> Result<(), String> {
     for l in &m.links {
         let i = &l.inertial;
-        if !(i.mass.is_finite() && i.mass > 0.0) || !i.com.iter().all(|x| x.is_finite()) {
+        if !(i.mass.is_finite() && i.mass > 0.0 && i.com.iter().all(|x| x.is_finite())) {
             return Err(format!("link {}: mass {} com {:?}", l.name, i.mass, i.com));
         }
         if !i.inertia.iter().all(|x| x.is_finite()) {
