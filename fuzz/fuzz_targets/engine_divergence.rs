@@ -1,11 +1,13 @@
 //! Engine divergence: fuzz bytes (via `arbitrary`) become a short perturbation of the built-in excitation
 //! rollout (command, noise, push, initial offsets, ground friction, timing jitter) and a choice of one pair of the
-//! engines compiled into this target (MuJoCo, both Rapier formulations and Bullet; `engine_diff::fuzz::oracle_pair`);
-//! coverage comes from the Rust code on the path (Rapier's, the harness's). The oracle is the per-engine invariants
-//! plus the one-step cross-engine bound, with the allow-list of expected modelling differences applied
-//! (`engine_diff::fuzz::DivergenceOracle`, which `cargo test -p engine-diff` also replays the saved inputs
-//! through): anything left is a candidate engine bug and aborts. DART and PhysX stay out of this build (PhysX's
-//! vendored SDK would double the fuzz build time in CI); both run in `ulab diff fuzz`.
+//! engines compiled into this target (MuJoCo, both Rapier formulations, Bullet and DART: any two, the earlier of
+//! `EngineKind::ALL` leading; `engine_diff::fuzz::oracle_pair`); coverage comes from the Rust code on the path
+//! (Rapier's, the harness's). The oracle is the per-engine invariants plus the one-step cross-engine bound, with
+//! the allow-list of expected modelling differences applied (directly for pairs with MuJoCo, through MuJoCo for
+//! the others: `engine_diff::triage::AllowList::covering`; `engine_diff::fuzz::DivergenceOracle`, which `cargo
+//! test -p engine-diff` also replays the saved inputs through): anything left is a candidate engine bug and
+//! aborts. PhysX stays out of this build (its vendored SDK would double the fuzz build time); it runs in `ulab
+//! diff fuzz`.
 #![no_main]
 
 use engine_diff::fuzz::DivergenceOracle;

@@ -12,8 +12,10 @@
 //! joint state straight from the btMultiBody + the same PD and the viscous damping the layer adds + one world step.
 //! PhysX (feature `physx`) too: joint positions/velocities from the articulation cache + the same PD (gains permuted
 //! to PhysX's DoF order once) + `jointForce` + `simulate`/`fetchResults` (no state conversion, no root read-back).
+//! DART (feature `dart`) too: joint values and velocities of each joint's dof from the world + the same PD + forces
+//! on those dofs + one `World::step` (no pelvis frame conversion, no safe-range check).
 //!
-//! Run: `source scripts/env.sh && CARGO_TARGET_DIR=target-model cargo bench -p diff-physics --features bullet --bench engines`
+//! Run: `source scripts/env.sh && CARGO_TARGET_DIR=target-model cargo bench -p diff-physics --features bullet,dart --bench engines`
 use criterion::{criterion_group, Criterion};
 use diff_physics::mujoco::{MujocoEngine, MujocoSettings};
 use diff_physics::pd::pd_torques_into;
@@ -125,6 +127,34 @@ fn run_raw_physx(e: &mut diff_physics::physx::PhysxEngine, model: &RobotModel, s
     })
 }
 
+/// The same loop on DART's own world (its coordinates: the joint values of the dof each joint drives, forces
+/// written to the same dofs, no quaternion or frame conversion, no safe-range check). Damping and friction are
+/// DART's own joint properties in both loops. The engine is only used to reset, outside the timing.
+#[cfg(feature = "dart")]
+fn run_raw_dart(e: &mut diff_physics::dart::DartEngine, model: &RobotModel, s0: &State, iters: u64) -> Duration {
+    let dofs = e.dof_of_joint().to_vec();
+    let target = PdTarget::hold_standing(model);
+    let limits: Vec<f64> = model.joints.iter().map(|j| j.torque_limit).collect();
+    let nj = model.nj();
+    let (mut q, mut dq, mut tau) = (vec![0.0; nj], vec![0.0; nj], vec![0.0; nj]);
+    let mut forces = Vec::new();
+    timed(e, s0, iters, |e| {
+        let world = e.raw_world();
+        let Ok(raw) = world.state() else { return false };
+        for (j, &d) in dofs.iter().enumerate() {
+            q[j] = raw.q[d - 6];
+            dq[j] = raw.vel[d];
+        }
+        pd_torques_into(&target, &q, &dq, &limits, &mut tau);
+        forces.clear();
+        forces.resize(raw.vel.len(), 0.0);
+        for (&d, t) in dofs.iter().zip(&tau) {
+            forces[d] = *t;
+        }
+        world.step(&forces).is_ok()
+    })
+}
+
 fn mujoco(model: &RobotModel, zero_g: bool) -> MujocoEngine {
     MujocoEngine::new(model, &scenario(zero_g), &MujocoSettings::default()).expect("MuJoCo engine builds")
 }
@@ -174,6 +204,11 @@ fn summary() {
             .expect("PhysX engine builds");
         #[cfg(feature = "physx")]
         let mut physx_raw_rates = Vec::new();
+        #[cfg(feature = "dart")]
+        let mut dart_raw = diff_physics::dart::DartEngine::new(&model, &scenario(zero_g), &Default::default())
+            .expect("DART engine builds");
+        #[cfg(feature = "dart")]
+        let mut dart_raw_rates = Vec::new();
         let mut raw_rates = Vec::new();
         let mut rates: Vec<Vec<f64>> = vec![Vec::new(); engines.len()];
         for _ in 0..5 {
@@ -181,6 +216,8 @@ fn summary() {
             raw_rates.push(steps as f64 / t);
             #[cfg(feature = "bullet")]
             bullet_raw_rates.push(steps as f64 / run_raw_bullet(&mut bullet_raw, &model, &s0, steps).as_secs_f64());
+            #[cfg(feature = "dart")]
+            dart_raw_rates.push(steps as f64 / run_raw_dart(&mut dart_raw, &model, &s0, steps).as_secs_f64());
             #[cfg(feature = "physx")]
             physx_raw_rates.push(steps as f64 / run_raw_physx(&mut physx_raw_e, &model, &s0, steps).as_secs_f64());
             for (i, (_, e)) in engines.iter_mut().enumerate() {
@@ -194,6 +231,11 @@ fn summary() {
         {
             let r = median(bullet_raw_rates);
             println!("| {name} | bullet raw btMultiBody | {r:.0} | {:.3} |", r / raw);
+        }
+        #[cfg(feature = "dart")]
+        {
+            let r = median(dart_raw_rates);
+            println!("| {name} | dart raw World | {r:.0} | {:.3} |", r / raw);
         }
         #[cfg(feature = "physx")]
         {

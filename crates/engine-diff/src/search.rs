@@ -137,7 +137,7 @@ impl Tally {
                 self.max_divergence = self.max_divergence.max(d);
                 for f in &r.findings {
                     self.groups.insert(f.group_key());
-                    if allow.matching(f).is_none() {
+                    if allow.covering(f).is_none() {
                         let r = self.unexplained.entry(f.group_key()).or_insert(0.0);
                         *r = r.max(f.ratio());
                     }

@@ -36,6 +36,20 @@ pub struct AllowEntry {
     pub citation: Vec<String>,
 }
 
+impl AllowEntry {
+    /// The entry speaks of this finding (engine, lead, kind, quantity, phase), whatever its ratio.
+    fn in_scope(&self, f: &Finding) -> bool {
+        let phase_ok = self.phases.is_empty()
+            || self.phases.iter().any(|p| p == &f.phase || (p == "contact" && f.phase != "flight"));
+        let lead_ok = f.kind == "invariant" || self.leads.iter().any(|l| l == &f.lead);
+        self.engines.iter().any(|x| x == &f.engine)
+            && lead_ok
+            && self.kinds.iter().any(|k| k == &f.kind)
+            && (self.quantities.is_empty() || self.quantities.iter().any(|q| q == &f.quantity))
+            && phase_ok
+    }
+}
+
 fn default_leads() -> Vec<String> {
     vec!["mujoco".into()]
 }
@@ -88,19 +102,92 @@ impl AllowList {
         Ok(AllowList { entries: f.entry })
     }
 
-    /// The entry covering a finding, if any.
+    /// The entry written for a finding's pair of engines that covers it, if any (see [`AllowList::covering`]
+    /// for pairs without the reference).
     pub fn matching(&self, f: &Finding) -> Option<&AllowEntry> {
-        self.entries.iter().find(|e| {
-            let phase_ok = e.phases.is_empty()
-                || e.phases.iter().any(|p| p == &f.phase || (p == "contact" && f.phase != "flight"));
-            let lead_ok = f.kind == "invariant" || e.leads.iter().any(|l| l == &f.lead);
-            e.engines.iter().any(|x| x == &f.engine)
-                && lead_ok
-                && e.kinds.iter().any(|k| k == &f.kind)
-                && (e.quantities.is_empty() || e.quantities.iter().any(|q| q == &f.quantity))
-                && phase_ok
-                && f.ratio() <= e.max_ratio
-        })
+        self.entries.iter().find(|e| e.in_scope(f) && f.ratio() <= e.max_ratio)
+    }
+}
+
+/// The engine every allow-list entry is measured against unless it names other leads: MuJoCo, the lead of
+/// `ulab diff`.
+pub const REFERENCE_LEAD: &str = "mujoco";
+
+/// Why a finding is not a candidate bug.
+#[derive(Debug, Clone, Copy)]
+pub enum Cover<'a> {
+    /// An entry written for this pair of engines covers it.
+    Entry(&'a AllowEntry),
+    /// A cross-engine finding between two engines neither of which is the reference: covered by the triangle
+    /// inequality when its ratio is at most what each engine may stand from the reference on this kind, quantity
+    /// and phase, added (an engine no entry covers may stand up to its bound, ratio 1). Bounds are the same for
+    /// every pair (they depend on the timestep and window only) and divergences are max-norms, so a difference
+    /// beyond the sum means one of the two engines is beyond its own cap against the reference in that state.
+    ViaReference {
+        /// Entries of the lead and of the engine against the reference (`None`: within its bound there).
+        lead: Option<&'a AllowEntry>,
+        engine: Option<&'a AllowEntry>,
+        /// The summed cap the finding's ratio is within.
+        cap: f64,
+    },
+}
+
+impl Cover<'_> {
+    /// The entry id, or `via-reference:<lead entry>+<engine entry>` (`-` where an engine has none).
+    pub fn id(&self) -> String {
+        match self {
+            Cover::Entry(e) => e.id.clone(),
+            Cover::ViaReference { lead, engine, .. } => {
+                let id = |e: &Option<&AllowEntry>| e.map_or_else(|| "-".to_string(), |e| e.id.clone());
+                format!("via-reference:{}+{}", id(lead), id(engine))
+            }
+        }
+    }
+
+    /// The triage class this cover gives.
+    pub fn class(&self) -> Class {
+        match self {
+            Cover::Entry(e) => Class::ExpectedDifference {
+                id: e.id.clone(),
+                rationale: e.rationale.clone(),
+                citation: e.citation.clone(),
+            },
+            Cover::ViaReference { lead, engine, cap } => {
+                let entries: Vec<&AllowEntry> = lead.iter().chain(engine.iter()).copied().collect();
+                let rationale = format!(
+                    "both engines differ from the reference ({REFERENCE_LEAD}) by documented modelling differences \
+                     ({}); their sum caps this pair at {cap:.1} times the bound. {}",
+                    entries.iter().map(|e| e.id.as_str()).collect::<Vec<_>>().join(", "),
+                    entries.iter().map(|e| e.rationale.as_str()).collect::<Vec<_>>().join(" ")
+                );
+                let citation = entries.iter().flat_map(|e| e.citation.iter().cloned()).collect();
+                Class::ExpectedDifference { id: self.id(), rationale, citation }
+            }
+        }
+    }
+}
+
+impl AllowList {
+    /// What covers a finding: an entry written for its pair ([`AllowList::matching`]) or, for a cross-engine
+    /// finding between two engines other than the reference, the entries of both against the reference
+    /// ([`Cover::ViaReference`]). `None`: a candidate engine bug.
+    pub fn covering(&self, f: &Finding) -> Option<Cover<'_>> {
+        if let Some(e) = self.matching(f) {
+            return Some(Cover::Entry(e));
+        }
+        if f.kind == "invariant" || f.lead == REFERENCE_LEAD || f.engine == REFERENCE_LEAD {
+            return None;
+        }
+        let against_reference = |engine: &str| {
+            let probe = Finding { engine: engine.to_string(), lead: REFERENCE_LEAD.to_string(), ..f.clone() };
+            self.entries.iter().filter(|e| e.in_scope(&probe)).max_by(|a, b| a.max_ratio.total_cmp(&b.max_ratio))
+        };
+        let (lead, engine) = (against_reference(&f.lead), against_reference(&f.engine));
+        if lead.is_none() && engine.is_none() {
+            return None;
+        }
+        let cap = lead.map_or(1.0, |e| e.max_ratio) + engine.map_or(1.0, |e| e.max_ratio);
+        (f.ratio() <= cap).then_some(Cover::ViaReference { lead, engine, cap })
     }
 }
 
@@ -183,12 +270,7 @@ pub fn classify(
     if let Some(detail) = model_equivalence_at(model, &involved, state, common)? {
         return Ok(Class::TranslationProblem { detail });
     }
-    Ok(match allow.matching(f) {
-        Some(e) => {
-            Class::ExpectedDifference { id: e.id.clone(), rationale: e.rationale.clone(), citation: e.citation.clone() }
-        }
-        None => Class::CandidateEngineBug,
-    })
+    Ok(allow.covering(f).map_or(Class::CandidateEngineBug, |c| c.class()))
 }
 
 /// A finding reduced to its smallest reproducing form.
@@ -304,4 +386,57 @@ pub fn minimize(
         }
     };
     Ok(Minimized { scale, scenario: s, finding: g, window: w.input, steps })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn finding(kind: &str, lead: &str, engine: &str, ratio: f64) -> Finding {
+        Finding {
+            kind: kind.into(),
+            engine: engine.into(),
+            lead: lead.into(),
+            quantity: "joint velocity".into(),
+            value: ratio,
+            bound: 1.0,
+            window: 0,
+            t0: 0.0,
+            phase: "double".into(),
+            contact_bodies: 2,
+        }
+    }
+
+    /// The built-in caps: Bullet (rigid contact) 15, Rapier (soft contact) 20 against MuJoCo, for joint velocity.
+    #[test]
+    fn a_pair_without_the_reference_gets_the_sum_of_both_caps_and_no_more() {
+        let allow = AllowList::builtin().expect("allow-list");
+        let cover = |f: &Finding| allow.covering(f).map(|c| c.id());
+        assert_eq!(
+            cover(&finding("one_step_bound", "mujoco", "rapier_multibody", 19.0)).as_deref(),
+            Some("soft-vs-speculative-contact")
+        );
+        assert_eq!(
+            cover(&finding("one_step_bound", "mujoco", "rapier_multibody", 21.0)),
+            None,
+            "the reference pair keeps its cap"
+        );
+        let via = cover(&finding("one_step_bound", "bullet", "rapier_multibody", 34.0));
+        assert_eq!(via.as_deref(), Some("via-reference:rigid-vs-soft-contact+soft-vs-speculative-contact"));
+        assert_eq!(cover(&finding("one_step_bound", "bullet", "rapier_multibody", 36.0)), None);
+        // An engine no entry covers may stand at its bound from the reference: over k steps in contact Bullet has
+        // no entry (1) and Rapier multibody the friction-cone entry (1.5).
+        let k = |r| Finding {
+            quantity: "link position".into(),
+            ..finding("k_step_bound", "bullet", "rapier_multibody", r)
+        };
+        assert_eq!(cover(&k(2.4)).as_deref(), Some("via-reference:-+friction-cone-and-stiction"));
+        assert_eq!(cover(&k(2.6)), None);
+        // Invariants are one engine's own: no pair loosens them.
+        let inv = Finding {
+            quantity: "joint limit overrun".into(),
+            ..finding("invariant", "bullet", "rapier_multibody", 1.2)
+        };
+        assert_eq!(cover(&inv), None);
+    }
 }

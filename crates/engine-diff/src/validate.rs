@@ -472,7 +472,7 @@ fn evidence(
         joint: s.model.joints.get(jix).map_or_else(String::new, |j| j.name.clone()),
         joint_share: share(jv, joint_total),
         worst_finding: worst_f.map(|f| (f.kind.clone(), f.quantity.clone(), f.phase.clone(), f.ratio())),
-        covered_by: worst_f.and_then(|f| s.allow.matching(f)).map(|e| e.id.clone()),
+        covered_by: worst_f.and_then(|f| s.allow.covering(f)).map(|c| c.id()),
         known_differences: known_differences(s.allow, &engine_name),
         tracking_error: mean_err(mine),
         train_tracking_error: mean_err(train_scores),
