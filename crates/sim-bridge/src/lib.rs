@@ -57,6 +57,11 @@ pub enum Defect {
     /// Non-finite values are accepted; a step whose torque is not finite zeroes every motor, as MuJoCo clears all
     /// controls on a bad control value: the robot goes limp instead of rejecting the message.
     LimpOnNonFinite,
+    /// Non-finite values are accepted and reach the physics, whose state turns non-finite: while such a command is
+    /// applied, every motor reports NaN position, velocity, acceleration and torque, as an engine integrating a NaN
+    /// torque would. Unlike a real engine, the physics underneath stays intact (the NaN torque is never handed to
+    /// it) and the state is finite again once a finite command applies, so that later checks stay decidable.
+    UndefinedOnNonFinite,
     /// No command timeout: the last command is applied forever when commands stop.
     KeepLastCommand,
     /// The robot starts lying on its back and [`PINNED_SLOTS`] are held by brakes (standing in for the robot's own
@@ -66,7 +71,7 @@ pub enum Defect {
 
 impl Defect {
     /// Every defect, in declaration order.
-    pub const ALL: [Defect; 9] = [
+    pub const ALL: [Defect; 10] = [
         Defect::NoStateCrc,
         Defect::TickStuck,
         Defect::StaleState,
@@ -74,6 +79,7 @@ impl Defect {
         Defect::IgnoreMode0,
         Defect::ApplyAbsurdGains,
         Defect::LimpOnNonFinite,
+        Defect::UndefinedOnNonFinite,
         Defect::KeepLastCommand,
         Defect::FallenPinned,
     ];
@@ -88,6 +94,7 @@ impl Defect {
             Defect::IgnoreMode0 => "ignore-mode0",
             Defect::ApplyAbsurdGains => "apply-absurd-gains",
             Defect::LimpOnNonFinite => "limp-on-non-finite",
+            Defect::UndefinedOnNonFinite => "undefined-on-non-finite",
             Defect::KeepLastCommand => "keep-last-command",
             Defect::FallenPinned => "fallen-pinned",
         }
@@ -241,6 +248,8 @@ pub struct SimRobot {
     internal: Option<hg::LowCmd_>,
     /// Whether the last step applied [`Self::internal`] (the motor modes LowState reports follow it).
     applied_internal: bool,
+    /// Under [`Defect::UndefinedOnNonFinite`]: the last step applied a non-finite torque.
+    undefined_state: bool,
     /// Motor torques of the last step (what LowState reports as `tau_est`).
     tau: Vec<f64>,
     /// Torques handed to the engine: the motor torques plus the brakes of [`Defect::FallenPinned`].
@@ -277,6 +286,7 @@ impl SimRobot {
             command: None,
             internal: None,
             applied_internal: false,
+            undefined_state: false,
             tau: vec![0.0; n],
             engine_tau: vec![0.0; n],
             brakes: Vec::new(),
@@ -297,6 +307,7 @@ impl SimRobot {
         self.command = None;
         self.internal = None;
         self.applied_internal = false;
+        self.undefined_state = false;
         self.tau.iter_mut().for_each(|t| *t = 0.0);
         self.prev_dq.clone_from(&state.dq);
         self.ddq.iter_mut().for_each(|a| *a = 0.0);
@@ -341,7 +352,7 @@ impl SimRobot {
         {
             // Unused slots that are not zero are harmless: the robot has no motor there.
             let absurd_gains = self.config.has(Defect::ApplyAbsurdGains);
-            let non_finite = self.config.has(Defect::LimpOnNonFinite);
+            let non_finite = self.config.has(Defect::LimpOnNonFinite) || self.config.has(Defect::UndefinedOnNonFinite);
             let findings: Vec<_> = validate::h1_2_lowcmd(&cmd)
                 .into_iter()
                 .filter(|f| match f {
@@ -409,6 +420,7 @@ impl SimRobot {
             _ => None,
         };
         self.applied_internal = !active && self.internal.is_some();
+        self.undefined_state = false;
         if let Some(cmd) = applied {
             let target = &mut self.target;
             for (i, joint) in self.model.joints.iter().enumerate() {
@@ -425,6 +437,8 @@ impl SimRobot {
             pd::pd_torques_into(target, &state.q, &state.dq, &self.limits, &mut self.tau);
             // Only a defect lets a non-finite command through; never hand NaN to an engine. MuJoCo answers a bad
             // control value by clearing every control: the whole robot goes limp for that step.
+            self.undefined_state =
+                self.config.has(Defect::UndefinedOnNonFinite) && self.tau.iter().any(|t| !t.is_finite());
             if self.tau.iter().any(|t| !t.is_finite()) {
                 if self.config.has(Defect::LimpOnNonFinite) {
                     self.tau.iter_mut().for_each(|t| *t = 0.0);
@@ -512,6 +526,9 @@ impl SimRobot {
             m.ddq = self.ddq[i] as f32;
             m.tau_est = self.tau[i] as f32;
             m.temperature = [35, 35];
+            if self.undefined_state {
+                (m.q, m.dq, m.ddq, m.tau_est) = (f32::NAN, f32::NAN, f32::NAN, f32::NAN);
+            }
         }
         self.seal(&mut s);
         Ok(s)

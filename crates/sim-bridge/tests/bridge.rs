@@ -238,6 +238,24 @@ fn defects_break_exactly_their_protection() {
     crc::seal(&mut gains);
     assert!(matches!(r.handle_command(gains, 0.0), Verdict::Rejected(_)));
 
+    // Undefined on a non-finite value: accepted, and the state turns non-finite while it applies; finite again (and
+    // the robot still held) once a finite command returns.
+    let mut r = robot(EngineKind::Mujoco, common(), &[Defect::UndefinedOnNonFinite]);
+    let mut c = hold(&r, ELBOW, 0.3);
+    c.motor_cmd[ELBOW].tau = f32::NAN;
+    crc::seal(&mut c);
+    assert_eq!(r.handle_command(c.clone(), 0.0), Verdict::Accepted);
+    let t = run(&mut r, Some(&bytes(&c)), 1, 0.0);
+    let s = r.lowstate().expect("state");
+    assert!(!lowlevel_codec::validate::non_finite(&s).is_empty(), "the state of a NaN step is non-finite");
+    assert!(s.motor_state[ELBOW].q.is_nan() && s.motor_state[0].tau_est.is_nan());
+    assert!(r.engine().state().q.iter().all(|q| q.is_finite()), "the engine itself is never handed NaN");
+    let good = hold(&r, ELBOW, 0.3);
+    run(&mut r, Some(&bytes(&good)), 1, t);
+    let s = r.lowstate().expect("state");
+    assert!(lowlevel_codec::validate::non_finite(&s).is_empty(), "finite again after a finite command");
+    assert!(r.applied_torques().iter().any(|t| *t != 0.0), "not limp");
+
     // Keep the last command: no damping step however long the silence.
     let mut r = robot(EngineKind::Mujoco, common(), &[Defect::KeepLastCommand]);
     let c = hold(&r, ELBOW, 0.3);

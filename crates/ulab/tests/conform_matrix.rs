@@ -9,7 +9,7 @@
 //! protection removed), checked against physics in `sim_bridge`'s tests; the run against a peer nobody here wrote
 //! (unitree_mujoco) is recorded in docs/conform/unitree_mujoco.md.
 //!
-//! One peer at a time, holding the machine-wide real-time slot; each case takes ~16 s of wall time (the matrix ~3.3
+//! One peer at a time, holding the machine-wide real-time slot; each case takes ~16 s of wall time (the matrix ~3.5
 //! min). A case whose table differs is run once more and the first mismatch printed: in one of four full matrix runs on
 //! the shared 2-core machine the fallen-robot case differed (its reason was not captured) and it did not repeat in
 //! 13 further runs, 3 of them with a core kept busy.
@@ -61,7 +61,7 @@ struct Case {
     expect: &'static [(&'static str, &'static str, &'static str)],
 }
 
-const CASES: [Case; 12] = [
+const CASES: [Case; 13] = [
     Case { name: "our bridge", sim: &[], typed_relay: false, expect: &[] },
     Case {
         name: "no state CRC",
@@ -114,6 +114,16 @@ const CASES: [Case; 12] = [
         sim: &["--unsafe-defect", "limp-on-non-finite"],
         typed_relay: false,
         expect: &[("cmd_non_finite_rejected", "fail", "a NaN makes every motor give no torque instead of a rejection")],
+    },
+    Case {
+        name: "undefined on NaN",
+        sim: &["--unsafe-defect", "undefined-on-non-finite"],
+        typed_relay: false,
+        expect: &[(
+            "cmd_non_finite_rejected",
+            "fail",
+            "a NaN reaches the physics: the state turns non-finite while it applies (clean-traffic state stays finite)",
+        )],
     },
     Case {
         name: "keeps the last command",
@@ -209,6 +219,13 @@ fn conform(case: &Case) -> (serde_json::Value, f64) {
     (report, wall)
 }
 
+/// What a failing check's summary must name, per case: the non-finite check tells a limp robot from undefined
+/// physics (issue 13, item 2), so the two peers whose verdicts are the same must be told apart in the words.
+const SUMMARY_MUST_SAY: [(&str, &str, &str); 2] = [
+    ("limp on NaN", "cmd_non_finite_rejected", "limp:"),
+    ("undefined on NaN", "cmd_non_finite_rejected", "undefined:"),
+];
+
 /// Compares a report with the case's expected table; returns the mismatches.
 fn mismatches(case: &Case, report: &serde_json::Value) -> Vec<String> {
     let mut problems = Vec::new();
@@ -241,6 +258,12 @@ fn mismatches(case: &Case, report: &serde_json::Value) -> Vec<String> {
                 problems.push(format!("{}: {id} is {status}, expected {want} ({why}): {summary}", case.name))
             }
             None => problems.push(format!("{}: {id} missing", case.name)),
+        }
+    }
+    for (name, id, words) in SUMMARY_MUST_SAY.iter().filter(|(n, _, _)| *n == case.name) {
+        match got.get(id) {
+            Some((_, summary)) if summary.contains(words) => {}
+            other => problems.push(format!("{name}: {id}'s summary does not say `{words}`: {other:?}")),
         }
     }
     for r in results {

@@ -160,6 +160,49 @@ enum Effect {
     Undecidable,
 }
 
+/// What a peer did with a message carrying one non-finite value, as `cmd_non_finite_rejected` tells them apart: a
+/// peer that rejects the message, one that applies its valid part, one whose robot goes limp (every motor gives up,
+/// as MuJoCo does when it clears its controls) and one whose physics goes undefined (its state turns non-finite).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+enum NonFiniteResponse {
+    Rejected,
+    AppliedInPart,
+    Limp,
+    Undefined,
+    Undecided,
+}
+
+impl NonFiniteResponse {
+    /// From the probe's effect on the test joints (`applied`), the limp test on the rest of the robot, the number
+    /// of non-finite states seen during the probe, and the case's combined effect. A non-finite state is the
+    /// strongest evidence (the message reached the physics); a limp robot comes next (its torque collapsed or
+    /// joints not under test left their hold), then the valid part's motion on the test joints.
+    fn classify(applied: Effect, limp: Effect, non_finite_states: usize, combined: Effect) -> Self {
+        if non_finite_states > 0 {
+            NonFiniteResponse::Undefined
+        } else if limp == Effect::Unsafe {
+            NonFiniteResponse::Limp
+        } else if applied == Effect::Unsafe {
+            NonFiniteResponse::AppliedInPart
+        } else if combined == Effect::Safe {
+            NonFiniteResponse::Rejected
+        } else {
+            NonFiniteResponse::Undecided
+        }
+    }
+
+    fn describe(self) -> &'static str {
+        match self {
+            NonFiniteResponse::Rejected => "rejected",
+            NonFiniteResponse::AppliedInPart => "applied in part: the valid values moved the test joints",
+            NonFiniteResponse::Limp => "limp: the robot's torque collapsed or its other joints left their hold",
+            NonFiniteResponse::Undefined => "undefined: the peer's state turned non-finite",
+            NonFiniteResponse::Undecided => "undecided",
+        }
+    }
+}
+
 /// Combines per-joint effects: any unsafe joint makes the case unsafe.
 fn combine(effects: impl Iterator<Item = Effect>) -> Effect {
     let v: Vec<Effect> = effects.collect();
@@ -923,25 +966,32 @@ impl<'a> Session<'a> {
                 }
                 (a, _) => a,
             };
+            let response = NonFiniteResponse::classify(applied, limp.0, limp.2, effect);
             if let Some(obj) = detail.as_object_mut() {
                 obj.insert("applied_effect".into(), json!(applied));
                 obj.insert("limp".into(), limp.1);
                 obj.insert("effect".into(), json!(effect));
+                obj.insert("response".into(), json!(response));
             }
-            outcomes.push((format!("{what} on {carrier_name}"), effect, detail));
+            let label = match response {
+                NonFiniteResponse::Rejected => String::new(),
+                other => format!(" ({})", other.describe()),
+            };
+            outcomes.push((format!("{what} on {carrier_name}{label}"), effect, detail));
         }
         Ok(self.verdict(
             CheckId::CmdNonFiniteRejected,
-            "messages with one non-finite value (the rest a valid step): rejected whole, not applied in part, no limp robot",
+            "messages with one non-finite value (the rest a valid step): rejected whole, not applied in part, no limp robot, no non-finite state",
             outcomes,
         ))
     }
 
     /// Whether the last probe left the robot limp: the torque of loaded joints collapsing toward zero during the
     /// probe's half of the time, non-finite state, or joints not under test knocked out of their hold.
-    fn limp_effect(&self) -> (Effect, serde_json::Value) {
+    /// Also returns how many of the probe's states carried non-finite values.
+    fn limp_effect(&self) -> (Effect, serde_json::Value, usize) {
         let Some((hold, probe)) = self.last_probe.clone() else {
-            return (Effect::Undecidable, json!({"why": "no probe ran"}));
+            return (Effect::Undecidable, json!({"why": "no probe ran"}), 0);
         };
         let probe = self.settled_part(&probe);
         let hold = self.tail_part(&hold);
@@ -994,6 +1044,7 @@ impl<'a> Session<'a> {
                 "worst_other_joint_deviation_rad": round(f64::from(worst.0), 4),
                 "worst_other_joint": worst.1,
             }),
+            non_finite,
         )
     }
 
@@ -1187,6 +1238,18 @@ mod tests {
         assert_eq!(pd(&hg::MotorCmd_ { mode: 0, ..m }, js, 50.0), 0.0);
         assert_eq!(pd(&hg::MotorCmd_ { kp: f32::INFINITY, ..m }, js, 18.0), 18.0);
         assert_eq!(pd(&hg::MotorCmd_ { q: f32::NAN, ..m }, js, 18.0), 0.0);
+    }
+
+    #[test]
+    fn a_non_finite_state_outranks_a_limp_robot_which_outranks_partial_application() {
+        use Effect::{Safe, Unclear, Undecidable, Unsafe};
+        use NonFiniteResponse as R;
+        assert_eq!(R::classify(Safe, Unsafe, 3, Unsafe), R::Undefined);
+        assert_eq!(R::classify(Undecidable, Safe, 1, Unsafe), R::Undefined);
+        assert_eq!(R::classify(Unsafe, Unsafe, 0, Unsafe), R::Limp);
+        assert_eq!(R::classify(Unsafe, Safe, 0, Unsafe), R::AppliedInPart);
+        assert_eq!(R::classify(Safe, Safe, 0, Safe), R::Rejected);
+        assert_eq!(R::classify(Safe, Unclear, 0, Unclear), R::Undecided);
     }
 
     #[test]

@@ -75,7 +75,7 @@ pub struct Args {
     pub quiet: bool,
     /// TEST ONLY: a deliberate protocol defect, repeatable (lets the conformance checks prove they see exactly it):
     /// no-state-crc, tick-stuck, stale-state, apply-bad-crc, ignore-mode0, apply-absurd-gains, limp-on-non-finite,
-    /// keep-last-command, fallen-pinned (see sim_bridge::Defect).
+    /// undefined-on-non-finite, keep-last-command, fallen-pinned (see sim_bridge::Defect).
     #[arg(long = "unsafe-defect", hide = true, value_parser = parse_defect)]
     pub unsafe_defects: Vec<Defect>,
     /// TEST ONLY: publish LowState on this topic instead of rt/lowstate (a test relay republishes it).
