@@ -15,6 +15,8 @@
 //!    stiffness, damping only, until the caller stops sending.
 #![forbid(unsafe_code)]
 
+pub mod keyboard;
+
 use diff_physics::PdTarget;
 use lowlevel_codec::crc;
 use policy_runtime::{Controller, RobotObservation};
@@ -168,6 +170,21 @@ impl Deployer {
     /// The current phase.
     pub fn phase(&self) -> Phase {
         self.phase
+    }
+
+    /// The velocity command `(vx, vy, wz)` the policy is given now.
+    pub fn velocity_command(&self) -> [f64; 3] {
+        self.cfg.command
+    }
+
+    /// Changes the velocity command (`--keyboard`); the policy sees it from its next step. A non-finite command is
+    /// refused and the previous one stays.
+    pub fn set_velocity_command(&mut self, command: [f64; 3]) -> Result<(), DeployError> {
+        if command.iter().any(|c| !c.is_finite()) {
+            return Err(DeployError::Setting(format!("command {command:?} is not finite")));
+        }
+        self.cfg.command = command;
+        Ok(())
     }
 
     /// Why the deployment is damping, if it is.

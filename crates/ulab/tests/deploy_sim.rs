@@ -1,4 +1,5 @@
-//! `ulab deploy` walks the robot in `ulab sim` (issue 17): the shipped unitree_rl_gym LSTM policy runs outside the
+//! `ulab deploy` walks the robot in `ulab sim` (issue 17): the shipped unitree_rl_gym LSTM policy, steered by keys
+//! (`--keyboard`, piped), runs outside the
 //! simulator, over DDS, as the robot's low-level controller (LowState in, LowCmd with CRC out at 500 Hz), and the
 //! simulator, not the deployer, says what happened: how far the pelvis went, whether it stayed up, how many commands
 //! it accepted with a valid CRC. Bad arguments exit 2 without sending anything.
@@ -10,6 +11,7 @@ mod common;
 
 use common::{interrupt, lease_domain, run_ulab, sim_summary, tail, wait_with_timeout, KillOnDrop, RealtimeSlot};
 use serde_json::Value;
+use std::io::Write;
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
@@ -36,17 +38,22 @@ fn deploy_walks_the_lstm_policy_in_ulab_sim() {
         .expect("start ulab sim");
     let mut sim = KillOnDrop(Some(sim));
     let spec = common::root().join(SPEC);
-    let deploy = Command::new(env!("CARGO_BIN_EXE_ulab"))
+    // The 0.5 m/s forward command comes from five `w` key presses on a piped stdin (`--keyboard`): the walk below is
+    // then also the evidence that keys reach the policy (the command would otherwise be 0).
+    let mut deploy = Command::new(env!("CARGO_BIN_EXE_ulab"))
         .args(["deploy", "--domain", &domain.arg(), "--policy"])
         .arg(&spec)
-        .args(["--command", "0.5,0,0", "--duration", &WALK_S.to_string(), "--damp-seconds", "0"])
+        .args(["--keyboard", "--duration", &WALK_S.to_string(), "--damp-seconds", "0"])
         // A loaded CI machine may delay a LowState by more than the default 0.1 s; the stale stop itself is tested
         // in policy-deploy's unit tests.
         .args(["--stale-seconds", "0.5"])
+        .stdin(Stdio::piped())
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
         .spawn()
         .expect("start ulab deploy");
+    // Written at once and closed: the keys are read before the policy starts, and the end of input changes nothing.
+    deploy.stdin.take().expect("stdin").write_all(b"wwwww").expect("keys");
     let (status, _, deploy_err) = wait_with_timeout(deploy, Duration::from_secs(180));
     // Stop the simulator at once: without commands it damps and the robot sits down.
     let sim_child = sim.0.take().expect("sim child");
@@ -58,6 +65,8 @@ fn deploy_walks_the_lstm_policy_in_ulab_sim() {
         summary(&deploy_err, "deploy: summary ").unwrap_or_else(|| panic!("no deploy summary:\n{}", tail(&deploy_err)));
     let s = sim_summary(&sim_err).unwrap_or_else(|| panic!("no sim summary:\n{}", tail(&sim_err)));
     eprintln!("deploy: {d}\nsim: {s}");
+    assert_eq!(d["key_presses"], 5, "{d}");
+    assert_eq!(d["final_command"], serde_json::json!([0.5, 0.0, 0.0]), "{d}");
     assert_eq!(d["safety_stop"], false, "{d}");
     assert_eq!(d["stop"]["reason"], "requested", "{d}");
     assert_eq!(d["counters"]["bad_crc"], 0, "{d}");

@@ -1,4 +1,4 @@
-//! `ulab deploy --policy SPEC [--domain D] [--command vx,vy,wz] [--duration S]`: a policy as the robot's low-level
+//! `ulab deploy --policy SPEC [--domain D] [--command vx,vy,wz] [--keyboard] [--duration S]`: a policy as the robot's low-level
 //! controller over DDS (issue 17). Reads `rt/lowstate`, runs the policy at its rate and writes `rt/lowcmd` at
 //! `--rate` (500 Hz) with a sealed CRC; the logic (start sequence, limits, safety stops) is
 //! `policy_deploy::Deployer`, this module only does the I/O and the clock.
@@ -7,16 +7,22 @@
 //! and then the command prints what it will send and waits `--confirm-seconds` before sending. Stale or
 //! non-finite state, a policy error or Ctrl-C lead to damping (zero stiffness) for `--damp-seconds`, then exit.
 //!
+//! `--keyboard` steers the velocity command from the keys (`policy_deploy::keyboard`: w/s, a/d, q/e or arrows,
+//! space to stand, Esc or Ctrl-C to stop): from a terminal in raw mode, or byte by byte from a piped stdin, so that
+//! scripts and tests drive it the same way.
+//!
 //! Exit codes: 0 the run ended as asked (duration or Ctrl-C), 1 a safety stop, 2 errors (no state, bad input).
 use super::recording::NetArgs;
 use anyhow::{bail, Context, Result};
 use dds_transport::{Family, Participant, TopicSpec};
 use lowlevel_codec::{cdr, Encoding};
+use policy_deploy::keyboard::{self, Key, KeyEffect};
 use policy_deploy::{DeployConfig, Deployer, Phase, StopReason};
+use std::io::{IsTerminal, Read};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::{mpsc, Arc};
 use std::time::{Duration, Instant};
 use unitree_idl::hg;
 
@@ -33,6 +39,10 @@ pub struct Args {
     /// Velocity command `vx,vy,wz` (m/s, m/s, rad/s) given to the policy.
     #[arg(long, default_value = "0,0,0", value_parser = parse_command, allow_hyphen_values = true)]
     command: [f64; 3],
+    /// Steer the velocity command from the keyboard (w/s forward, a/d sideways, q/e or arrows turn, space stands,
+    /// Esc stops); `--command` is the starting value. Reads a terminal in raw mode, or a piped stdin byte by byte.
+    #[arg(long)]
+    keyboard: bool,
     /// Seconds of policy control after the start sequence (default: until Ctrl-C).
     #[arg(long)]
     duration: Option<f64>,
@@ -121,6 +131,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
         }
     }
 
+    let keys = a.keyboard.then(KeyReader::start).transpose()?;
+    if keys.is_some() {
+        say(keys.as_ref(), "deploy: keyboard: w/s forward, a/d sideways, q/e turn, space stands, Esc stops");
+    }
     let participant = Participant::new(cfg.clone()).context("opening the DDS domain")?;
     let states = participant.reader(&TopicSpec::lowstate(Family::Hg)).context("subscribing rt/lowstate")?;
     let commands = participant.writer(&TopicSpec::lowcmd(Family::Hg)).context("creating the rt/lowcmd writer")?;
@@ -131,6 +145,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let mut running_since: Option<f64> = None;
     let mut stopped_at: Option<f64> = None;
     let mut first_state: Option<f64> = None;
+    let mut key_presses = 0u64;
     loop {
         let now = start.elapsed().as_secs_f64();
         while let Some(sample) = states.try_take() {
@@ -150,9 +165,24 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 a.wait_seconds
             );
         }
+        for key in keys.iter().flat_map(|k| k.pressed.try_iter()) {
+            key_presses += 1;
+            match keyboard::apply(key, deployer.velocity_command()) {
+                KeyEffect::Command(c) => {
+                    if deployer.set_velocity_command(c).is_ok() {
+                        say(
+                            keys.as_ref(),
+                            &format!("deploy: t={now:.2} s command vx {:.1} vy {:.1} wz {:.1}", c[0], c[1], c[2]),
+                        );
+                    }
+                }
+                KeyEffect::Stop => stop.store(true, Ordering::SeqCst),
+                KeyEffect::Ignored => {}
+            }
+        }
         if deployer.phase() == Phase::Running && running_since.is_none() {
             running_since = Some(now);
-            eprintln!("deploy: t={now:.2} s policy running");
+            say(keys.as_ref(), &format!("deploy: t={now:.2} s policy running"));
         }
         let done = running_since.zip(a.duration).is_some_and(|(t0, d)| now - t0 >= d);
         if stop.load(Ordering::SeqCst) || done {
@@ -160,7 +190,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         }
         if deployer.phase() == Phase::Damping && stopped_at.is_none() {
             stopped_at = Some(now);
-            eprintln!("deploy: t={now:.2} s damping: {:?}", deployer.stop_reason());
+            say(keys.as_ref(), &format!("deploy: t={now:.2} s damping: {:?}", deployer.stop_reason()));
         }
         if stopped_at.is_some_and(|t| now - t >= a.damp_seconds) {
             break;
@@ -179,10 +209,14 @@ pub fn run(a: Args) -> Result<ExitCode> {
             next = now_i;
         }
     }
+    // The terminal back in its normal mode before the summary.
+    drop(keys);
     let safety_stop = !matches!(deployer.stop_reason(), Some(StopReason::Requested) | None);
     let summary = serde_json::json!({
         "policy": name,
         "command": a.command,
+        "final_command": deployer.velocity_command(),
+        "key_presses": key_presses,
         "wall_seconds": start.elapsed().as_secs_f64(),
         "policy_seconds": running_since.map(|t0| stopped_at.unwrap_or(t0) - t0),
         "stop": deployer.stop_reason(),
@@ -192,4 +226,78 @@ pub fn run(a: Args) -> Result<ExitCode> {
     });
     eprintln!("deploy: summary {summary}");
     Ok(if safety_stop { ExitCode::from(1) } else { ExitCode::SUCCESS })
+}
+
+/// Prints a status line; a terminal in raw mode needs the carriage return spelled out.
+fn say(keys: Option<&KeyReader>, line: &str) {
+    if keys.is_some_and(|k| k.raw) {
+        eprint!("{line}\r\n");
+    } else {
+        eprintln!("{line}");
+    }
+}
+
+/// Keys from the terminal (raw mode, restored on drop) or from a piped stdin, delivered on a channel by a thread.
+struct KeyReader {
+    pressed: mpsc::Receiver<Key>,
+    raw: bool,
+    stop: Arc<AtomicBool>,
+}
+
+impl KeyReader {
+    fn start() -> Result<KeyReader> {
+        let (tx, pressed) = mpsc::channel();
+        let stop = Arc::new(AtomicBool::new(false));
+        let raw = std::io::stdin().is_terminal();
+        if raw {
+            crossterm::terminal::enable_raw_mode().context("--keyboard: switching the terminal to raw mode")?;
+            let stop = stop.clone();
+            std::thread::spawn(move || {
+                use crossterm::event::{self, Event, KeyCode, KeyEventKind, KeyModifiers};
+                while !stop.load(Ordering::SeqCst) {
+                    if !event::poll(Duration::from_millis(50)).unwrap_or(false) {
+                        continue;
+                    }
+                    let Ok(Event::Key(k)) = event::read() else { continue };
+                    if k.kind == KeyEventKind::Release {
+                        continue;
+                    }
+                    let key = match k.code {
+                        KeyCode::Char('c') if k.modifiers.contains(KeyModifiers::CONTROL) => Key::CtrlC,
+                        KeyCode::Char(c) => Key::Char(c),
+                        KeyCode::Up => Key::Up,
+                        KeyCode::Down => Key::Down,
+                        KeyCode::Left => Key::Left,
+                        KeyCode::Right => Key::Right,
+                        KeyCode::Esc => Key::Esc,
+                        _ => continue,
+                    };
+                    if tx.send(key).is_err() {
+                        break;
+                    }
+                }
+            });
+        } else {
+            // A pipe: every byte is a key; the end of the input leaves the command as it is.
+            std::thread::spawn(move || {
+                let mut stdin = std::io::stdin().lock();
+                let mut byte = [0u8; 1];
+                while let Ok(1) = stdin.read(&mut byte) {
+                    if tx.send(Key::from_byte(byte[0])).is_err() {
+                        break;
+                    }
+                }
+            });
+        }
+        Ok(KeyReader { pressed, raw, stop })
+    }
+}
+
+impl Drop for KeyReader {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::SeqCst);
+        if self.raw {
+            let _ = crossterm::terminal::disable_raw_mode();
+        }
+    }
 }
