@@ -97,7 +97,7 @@ pub fn fuzz_with_observer(
     };
     let mut corpus: Vec<CorpusEntry> = Vec::new();
     let mut patterns = BTreeSet::new();
-    let mut best: BTreeMap<(String, String, String, String), (f64, usize)> = BTreeMap::new();
+    let mut best: BTreeMap<crate::harness::GroupKey, (f64, usize)> = BTreeMap::new();
     let mut kept: Vec<EpisodeResult> = Vec::new();
     let mut failed = 0;
     let mut absorb =

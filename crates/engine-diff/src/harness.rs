@@ -1,5 +1,6 @@
 //! Rollouts in several engines: windowed divergence from identical states, per-engine invariants and
 //! free-running episode outcomes.
+use crate::phase::{ContactPhase, Feet};
 use crate::scenario::Scenario;
 use crate::DiffError;
 use diff_physics::pd::pd_torques_into;
@@ -152,13 +153,16 @@ pub struct EngineDiv {
 pub struct WindowRecord {
     pub index: usize,
     pub t0: f64,
-    /// Contact phase of the lead at the window start: `flight`, `left`, `right`, `double`, plus `+other`.
-    pub phase: String,
+    /// Contact phase of the lead at the window start.
+    pub phase: ContactPhase,
     /// Distinct robot bodies touching the ground in the lead at the window start.
     pub contact_bodies: Vec<String>,
     pub divs: Vec<EngineDiv>,
     pub input: WindowInput,
 }
+
+/// What makes findings one group: kind, engine, quantity and contact phase.
+pub type GroupKey = (String, String, String, ContactPhase);
 
 /// A measured excess: a cross-engine bound or a per-engine invariant.
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -173,7 +177,7 @@ pub struct Finding {
     pub bound: f64,
     pub window: usize,
     pub t0: f64,
-    pub phase: String,
+    pub phase: ContactPhase,
     pub contact_bodies: usize,
 }
 
@@ -186,8 +190,8 @@ impl Finding {
         }
     }
     /// Findings of one group are the same divergence seen several times.
-    pub fn group_key(&self) -> (String, String, String, String) {
-        (self.kind.clone(), self.engine.clone(), self.quantity.clone(), self.phase.clone())
+    pub fn group_key(&self) -> GroupKey {
+        (self.kind.clone(), self.engine.clone(), self.quantity.clone(), self.phase)
     }
 }
 
@@ -327,21 +331,21 @@ pub fn initial_state(model: &RobotModel, s: &Scenario) -> Result<State, DiffErro
     Ok(st)
 }
 
-/// Contact phase name and the robot bodies touching the ground.
-pub fn phase_of(contacts: &[Contact]) -> (String, Vec<String>) {
+/// Contact phase and the robot bodies touching the ground.
+pub fn phase_of(contacts: &[Contact]) -> (ContactPhase, Vec<String>) {
     let mut bodies: Vec<String> =
         contacts.iter().filter(|c| c.body_a == "ground" && c.normal_force > 0.0).map(|c| c.body_b.clone()).collect();
     bodies.sort();
     bodies.dedup();
     let foot = |side: &str| bodies.iter().any(|b| b.starts_with(side) && b.contains("ankle"));
     let other = bodies.iter().any(|b| !b.contains("ankle"));
-    let base = match (foot("left"), foot("right")) {
-        (true, true) => "double",
-        (true, false) => "left",
-        (false, true) => "right",
-        (false, false) => "flight",
+    let feet = match (foot("left"), foot("right")) {
+        (true, true) => Feet::Double,
+        (true, false) => Feet::Left,
+        (false, true) => Feet::Right,
+        (false, false) => Feet::Flight,
     };
-    (if other { format!("{base}+other") } else { base.to_string() }, bodies)
+    (ContactPhase { feet, other }, bodies)
 }
 
 fn yaw_of(q: [f64; 4]) -> f64 {
@@ -690,7 +694,7 @@ pub fn run_episode_on(
             bound,
             window: index,
             t0,
-            phase: phase.clone(),
+            phase,
             contact_bodies: bodies.len(),
         };
         let mut divs = Vec::new();

@@ -20,6 +20,7 @@ pub mod excitation;
 pub mod fuzz;
 pub mod gait;
 pub mod harness;
+pub mod phase;
 pub mod report;
 pub mod repro;
 pub mod scenario;

@@ -1,6 +1,7 @@
 //! Analysis of episodes into a report (`report.md`, `report.json`, SVG plots) with triaged, minimized
 //! entries and their reproducers.
 use crate::harness::{Bounds, ControllerFactory, EngineFactory, EpisodeResult, Finding, HarnessConfig, Timing};
+use crate::phase::ContactPhase;
 use crate::repro::{EngineInfo, Reproducer};
 use crate::triage::{self, AllowEntry, AllowList, Class};
 use crate::{io_err, DiffError, SCHEMA_VERSION};
@@ -42,7 +43,7 @@ pub struct NamedStats {
 /// Divergence per contact phase.
 #[derive(Debug, Clone, Serialize)]
 pub struct PhaseStats {
-    pub phase: String,
+    pub phase: ContactPhase,
     pub one_step_joint_vel: Stats,
     pub k_step_link_pos: Stats,
 }
@@ -85,7 +86,7 @@ pub struct MinimizedSummary {
     pub perturbation_scale: f64,
     pub steps: usize,
     pub contact_bodies: usize,
-    pub phase: String,
+    pub phase: ContactPhase,
     pub value: f64,
     pub bound: f64,
     pub reproducer: String,
@@ -98,7 +99,7 @@ pub struct Entry {
     pub kind: String,
     pub engine: String,
     pub quantity: String,
-    pub phase: String,
+    pub phase: ContactPhase,
     pub count: usize,
     pub worst: Finding,
     pub worst_episode_seed: u64,
@@ -249,10 +250,10 @@ pub fn analyse(a: &Analysis<'_>, episodes: &[EpisodeResult]) -> Result<(Report, 
     // Divergence per engine.
     let mut divergence = Vec::new();
     for en in names.iter().skip(1) {
-        let divs: Vec<(&crate::harness::EngineDiv, &str)> = episodes
+        let divs: Vec<(&crate::harness::EngineDiv, ContactPhase)> = episodes
             .iter()
             .flat_map(|e| e.windows.iter())
-            .flat_map(|w| w.divs.iter().filter(|d| &d.engine == en).map(move |d| (d, w.phase.as_str())))
+            .flat_map(|w| w.divs.iter().filter(|d| &d.engine == en).map(move |d| (d, w.phase)))
             .collect();
         let full: Vec<&crate::harness::EngineDiv> = episodes
             .iter()
@@ -263,9 +264,9 @@ pub fn analyse(a: &Analysis<'_>, episodes: &[EpisodeResult]) -> Result<(Report, 
             Stats::of(&v.iter().map(|d| f(d)).collect::<Vec<_>>())
         };
         let all: Vec<&crate::harness::EngineDiv> = divs.iter().map(|d| d.0).collect();
-        let mut phases: BTreeMap<&str, Vec<&crate::harness::EngineDiv>> = BTreeMap::new();
+        let mut phases: BTreeMap<ContactPhase, Vec<&crate::harness::EngineDiv>> = BTreeMap::new();
         for (d, p) in &divs {
-            phases.entry(p).or_default().push(d);
+            phases.entry(*p).or_default().push(d);
         }
         divergence.push(EngineDivergence {
             engine: en.clone(),
@@ -296,7 +297,7 @@ pub fn analyse(a: &Analysis<'_>, episodes: &[EpisodeResult]) -> Result<(Report, 
             per_phase: phases
                 .into_iter()
                 .map(|(p, v)| PhaseStats {
-                    phase: p.to_string(),
+                    phase: p,
                     one_step_joint_vel: col(&|d| d.one_step.max_dq(), &v),
                     k_step_link_pos: col(&|d| d.k_step.max_link(), &v),
                 })
@@ -329,7 +330,7 @@ pub fn analyse(a: &Analysis<'_>, episodes: &[EpisodeResult]) -> Result<(Report, 
     }
 
     // Group findings, triage the worst of each group, minimize the largest ones.
-    type Groups = BTreeMap<(String, String, String, String), (usize, usize, Finding)>;
+    type Groups = BTreeMap<crate::harness::GroupKey, (usize, usize, Finding)>;
     let mut groups: Groups = BTreeMap::new();
     for (ei, e) in episodes.iter().enumerate() {
         for f in &e.findings {
@@ -350,7 +351,7 @@ pub fn analyse(a: &Analysis<'_>, episodes: &[EpisodeResult]) -> Result<(Report, 
             kind: f.kind.clone(),
             engine: f.engine.clone(),
             quantity: f.quantity.clone(),
-            phase: f.phase.clone(),
+            phase: f.phase,
             count,
             worst_episode_seed: episodes[ei].scenario.seed,
             worst: f,
@@ -394,7 +395,7 @@ pub fn analyse(a: &Analysis<'_>, episodes: &[EpisodeResult]) -> Result<(Report, 
                     perturbation_scale: m.scale,
                     steps: m.steps,
                     contact_bodies: m.finding.contact_bodies,
-                    phase: m.finding.phase.clone(),
+                    phase: m.finding.phase,
                     value: r.expected.value,
                     bound: triage::finding_bound(&m.finding, a.cfg.common.timestep, m.steps),
                     reproducer: file.clone(),

@@ -108,7 +108,7 @@ pub struct SearchOutcome {
     /// translation check).
     pub unexplained_groups: usize,
     /// Those groups, with the largest ratio seen in each: (kind, engine, quantity, phase, ratio).
-    pub unexplained: Vec<(String, String, String, String, f64)>,
+    pub unexplained: Vec<(String, String, String, crate::phase::ContactPhase, f64)>,
     /// Best score after each rollout (the search's progress curve).
     pub best_so_far: Vec<f64>,
     pub best_scenario: Option<Scenario>,
@@ -121,8 +121,8 @@ struct Tally {
     failed: usize,
     best_score: f64,
     max_divergence: f64,
-    groups: BTreeSet<(String, String, String, String)>,
-    unexplained: std::collections::BTreeMap<(String, String, String, String), f64>,
+    groups: BTreeSet<crate::harness::GroupKey>,
+    unexplained: std::collections::BTreeMap<crate::harness::GroupKey, f64>,
     best_so_far: Vec<f64>,
     best: Option<Scenario>,
 }

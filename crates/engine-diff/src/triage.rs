@@ -4,6 +4,7 @@
 use crate::harness::{
     self, Bounds, ControllerFactory, Div, EngineFactory, Finding, HarnessConfig, WindowInput, WindowRecord,
 };
+use crate::phase::PhaseSelector;
 use crate::scenario::Scenario;
 use crate::DiffError;
 use diff_physics::{CommonSettings, State};
@@ -26,9 +27,9 @@ pub struct AllowEntry {
     /// Quantities (empty: any).
     #[serde(default)]
     pub quantities: Vec<String>,
-    /// Contact phases (empty: any; `contact` = any phase with a ground contact).
+    /// Contact phases (empty: any; `contact` = any phase with a ground contact). A misspelt phase fails reading.
     #[serde(default)]
-    pub phases: Vec<String>,
+    pub phases: Vec<PhaseSelector>,
     /// The entry covers a finding only up to this multiple of its bound; beyond, it is a candidate bug.
     pub max_ratio: f64,
     pub rationale: String,
@@ -39,8 +40,7 @@ pub struct AllowEntry {
 impl AllowEntry {
     /// The entry speaks of this finding (engine, lead, kind, quantity, phase), whatever its ratio.
     fn in_scope(&self, f: &Finding) -> bool {
-        let phase_ok = self.phases.is_empty()
-            || self.phases.iter().any(|p| p == &f.phase || (p == "contact" && f.phase != "flight"));
+        let phase_ok = self.phases.is_empty() || self.phases.iter().any(|p| p.covers(f.phase));
         let lead_ok = f.kind == "invariant" || self.leads.iter().any(|l| l == &f.lead);
         self.engines.iter().any(|x| x == &f.engine)
             && lead_ok
@@ -402,7 +402,7 @@ mod tests {
             bound: 1.0,
             window: 0,
             t0: 0.0,
-            phase: "double".into(),
+            phase: crate::phase::ContactPhase::DOUBLE,
             contact_bodies: 2,
         }
     }

@@ -441,11 +441,11 @@ fn evidence(
     let pair = [s.factories[train_ix].clone(), s.factories[engine_ix].clone()];
     let cfg = HarnessConfig { free_runs: false, ..s.cfg.clone() };
     let ep = run_episode(s.model, &pair, s.controller, &sc, &cfg)?;
-    let mut by_phase: std::collections::BTreeMap<String, f64> = Default::default();
+    let mut by_phase: std::collections::BTreeMap<crate::phase::ContactPhase, f64> = Default::default();
     let mut by_joint = vec![0.0; s.model.nj()];
     for w in &ep.windows {
         for d in &w.divs {
-            *by_phase.entry(w.phase.clone()).or_default() += d.k_step.max_link();
+            *by_phase.entry(w.phase).or_default() += d.k_step.max_link();
             for (j, q) in d.k_step.q.iter().enumerate() {
                 if let Some(slot) = by_joint.get_mut(j) {
                     *slot += q;
@@ -456,7 +456,7 @@ fn evidence(
     let share = |v: f64, total: f64| if total > 0.0 { v / total } else { 0.0 };
     let phase_total: f64 = by_phase.values().sum();
     let (phase, pv) =
-        by_phase.iter().max_by(|a, b| a.1.total_cmp(b.1)).map_or((String::new(), 0.0), |(k, v)| (k.clone(), *v));
+        by_phase.iter().max_by(|a, b| a.1.total_cmp(b.1)).map_or((String::new(), 0.0), |(k, v)| (k.to_string(), *v));
     let joint_total: f64 = by_joint.iter().sum();
     let (jix, jv) = by_joint.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1)).map_or((0, 0.0), |(i, v)| (i, *v));
     let worst_f = ep.findings.iter().max_by(|a, b| a.ratio().total_cmp(&b.ratio()));
@@ -471,7 +471,7 @@ fn evidence(
         phase_share: share(pv, phase_total),
         joint: s.model.joints.get(jix).map_or_else(String::new, |j| j.name.clone()),
         joint_share: share(jv, joint_total),
-        worst_finding: worst_f.map(|f| (f.kind.clone(), f.quantity.clone(), f.phase.clone(), f.ratio())),
+        worst_finding: worst_f.map(|f| (f.kind.clone(), f.quantity.clone(), f.phase.to_string(), f.ratio())),
         covered_by: worst_f.and_then(|f| s.allow.covering(f)).map(|c| c.id()),
         known_differences: known_differences(s.allow, &engine_name),
         tracking_error: mean_err(mine),

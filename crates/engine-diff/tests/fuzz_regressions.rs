@@ -17,8 +17,10 @@ fn engine_divergence_inputs_raise_no_candidate_bug() {
     let allow = engine_diff::triage::AllowList::builtin().expect("allow-list");
     // Largest ratio to its bound per (lead, engine, kind, quantity, phase) over every input: the figures the
     // allow-list's caps for touch-down inputs are set from (printed with --nocapture).
-    let mut largest: std::collections::BTreeMap<(String, String, String, String, String), (f64, String)> =
-        Default::default();
+    let mut largest: std::collections::BTreeMap<
+        (String, String, String, String, engine_diff::phase::ContactPhase),
+        (f64, String),
+    > = Default::default();
     let (mut regressions, mut seeds) = (0, 0);
     let mut failures = Vec::new();
     for (dir, count) in [
@@ -37,7 +39,7 @@ fn engine_divergence_inputs_raise_no_candidate_bug() {
                     .findings_on_pair(&p, pair)
                     .unwrap_or_else(|e| panic!("{} on {pair:?}: engine failed: {e}", path.display()));
                 for f in &all {
-                    let key = (f.lead.clone(), f.engine.clone(), f.kind.clone(), f.quantity.clone(), f.phase.clone());
+                    let key = (f.lead.clone(), f.engine.clone(), f.kind.clone(), f.quantity.clone(), f.phase);
                     let worst = largest.entry(key).or_insert((0.0, String::new()));
                     if f.ratio() > worst.0 {
                         *worst =

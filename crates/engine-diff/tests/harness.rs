@@ -155,7 +155,7 @@ fn reproducers_replay_bit_for_bit_and_catch_tampering() {
         bound: 1.0,
         window: 2,
         t0: w.t0,
-        phase: w.phase.clone(),
+        phase: w.phase,
         contact_bodies: w.contact_bodies.len(),
     };
     let min = Minimized { scale: 1.0, scenario: s.clone(), finding, window: w.input.clone(), steps: 10 };
