@@ -28,6 +28,7 @@
 //! # Ok::<(), dds_transport::Error>(())
 //! ```
 #![deny(unsafe_code)]
+#![warn(missing_docs)]
 
 pub mod config;
 mod error;

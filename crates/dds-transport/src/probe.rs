@@ -42,27 +42,43 @@ pub fn multicast_discovery_port(domain: u32) -> u32 {
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum ProbeError {
+    /// The probe would reach a real robot (domain 0 or a non-loopback interface) without
+    /// [`ProbeTarget::allow_robot`].
     #[error("refusing {what}: a real robot may be there; pass allow_robot (--allow-robot) to probe it")]
-    RobotNotAllowed { what: String },
+    RobotNotAllowed {
+        /// What was refused, e.g. "domain 0".
+        what: String,
+    },
+    /// The named interface does not exist or has no IPv4 address to probe from.
     #[error("interface {0:?} not found or without an IPv4 address")]
     NoInterface(String),
+    /// The host's interfaces could not be listed (getifaddrs failed).
     #[error("listing network interfaces: {0}")]
     Interfaces(#[source] nix::Error),
+    /// Opening, configuring or using the probe's UDP socket failed.
     #[error("socket: {0}")]
     Socket(#[from] std::io::Error),
+    /// A domain id above [`MAX_DOMAIN`](crate::config::MAX_DOMAIN), whose RTPS ports would not fit.
     #[error("domain {domain} has no RTPS ports (highest is 232)")]
-    BadDomain { domain: u32 },
+    BadDomain {
+        /// The domain id asked for.
+        domain: u32,
+    },
 }
 
 /// One network interface of this host.
 #[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
 pub struct NetInterface {
+    /// Interface name (`lo`, `eth0`, ...).
     pub name: String,
+    /// Whether the interface is up (the kernel's UP flag).
     pub up: bool,
+    /// Whether it is a loopback interface (the kernel's LOOPBACK flag).
     pub loopback: bool,
     /// The kernel's MULTICAST flag (Linux's `lo` has none: Cyclone 0.10.2 then sends no multicast on it, Cyclone
     /// 11 uses multicast on a loopback interface anyway).
     pub multicast_flag: bool,
+    /// Its IPv4 addresses (possibly none).
     pub ipv4: Vec<Ipv4Addr>,
 }
 
@@ -139,9 +155,11 @@ pub struct AnnouncedParticipant {
     pub product_version: Option<String>,
     /// Cyclone's raw version string (`host/version/OS/target`).
     pub version_info: Option<String>,
-    /// Process name, pid and host from the participant's property list (Cyclone: `__ProcessName` ...).
+    /// Process name from the participant's property list (Cyclone: `__ProcessName`).
     pub process: Option<String>,
+    /// Process id from the property list (Cyclone: `__Pid`), as text.
     pub pid: Option<String>,
+    /// Host name from the property list (Cyclone: `__Hostname`).
     pub hostname: Option<String>,
     /// Metatraffic unicast locators it announced.
     pub metatraffic_unicast: Vec<String>,

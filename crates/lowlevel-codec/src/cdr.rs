@@ -79,7 +79,9 @@ impl Representation {
 /// Byte order of the payload.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Endianness {
+    /// Little-endian (what Unitree's SDKs send).
     Little,
+    /// Big-endian.
     Big,
 }
 
@@ -105,7 +107,9 @@ impl Endianness {
 /// Representation and byte order together: what the encapsulation header says.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct Encoding {
+    /// XCDR1 or XCDR2.
     pub representation: Representation,
+    /// Byte order of the payload.
     pub endianness: Endianness,
 }
 
@@ -167,30 +171,103 @@ impl Encoding {
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[non_exhaustive]
 pub enum DecodeError {
+    /// The input cannot even hold the encapsulation header.
     #[error("input is {len} bytes, shorter than the 4-byte encapsulation header")]
-    MissingHeader { len: usize },
+    MissingHeader {
+        /// Length of the input (bytes).
+        len: usize,
+    },
+    /// The header's encapsulation identifier is not one the DDS specification defines.
     #[error("unknown encapsulation identifier {id:#06x}")]
-    UnknownRepresentation { id: u16 },
+    UnknownRepresentation {
+        /// The identifier (first two header bytes, big-endian).
+        id: u16,
+    },
+    /// A defined encapsulation that SDK2's `@final` types never use (parameter lists, delimited
+    /// CDR2, XML).
     #[error("encapsulation {id:#06x} is {name}; SDK2 types are @final and use plain CDR or CDR2")]
-    UnsupportedRepresentation { id: u16, name: &'static str },
+    UnsupportedRepresentation {
+        /// The identifier (first two header bytes, big-endian).
+        id: u16,
+        /// What that identifier stands for.
+        name: &'static str,
+    },
+    /// The input ends inside a member.
     #[error("truncated in member `{member}` at payload offset {offset}: needs {needed} bytes, {available} left")]
-    Truncated { member: &'static str, offset: usize, needed: usize, available: usize },
+    Truncated {
+        /// IDL name of the member being read.
+        member: &'static str,
+        /// Payload offset (after the header) where the read starts, padding included.
+        offset: usize,
+        /// Bytes the read needs.
+        needed: usize,
+        /// Bytes left from `offset` to the end of the payload.
+        available: usize,
+    },
+    /// A sequence length that the remaining bytes cannot hold (checked before allocating).
     #[error(
         "sequence `{member}` at payload offset {offset} claims {count} elements, but only {available} bytes remain"
     )]
-    BadSequenceLength { member: &'static str, offset: usize, count: u32, available: usize },
+    BadSequenceLength {
+        /// IDL name of the sequence member.
+        member: &'static str,
+        /// Payload offset of the length word.
+        offset: usize,
+        /// Element count the length word claims.
+        count: u32,
+        /// Bytes left after the length word.
+        available: usize,
+    },
+    /// An XCDR2 DHEADER whose byte count differs from the size of the elements it frames.
     #[error(
         "DHEADER of `{member}` at payload offset {offset} declares {declared} bytes, but its elements take {actual}"
     )]
-    BadDheader { member: &'static str, offset: usize, declared: u32, actual: usize },
+    BadDheader {
+        /// IDL name of the framed array or sequence.
+        member: &'static str,
+        /// Payload offset of the DHEADER.
+        offset: usize,
+        /// Byte count the DHEADER declares.
+        declared: u32,
+        /// Bytes the elements actually take.
+        actual: usize,
+    },
+    /// A `boolean` byte other than 0 or 1.
     #[error("boolean `{member}` at payload offset {offset} is {value}, not 0 or 1")]
-    InvalidBool { member: &'static str, offset: usize, value: u8 },
+    InvalidBool {
+        /// IDL name of the member.
+        member: &'static str,
+        /// Payload offset of the byte.
+        offset: usize,
+        /// The byte found.
+        value: u8,
+    },
+    /// A malformed string.
     #[error("string `{member}` at payload offset {offset}: {reason}")]
-    BadString { member: &'static str, offset: usize, reason: StringFault },
+    BadString {
+        /// IDL name of the string member.
+        member: &'static str,
+        /// Payload offset of its length word.
+        offset: usize,
+        /// What is wrong with it.
+        reason: StringFault,
+    },
+    /// The header's option bytes declare more padding than there is payload.
     #[error("header declares {padding} padding bytes, more than the {payload} payload bytes")]
-    BadPadding { padding: usize, payload: usize },
+    BadPadding {
+        /// Padding bytes declared (low two bits of the options).
+        padding: usize,
+        /// Payload bytes present after the header.
+        payload: usize,
+    },
+    /// Bytes left over once the whole message is read.
     #[error("{count} trailing byte(s) after the message (payload offset {offset})")]
-    TrailingBytes { offset: usize, count: usize },
+    TrailingBytes {
+        /// Payload offset where the message ended.
+        offset: usize,
+        /// Number of extra bytes.
+        count: usize,
+    },
 }
 
 /// What is wrong with a CDR string.
@@ -205,13 +282,18 @@ pub enum StringFault {
     Unterminated,
     /// The characters are not UTF-8 (at this byte of the string).
     #[error("not UTF-8 (byte {at})")]
-    NotUtf8 { at: usize },
+    NotUtf8 {
+        /// Offset within the string of the first byte that is not valid UTF-8.
+        at: usize,
+    },
 }
 
 /// A decoded message and how it was encoded.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Decoded<T> {
+    /// The decoded message.
     pub value: T,
+    /// Representation and byte order from the header.
     pub encoding: Encoding,
     /// Option bytes of the header (big-endian), as received.
     pub options: u16,

@@ -157,7 +157,9 @@ impl<const SWAP: bool> Visitor for CImage<SWAP> {
 /// A message whose last member is Unitree's CRC of everything before it (hg/go `LowCmd_` and `LowState_`). Implemented
 /// here for those four types only.
 pub trait Checksummed: IdlStruct {
+    /// The stored `crc` member.
     fn crc(&self) -> u32;
+    /// The `crc` member, to be overwritten ([`seal`] writes the computed value here).
     fn crc_mut(&mut self) -> &mut u32;
 }
 

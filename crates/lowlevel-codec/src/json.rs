@@ -19,8 +19,11 @@ use crate::text::CANONICAL_NAN;
 /// A parsed JSON document: the value plus whatever header fields it carried.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Document<T> {
+    /// The message, from the document's `value` member.
     pub value: T,
+    /// The `representation` member, if present (`"xcdr1"` or `"xcdr2"`).
     pub representation: Option<Representation>,
+    /// The `endianness` member, if present (`"little"` or `"big"`).
     pub endianness: Option<Endianness>,
 }
 
@@ -28,24 +31,76 @@ pub struct Document<T> {
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[non_exhaustive]
 pub enum JsonError {
+    /// The text is not JSON at all (the parser's message).
     #[error("not valid JSON: {0}")]
     Syntax(String),
+    /// The document lacks the `value` member that holds the message.
     #[error("document has no `value` member")]
     MissingValue,
+    /// The document's `type` names another message type.
     #[error("document is for type `{found}`, expected `{expected}`")]
-    TypeMismatch { expected: &'static str, found: String },
+    TypeMismatch {
+        /// Short name of the type being parsed (`hg/LowCmd`).
+        expected: &'static str,
+        /// The document's `type` as written.
+        found: String,
+    },
+    /// A header member (`representation`, `endianness`) with a value outside its set.
     #[error("`{field}`: `{found}` is not one of {allowed}")]
-    BadHeaderField { field: &'static str, found: String, allowed: &'static str },
+    BadHeaderField {
+        /// Name of the header member.
+        field: &'static str,
+        /// Its value as written (JSON).
+        found: String,
+        /// The values it may take.
+        allowed: &'static str,
+    },
+    /// A JSON value of the wrong kind (e.g. a string where a number or an array belongs).
     #[error("`{path}`: expected {expected}, found {found}")]
-    WrongShape { path: String, expected: String, found: String },
+    WrongShape {
+        /// Path of the member (`motor_cmd[3].q`; `value` for the whole message, empty for the document).
+        path: String,
+        /// What the member's IDL type needs.
+        expected: String,
+        /// What the document holds there.
+        found: String,
+    },
+    /// A struct member absent from the document.
     #[error("`{path}`: missing member `{member}`")]
-    MissingMember { path: String, member: &'static str },
+    MissingMember {
+        /// Path of the struct that lacks it.
+        path: String,
+        /// IDL name of the missing member.
+        member: &'static str,
+    },
+    /// A JSON member the IDL struct does not have.
     #[error("`{path}`: unknown member `{member}`")]
-    UnknownMember { path: String, member: String },
+    UnknownMember {
+        /// Path of the struct.
+        path: String,
+        /// The name found in the document.
+        member: String,
+    },
+    /// A fixed array with the wrong number of elements.
     #[error("`{path}`: expected {expected} elements, found {found}")]
-    WrongLength { path: String, expected: usize, found: usize },
+    WrongLength {
+        /// Path of the array member.
+        path: String,
+        /// Its IDL length.
+        expected: usize,
+        /// Elements in the document.
+        found: usize,
+    },
+    /// A number that the member's primitive type cannot represent.
     #[error("`{path}`: {value} does not fit in {kind}")]
-    OutOfRange { path: String, value: String, kind: &'static str },
+    OutOfRange {
+        /// Path of the member.
+        path: String,
+        /// The number as written.
+        value: String,
+        /// The primitive type it should fit in.
+        kind: &'static str,
+    },
 }
 
 /// Writes `value` as pretty JSON text (2-space indent; primitive arrays on one line).

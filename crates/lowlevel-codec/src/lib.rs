@@ -15,6 +15,7 @@
 //! * [`validate`]: semantic checks kept apart from decoding (non-finite values, limits, unused
 //!   slots), each finding typed and named.
 #![forbid(unsafe_code)]
+#![warn(missing_docs)]
 
 pub mod cdr;
 pub mod crc;

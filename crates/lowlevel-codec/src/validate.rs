@@ -6,14 +6,20 @@ use unitree_idl::{go, h1_2, hg, IdlStruct, PrimKind, Primitive, Visitor};
 /// Which command field a finding is about.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum CmdField {
+    /// Position target `q` (rad).
     Q,
+    /// Velocity target `dq` (rad/s).
     Dq,
+    /// Feed-forward torque `tau` (N·m).
     Tau,
+    /// Stiffness `kp` (N·m/rad).
     Kp,
+    /// Damping `kd` (N·m·s/rad).
     Kd,
 }
 
 impl CmdField {
+    /// The IDL member name (`q`, `dq`, `tau`, `kp`, `kd`).
     pub const fn name(self) -> &'static str {
         match self {
             CmdField::Q => "q",
@@ -35,20 +41,64 @@ impl core::fmt::Display for CmdField {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[non_exhaustive]
 pub enum Finding {
+    /// A float member that is NaN or infinite.
     #[error("`{path}` is not finite ({value})")]
-    NonFinite { path: String, value: f32 },
+    NonFinite {
+        /// Path of the member (`motor_cmd[3].kp`).
+        path: String,
+        /// The value found.
+        value: f32,
+    },
+    /// A motor command whose `mode` is neither 0 (disabled) nor 1 (enabled).
     #[error("slot {slot}: mode {mode} is neither 0 (disabled) nor 1 (enabled)")]
-    UnknownMode { slot: usize, mode: u8 },
+    UnknownMode {
+        /// Motor slot.
+        slot: usize,
+        /// The mode found.
+        mode: u8,
+    },
+    /// A target or gain of an enabled motor outside the joint's limits.
     #[error("slot {slot} ({joint}): {field} = {value} outside [{min}, {max}]")]
-    OutOfLimits { slot: usize, joint: &'static str, field: CmdField, value: f32, min: f32, max: f32 },
+    OutOfLimits {
+        /// Motor slot.
+        slot: usize,
+        /// Name of the joint in that slot.
+        joint: &'static str,
+        /// Which command member.
+        field: CmdField,
+        /// The value found.
+        value: f32,
+        /// Smallest allowed value.
+        min: f32,
+        /// Largest allowed value.
+        max: f32,
+    },
+    /// A member of a slot the robot does not use that is not zero.
     #[error("slot {slot} is not used by this robot but `{member}` is not zero")]
-    UnusedSlotNotZero { slot: usize, member: &'static str },
+    UnusedSlotNotZero {
+        /// Motor slot.
+        slot: usize,
+        /// IDL name of the non-zero member.
+        member: &'static str,
+    },
+    /// An IMU orientation quaternion whose norm is not 1 (within rounding tolerance).
     #[error("IMU quaternion has norm {norm}, not 1")]
-    QuaternionNotNormalized { norm: f32 },
+    QuaternionNotNormalized {
+        /// The norm found.
+        norm: f32,
+    },
+    /// A go LowCmd whose `head` is not `FE EF`.
     #[error("`head` is {head:02X?}, not FE EF")]
-    BadHead { head: [u8; 2] },
+    BadHead {
+        /// The two bytes found.
+        head: [u8; 2],
+    },
+    /// A go LowCmd whose `level_flag` is not 0xFF (low-level control).
     #[error("`level_flag` is {flag:#04x}, not 0xFF (low level)")]
-    BadLevelFlag { flag: u8 },
+    BadLevelFlag {
+        /// The flag found.
+        flag: u8,
+    },
 }
 
 impl Finding {

@@ -14,7 +14,9 @@ idl_struct! {
     /// Which call this is: `id` pairs a response with its request (Unitree's clients use a monotonic clock in
     /// nanoseconds), `api_id` names the call (`ROBOT_API_ID_*`).
     "unitree_api" struct RequestIdentity_ {
+        /// Request id, unique per client; the response carries the same value.
         id: i64,
+        /// Which call of the service this is (`ROBOT_API_ID_*`, e.g. [`loco::LocoApi::set_velocity`]).
         api_id: i64,
     }
 }
@@ -22,6 +24,7 @@ idl_struct! {
 idl_struct! {
     /// The caller's lease (0 without one).
     "unitree_api" struct RequestLease_ {
+        /// Lease id held by the caller, 0 if none.
         id: i64,
     }
 }
@@ -29,7 +32,9 @@ idl_struct! {
 idl_struct! {
     /// Scheduling of the request: priority queue and whether the caller waits for an answer.
     "unitree_api" struct RequestPolicy_ {
+        /// Priority of the request (0 is the default).
         priority: i32,
+        /// True if the caller expects no response.
         noreply: bool,
     }
 }
@@ -37,8 +42,11 @@ idl_struct! {
 idl_struct! {
     /// Header of a request.
     "unitree_api" struct RequestHeader_ {
+        /// Request id and API id.
         identity: RequestIdentity_,
+        /// The caller's lease.
         lease: RequestLease_,
+        /// Priority and reply policy.
         policy: RequestPolicy_,
     }
 }
@@ -46,8 +54,11 @@ idl_struct! {
 idl_struct! {
     /// An RPC request, topic `rt/api/<service>/request`.
     "unitree_api" struct Request_ {
+        /// Identity, lease and policy of the request.
         header: RequestHeader_,
+        /// Parameters of the call as JSON text (empty if it takes none).
         parameter: String,
+        /// Raw bytes for the binary calls; empty otherwise.
         binary: Vec<u8>,
     }
 }
@@ -55,6 +66,7 @@ idl_struct! {
 idl_struct! {
     /// Outcome of a call: 0 or an SDK status code (`UT_ROBOT_ERR_*`, service-specific codes).
     "unitree_api" struct ResponseStatus_ {
+        /// [`status::OK`] (0) on success, otherwise an error code.
         code: i32,
     }
 }
@@ -62,7 +74,9 @@ idl_struct! {
 idl_struct! {
     /// Header of a response: the request's identity, echoed, and the status.
     "unitree_api" struct ResponseHeader_ {
+        /// Identity of the request answered, copied from it.
         identity: RequestIdentity_,
+        /// Outcome of the call.
         status: ResponseStatus_,
     }
 }
@@ -70,8 +84,11 @@ idl_struct! {
 idl_struct! {
     /// An RPC response, topic `rt/api/<service>/response`.
     "unitree_api" struct Response_ {
+        /// Which request this answers and its outcome.
         header: ResponseHeader_,
+        /// Result of the call as JSON text (empty if it returns nothing).
         data: String,
+        /// Raw bytes for the binary calls; empty otherwise.
         binary: Vec<u8>,
     }
 }
@@ -145,17 +162,27 @@ pub mod loco {
         pub service: &'static str,
         /// What the server answers to `ROBOT_API_ID_INTERNAL_API_VERSION`.
         pub version: &'static str,
+        /// Reads the current FSM id (the locomotion state machine's state).
         pub get_fsm_id: i64,
+        /// Reads the FSM mode, a detail of the current FSM state.
         pub get_fsm_mode: i64,
+        /// Reads the balance mode (0 = balance stand, 1 = continuous gait).
         pub get_balance_mode: i64,
+        /// Reads the swing (foot lift) height of the gait.
         pub get_swing_height: i64,
+        /// Reads the standing height.
         pub get_stand_height: i64,
-        /// Deprecated in the headers.
+        /// Reads the gait phase. Deprecated in the headers.
         pub get_phase: i64,
+        /// Switches the FSM to another id (see [`fsm`]).
         pub set_fsm_id: i64,
+        /// Sets the balance mode (0 = balance stand, 1 = continuous gait).
         pub set_balance_mode: i64,
+        /// Sets the swing (foot lift) height of the gait.
         pub set_swing_height: i64,
+        /// Sets the standing height.
         pub set_stand_height: i64,
+        /// Sets the body velocity command (vx, vy in m/s, yaw rate in rad/s) for a duration in s.
         pub set_velocity: i64,
         /// Odometry calls (H1 only): enable, disable, get.
         pub odom: Option<[i64; 3]>,
@@ -215,9 +242,13 @@ pub mod loco {
     /// FSM ids the SDK's `LocoClient` high-level calls set (`h1_loco_client.hpp`: `ZeroTorque()` = `SetFsmId(0)`,
     /// `Damp()` = 1, `StandUp()` = 2, `Start()` = 204).
     pub mod fsm {
+        /// All motors without torque (`ZeroTorque()`).
         pub const ZERO_TORQUE: i64 = 0;
+        /// Damping only: motors resist motion but hold no pose (`Damp()`).
         pub const DAMP: i64 = 1;
+        /// Stand up and hold the standing pose (`StandUp()`).
         pub const STAND_UP: i64 = 2;
+        /// Walking controller running, velocity commands accepted (`Start()`).
         pub const START: i64 = 204;
     }
 

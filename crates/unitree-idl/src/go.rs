@@ -16,12 +16,19 @@ pub const LOWLEVEL_FLAG: u8 = 0xFF;
 idl_struct! {
     /// Command for one motor.
     "unitree_go" struct MotorCmd_ {
+        /// Motor mode: 0x01 = servo (PD law) enabled, 0x00 = off.
         mode: u8,
+        /// Target position (rad).
         q: f32,
+        /// Target velocity (rad/s).
         dq: f32,
+        /// Feed-forward torque (N·m).
         tau: f32,
+        /// Position gain, stiffness (N·m/rad).
         kp: f32,
+        /// Velocity gain, damping (N·m·s/rad).
         kd: f32,
+        /// Unused; zero.
         reserve: [u32; 3],
     }
 }
@@ -29,7 +36,9 @@ idl_struct! {
 idl_struct! {
     /// Battery command.
     "unitree_go" struct BmsCmd_ {
+        /// Battery power-off request byte; zero in normal operation.
         off: u8,
+        /// Unused; zero.
         reserve: [u8; 3],
     }
 }
@@ -37,19 +46,34 @@ idl_struct! {
 idl_struct! {
     /// Whole-body low-level command, topic `rt/lowcmd`.
     "unitree_go" struct LowCmd_ {
+        /// Frame header, always [`LOWCMD_HEAD`].
         head: [u8; 2],
+        /// Control level; [`LOWLEVEL_FLAG`] for low-level control.
         level_flag: u8,
+        /// Unused; zero.
         frame_reserve: u8,
+        /// Serial number words.
         sn: [u32; 2],
+        /// Version words.
         version: [u32; 2],
+        /// Link bandwidth field; zero in commands.
         bandwidth: u16,
+        /// One command per motor slot (see [`MOTOR_SLOTS`]; unused slots stay zero).
         motor_cmd: [MotorCmd_; 20],
+        /// Battery command.
         bms_cmd: BmsCmd_,
+        /// Raw wireless-remote frame (buttons and sticks).
         wireless_remote: [u8; 40],
+        /// LED control bytes.
         led: [u8; 12],
+        /// Fan control bytes.
         fan: [u8; 2],
+        /// GPIO output byte.
         gpio: u8,
+        /// Unused; zero.
         reserve: u32,
+        /// Unitree CRC32 of the C struct image up to this word (padding zeroed); `lowlevel_codec::crc`
+        /// computes and checks it.
         crc: u32,
     }
 }
@@ -57,16 +81,27 @@ idl_struct! {
 idl_struct! {
     /// State of one motor.
     "unitree_go" struct MotorState_ {
+        /// Mode the motor is in, as reported by its driver.
         mode: u8,
+        /// Measured position (rad).
         q: f32,
+        /// Measured velocity (rad/s).
         dq: f32,
+        /// Measured acceleration (rad/s²).
         ddq: f32,
+        /// Estimated output torque (N·m).
         tau_est: f32,
+        /// Unfiltered position reading (rad).
         q_raw: f32,
+        /// Unfiltered velocity reading (rad/s).
         dq_raw: f32,
+        /// Unfiltered acceleration reading (rad/s²).
         ddq_raw: f32,
+        /// Motor temperature (°C).
         temperature: u8,
+        /// Count of lost frames between the board and this motor.
         lost: u32,
+        /// Unused; zero.
         reserve: [u32; 2],
     }
 }
@@ -74,10 +109,15 @@ idl_struct! {
 idl_struct! {
     /// IMU reading; unlike hg, the temperature is an unsigned byte.
     "unitree_go" struct IMUState_ {
+        /// Orientation as a unit quaternion (w, x, y, z).
         quaternion: [f32; 4],
+        /// Angular velocity in the IMU frame (rad/s).
         gyroscope: [f32; 3],
+        /// Specific force in the IMU frame (m/s²; reads about +9.81 upward at rest).
         accelerometer: [f32; 3],
+        /// Roll, pitch, yaw (rad), the same orientation as Euler angles.
         rpy: [f32; 3],
+        /// IMU temperature (°C).
         temperature: u8,
     }
 }
@@ -85,14 +125,23 @@ idl_struct! {
 idl_struct! {
     /// Battery state.
     "unitree_go" struct BmsState_ {
+        /// Major part of the BMS firmware version.
         version_high: u8,
+        /// Minor part of the BMS firmware version.
         version_low: u8,
+        /// BMS status code.
         status: u8,
+        /// State of charge (%).
         soc: u8,
+        /// Pack current, signed (charging and discharging have opposite signs).
         current: i32,
+        /// Charge cycle count.
         cycle: u16,
+        /// Thermistor temperatures at the battery monitor chip (°C).
         bq_ntc: [u8; 2],
+        /// Thermistor temperatures at the BMS microcontroller (°C).
         mcu_ntc: [u8; 2],
+        /// Voltage of each cell (mV).
         cell_vol: [u16; 15],
     }
 }
@@ -100,27 +149,49 @@ idl_struct! {
 idl_struct! {
     /// Whole-body low-level state, topic `rt/lowstate`.
     "unitree_go" struct LowState_ {
+        /// Frame header.
         head: [u8; 2],
+        /// Control level the robot is in.
         level_flag: u8,
+        /// Unused.
         frame_reserve: u8,
+        /// Serial number words.
         sn: [u32; 2],
+        /// Version words.
         version: [u32; 2],
+        /// Link bandwidth field.
         bandwidth: u16,
+        /// The body IMU.
         imu_state: IMUState_,
+        /// One state per motor slot (see [`MOTOR_SLOTS`]).
         motor_state: [MotorState_; 20],
+        /// Battery state.
         bms_state: BmsState_,
+        /// Foot contact sensor readings, one per foot (raw units).
         foot_force: [i16; 4],
+        /// Estimated foot contact forces, one per foot (raw units).
         foot_force_est: [i16; 4],
+        /// Time counter of the robot (ms); wraps around.
         tick: u32,
+        /// Raw wireless-remote frame (buttons and sticks).
         wireless_remote: [u8; 40],
+        /// Status bits.
         bit_flag: u8,
+        /// ADC reading reported by the board.
         adc_reel: f32,
+        /// First board thermistor (°C).
         temperature_ntc1: u8,
+        /// Second board thermistor (°C).
         temperature_ntc2: u8,
+        /// Supply voltage (V).
         power_v: f32,
+        /// Supply current (A).
         power_a: f32,
+        /// Speed of each fan.
         fan_frequency: [u16; 4],
+        /// Unused; zero.
         reserve: u32,
+        /// Unitree CRC32 of the C struct image up to this word, as in [`LowCmd_::crc`].
         crc: u32,
     }
 }

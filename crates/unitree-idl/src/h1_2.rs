@@ -16,8 +16,9 @@ pub struct Joint {
     pub torque_limit: f32,
     /// Peak speed (rad/s).
     pub speed_limit: f32,
-    /// Position range (rad).
+    /// Lower end of the position range (rad).
     pub lower: f32,
+    /// Upper end of the position range (rad).
     pub upper: f32,
 }
 

@@ -10,6 +10,7 @@
 //!   spells it (`unitree_hg::msg::dds_::LowCmd_`).
 //! * [`h1_2`] is the H1-2 motor-slot map with per-joint limits.
 #![forbid(unsafe_code)]
+#![warn(missing_docs)]
 
 mod macros;
 pub mod reflect;

@@ -11,17 +11,25 @@
 pub enum PrimKind {
     /// IDL `boolean`: one byte, 0 or 1 on the wire.
     Bool,
+    /// IDL `octet` / `uint8`.
     U8,
+    /// IDL `short` / `int16`.
     I16,
+    /// IDL `unsigned short` / `uint16`.
     U16,
+    /// IDL `long` / `int32`.
     I32,
+    /// IDL `unsigned long` / `uint32`.
     U32,
+    /// IDL `long long` / `int64`.
     I64,
+    /// IDL `float`: IEEE-754 single precision.
     F32,
 }
 
 /// A primitive IDL type with a fixed size and byte representation.
 pub trait Primitive: Copy + Default + PartialEq + core::fmt::Debug + 'static {
+    /// Which IDL primitive this is.
     const KIND: PrimKind;
     /// Size in bytes; also its natural alignment (in C, and in CDR up to the representation's cap).
     const SIZE: usize;
@@ -140,15 +148,21 @@ pub trait Field {
     fn zeroed() -> Self
     where
         Self: Sized;
+    /// Hands this member, named `name`, to the visitor method for its shape.
     fn visit<V: Visitor>(&self, name: &'static str, v: &mut V);
+    /// Hands this member, named `name`, to the visitor method for its shape, to be assigned.
     fn visit_mut<V: VisitorMut>(&mut self, name: &'static str, v: &mut V) -> Result<(), V::Error>;
 }
 
 /// An element type of an array or sequence: dispatches to the visitor method for its shape.
 pub trait Element: Field + Sized {
+    /// Visits a fixed array member of this element type.
     fn visit_array<V: Visitor>(items: &[Self], name: &'static str, v: &mut V);
+    /// Visits a fixed array member of this element type, to be assigned.
     fn visit_array_mut<V: VisitorMut>(items: &mut [Self], name: &'static str, v: &mut V) -> Result<(), V::Error>;
+    /// Visits a sequence member of this element type.
     fn visit_sequence<V: Visitor>(items: &[Self], name: &'static str, v: &mut V);
+    /// Visits a sequence member of this element type, to be assigned (the visitor sets its length).
     fn visit_sequence_mut<V: VisitorMut>(items: &mut Vec<Self>, name: &'static str, v: &mut V) -> Result<(), V::Error>;
 }
 
@@ -228,24 +242,39 @@ pub trait IdlStruct: Element + Clone + core::fmt::Debug + 'static {
 
 /// Read-only walk over a value.
 pub trait Visitor {
+    /// A primitive member.
     fn primitive<P: Primitive>(&mut self, name: &'static str, value: &P);
+    /// A fixed array of primitives.
     fn primitive_array<P: Primitive>(&mut self, name: &'static str, items: &[P]);
+    /// A nested struct; call [`IdlStruct::walk`] on it to descend.
     fn structure<S: IdlStruct>(&mut self, name: &'static str, value: &S);
+    /// A fixed array of structs.
     fn struct_array<S: IdlStruct>(&mut self, name: &'static str, items: &[S]);
+    /// A sequence of structs.
     fn struct_sequence<S: IdlStruct>(&mut self, name: &'static str, items: &[S]);
+    /// A sequence of primitives.
     fn primitive_sequence<P: Primitive>(&mut self, name: &'static str, items: &[P]);
+    /// A string member.
     fn string(&mut self, name: &'static str, value: &str);
 }
 
 /// Walk that assigns each member (decoding, parsing JSON, generating values).
 pub trait VisitorMut {
+    /// Why a member could not be assigned; the walk stops at the first error.
     type Error;
+    /// Assigns a primitive member.
     fn primitive<P: Primitive>(&mut self, name: &'static str, value: &mut P) -> Result<(), Self::Error>;
+    /// Assigns every element of a fixed array of primitives.
     fn primitive_array<P: Primitive>(&mut self, name: &'static str, items: &mut [P]) -> Result<(), Self::Error>;
+    /// A nested struct; call [`IdlStruct::walk_mut`] on it to descend.
     fn structure<S: IdlStruct>(&mut self, name: &'static str, value: &mut S) -> Result<(), Self::Error>;
+    /// Assigns every element of a fixed array of structs.
     fn struct_array<S: IdlStruct>(&mut self, name: &'static str, items: &mut [S]) -> Result<(), Self::Error>;
+    /// Fills a sequence of structs (its length included).
     fn struct_sequence<S: IdlStruct>(&mut self, name: &'static str, items: &mut Vec<S>) -> Result<(), Self::Error>;
+    /// Fills a sequence of primitives (its length included).
     fn primitive_sequence<P: Primitive>(&mut self, name: &'static str, items: &mut Vec<P>) -> Result<(), Self::Error>;
+    /// Assigns a string member.
     fn string(&mut self, name: &'static str, value: &mut String) -> Result<(), Self::Error>;
 }
 

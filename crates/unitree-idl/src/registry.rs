@@ -5,31 +5,57 @@ use crate::{api, go, hg, IdlStruct};
 /// Every SDK2 message type this crate knows: the low-level types and the RPC types.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum MessageType {
+    /// `hg/LowCmd`: [`hg::LowCmd_`].
     HgLowCmd,
+    /// `hg/MotorCmd`: [`hg::MotorCmd_`].
     HgMotorCmd,
+    /// `hg/LowState`: [`hg::LowState_`].
     HgLowState,
+    /// `hg/MotorState`: [`hg::MotorState_`].
     HgMotorState,
+    /// `hg/IMUState`: [`hg::IMUState_`].
     HgImuState,
+    /// `hg/HandCmd`: [`hg::HandCmd_`].
     HgHandCmd,
+    /// `hg/HandState`: [`hg::HandState_`].
     HgHandState,
+    /// `hg/PressSensorState`: [`hg::PressSensorState_`].
     HgPressSensorState,
+    /// `hg/BmsCmd`: [`hg::BmsCmd_`].
     HgBmsCmd,
+    /// `hg/BmsState`: [`hg::BmsState_`].
     HgBmsState,
+    /// `hg/MainBoardState`: [`hg::MainBoardState_`].
     HgMainBoardState,
+    /// `go/LowCmd`: [`go::LowCmd_`].
     GoLowCmd,
+    /// `go/MotorCmd`: [`go::MotorCmd_`].
     GoMotorCmd,
+    /// `go/LowState`: [`go::LowState_`].
     GoLowState,
+    /// `go/MotorState`: [`go::MotorState_`].
     GoMotorState,
+    /// `go/IMUState`: [`go::IMUState_`].
     GoImuState,
+    /// `go/BmsCmd`: [`go::BmsCmd_`].
     GoBmsCmd,
+    /// `go/BmsState`: [`go::BmsState_`].
     GoBmsState,
+    /// `api/Request`: [`api::Request_`].
     ApiRequest,
+    /// `api/RequestHeader`: [`api::RequestHeader_`].
     ApiRequestHeader,
+    /// `api/RequestIdentity`: [`api::RequestIdentity_`].
     ApiRequestIdentity,
+    /// `api/RequestLease`: [`api::RequestLease_`].
     ApiRequestLease,
+    /// `api/RequestPolicy`: [`api::RequestPolicy_`].
     ApiRequestPolicy,
+    /// `api/Response`: [`api::Response_`].
     ApiResponse,
+    /// `api/ResponseHeader`: [`api::ResponseHeader_`].
     ApiResponseHeader,
+    /// `api/ResponseStatus`: [`api::ResponseStatus_`].
     ApiResponseStatus,
 }
 
