@@ -4,7 +4,7 @@ use anyhow::{bail, Context, Result};
 use clap::{Subcommand, ValueEnum};
 use lowlevel_codec::{cdr, crc, json, validate, Encoding, Endianness, Representation};
 use std::io::{Read, Write};
-use std::process::ExitCode;
+use crate::exit::Exit;
 use unitree_idl::{with_message_type, IdlStruct, MessageType};
 
 #[derive(Debug, clap::Args)]
@@ -55,7 +55,7 @@ enum ReprArg {
     Xcdr2,
 }
 
-pub fn run(args: Args) -> Result<ExitCode> {
+pub fn run(args: Args) -> Result<Exit> {
     match args.action {
         Action::Decode { ty } => {
             let bytes = read_stdin_bytes()?;
@@ -79,12 +79,12 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 println!("{line}");
             }
             if !findings.is_empty() {
-                return Ok(ExitCode::from(1));
+                return Ok(Exit::Failed);
             }
             println!("ok: no findings");
         }
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(Exit::Success)
 }
 
 /// Findings as `name: description` lines, CRC first.

@@ -13,7 +13,7 @@ use conformance::{checks, safety, target::Target};
 use std::collections::BTreeMap;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
-use std::process::ExitCode;
+use crate::exit::Exit;
 use std::time::{Duration, Instant};
 
 #[derive(Debug, clap::Args)]
@@ -97,7 +97,7 @@ pub struct ReplayArgs {
     pub format: super::OutputFormat,
 }
 
-pub fn run(args: Args) -> Result<ExitCode> {
+pub fn run(args: Args) -> Result<Exit> {
     match args.command {
         Some(Sub::Replay(r)) => replay(r),
         None => run_target(args.run),
@@ -161,7 +161,7 @@ impl Progress {
     }
 }
 
-fn run_target(args: RunArgs) -> Result<ExitCode> {
+fn run_target(args: RunArgs) -> Result<Exit> {
     if args.robot != "h1_2" {
         bail!("unsupported robot `{}` (supported: h1_2)", args.robot);
     }
@@ -316,7 +316,7 @@ fn run_target(args: RunArgs) -> Result<ExitCode> {
     } else {
         print!("{}", report.to_markdown());
     }
-    Ok(if report.any_fail() { ExitCode::from(1) } else { ExitCode::SUCCESS })
+    Ok(Exit::failed_if(report.any_fail()))
 }
 
 fn write_file(path: &Path, text: &str) -> Result<()> {
@@ -326,7 +326,7 @@ fn write_file(path: &Path, text: &str) -> Result<()> {
     std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))
 }
 
-fn replay(args: ReplayArgs) -> Result<ExitCode> {
+fn replay(args: ReplayArgs) -> Result<Exit> {
     // A reproducer is fuzz traffic: the fuzz safety rule applies before anything else.
     let cfg = args.net.domain_config()?;
     safety::check_fuzz(&cfg, args.allow_robot_fuzz).context("replay refused")?;
@@ -350,5 +350,5 @@ fn replay(args: ReplayArgs) -> Result<ExitCode> {
             outcome.observation.max_gap_s * 1e3
         );
     }
-    Ok(if outcome.reproduced { ExitCode::from(1) } else { ExitCode::SUCCESS })
+    Ok(Exit::failed_if(outcome.reproduced))
 }

@@ -20,7 +20,7 @@ use policy_deploy::keyboard::{self, Key, KeyEffect};
 use policy_deploy::{DeployConfig, Deployer, Phase, StopReason};
 use std::io::{IsTerminal, Read};
 use std::path::PathBuf;
-use std::process::ExitCode;
+use crate::exit::Exit;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{mpsc, Arc};
 use std::time::{Duration, Instant};
@@ -75,7 +75,7 @@ fn parse_command(s: &str) -> Result<[f64; 3], String> {
     }
 }
 
-pub fn run(a: Args) -> Result<ExitCode> {
+pub fn run(a: Args) -> Result<Exit> {
     let positive = |x: f64, lo: f64, hi: f64| x.is_finite() && x >= lo && x <= hi;
     if !positive(a.rate, 50.0, 2000.0) {
         bail!("--rate must be in [50, 2000] Hz");
@@ -125,7 +125,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         while Instant::now() < until {
             if stop.load(Ordering::SeqCst) {
                 eprintln!("deploy: aborted before sending anything");
-                return Ok(ExitCode::SUCCESS);
+                return Ok(Exit::Success);
             }
             std::thread::sleep(Duration::from_millis(50));
         }
@@ -225,7 +225,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         "malformed_states": malformed,
     });
     eprintln!("deploy: summary {summary}");
-    Ok(if safety_stop { ExitCode::from(1) } else { ExitCode::SUCCESS })
+    Ok(Exit::failed_if(safety_stop))
 }
 
 /// Prints a status line; a terminal in raw mode needs the carriage return spelled out.

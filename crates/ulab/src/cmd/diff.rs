@@ -21,7 +21,7 @@ use engine_diff::triage::{AllowList, Class};
 use rayon::prelude::*;
 use robot_model::RobotModel;
 use std::path::{Path, PathBuf};
-use std::process::ExitCode;
+use crate::exit::Exit;
 use std::sync::Arc;
 
 #[derive(Debug, clap::Args)]
@@ -152,7 +152,7 @@ struct BenchArgs {
     rollouts: usize,
 }
 
-pub fn run(args: Args) -> Result<ExitCode> {
+pub fn run(args: Args) -> Result<Exit> {
     match args.command {
         Some(Sub::Fuzz(a)) => fuzz(a),
         Some(Sub::Replay(a)) => replay(a),
@@ -239,7 +239,7 @@ fn check_seconds(s: f64) -> Result<()> {
     Ok(())
 }
 
-fn summarize(out: &Path, report: &engine_diff::report::Report, fail_on_bug: bool) -> ExitCode {
+fn summarize(out: &Path, report: &engine_diff::report::Report, fail_on_bug: bool) -> Exit {
     let bugs = report.entries.iter().filter(|e| e.triage == Class::CandidateEngineBug).count();
     let expected = report.entries.iter().filter(|e| matches!(e.triage, Class::ExpectedDifference { .. })).count();
     let translation = report.entries.len() - bugs - expected;
@@ -249,13 +249,13 @@ fn summarize(out: &Path, report: &engine_diff::report::Report, fail_on_bug: bool
         out.join("report.md").display()
     );
     if fail_on_bug && bugs > 0 {
-        ExitCode::from(1)
+        Exit::Failed
     } else {
-        ExitCode::SUCCESS
+        Exit::Success
     }
 }
 
-fn diff(a: RunArgs) -> Result<ExitCode> {
+fn diff(a: RunArgs) -> Result<Exit> {
     let Some(out) = a.out.clone() else { bail!("--out DIR is required") };
     check_seconds(a.seconds)?;
     if a.episodes == 0 || a.episodes > 10_000 {
@@ -314,7 +314,7 @@ fn read_corpus(dir: &Path) -> Result<Vec<Scenario>> {
     Ok(out)
 }
 
-fn fuzz(a: FuzzArgs) -> Result<ExitCode> {
+fn fuzz(a: FuzzArgs) -> Result<Exit> {
     check_seconds(a.seconds)?;
     if a.iterations == 0 {
         bail!("--iterations must be at least 1");
@@ -382,7 +382,7 @@ fn fuzz(a: FuzzArgs) -> Result<ExitCode> {
     Ok(summarize(&a.out, &report, a.fail_on_bug))
 }
 
-fn replay(a: ReplayArgs) -> Result<ExitCode> {
+fn replay(a: ReplayArgs) -> Result<Exit> {
     let text = std::fs::read_to_string(&a.file).with_context(|| format!("reading {}", a.file.display()))?;
     let r: engine_diff::repro::Reproducer =
         serde_json::from_str(&text).with_context(|| format!("parsing reproducer {}", a.file.display()))?;
@@ -394,16 +394,16 @@ fn replay(a: ReplayArgs) -> Result<ExitCode> {
     );
     if o.identical {
         println!("identical: every state entry and the value match bit for bit");
-        Ok(ExitCode::SUCCESS)
+        Ok(Exit::Success)
     } else {
         for m in &o.mismatches {
             println!("DIFFERS: {m}");
         }
-        Ok(ExitCode::from(1))
+        Ok(Exit::Failed)
     }
 }
 
-fn bench(a: BenchArgs) -> Result<ExitCode> {
+fn bench(a: BenchArgs) -> Result<Exit> {
     check_seconds(a.seconds)?;
     if a.rollouts == 0 {
         bail!("--rollouts must be at least 1");
@@ -427,10 +427,10 @@ fn bench(a: BenchArgs) -> Result<ExitCode> {
             100.0 * r.outside_engine
         );
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(Exit::Success)
 }
 
-fn search(a: SearchArgs) -> Result<ExitCode> {
+fn search(a: SearchArgs) -> Result<Exit> {
     use engine_diff::search::{Method, SearchConfig, SearchSetup};
     check_seconds(a.seconds)?;
     if a.budget == 0 || a.budget > 100_000 || a.population < 2 {
@@ -484,7 +484,7 @@ fn search(a: SearchArgs) -> Result<ExitCode> {
         std::fs::write(p, serde_json::to_string_pretty(&outcomes)?)
             .with_context(|| format!("writing {}", p.display()))?;
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(Exit::Success)
 }
 
 /// Every engine compiled into this build, MuJoCo (the lead) first.

@@ -14,7 +14,7 @@ use dds_transport::{DiscoveredEndpoint, DomainConfig, Durability, EndpointKind, 
 use serde::Serialize;
 use std::collections::{BTreeMap, BTreeSet};
 use std::net::Ipv4Addr;
-use std::process::ExitCode;
+use crate::exit::Exit;
 use std::time::{Duration, Instant};
 
 #[derive(Debug, clap::Args)]
@@ -114,7 +114,7 @@ pub struct Report {
     pub findings: Vec<Finding>,
 }
 
-pub fn run(args: Args) -> Result<ExitCode> {
+pub fn run(args: Args) -> Result<Exit> {
     anyhow::ensure!(args.seconds.is_finite() && args.seconds > 0.0, "--seconds must be positive");
     anyhow::ensure!(args.max_participant_index <= 119, "--max-participant-index is at most 119");
     let report = diagnose(&args)?;
@@ -124,7 +124,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     } else {
         print!("{}", text(&report));
     }
-    Ok(if problems { ExitCode::from(1) } else { ExitCode::SUCCESS })
+    Ok(Exit::failed_if(problems))
 }
 
 fn diagnose(args: &Args) -> Result<Report> {

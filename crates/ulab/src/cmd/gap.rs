@@ -13,12 +13,9 @@ use gap_diagnosis::diagnose::PlantChoice;
 use gap_diagnosis::plant::{joint_groups, EngineChoice, GROUPS};
 use gap_diagnosis::{effects::Scope, DiagnoseOptions, EffectKind, Outcome, RobotLog};
 
-/// Exit code of `ulab gap diagnose` when the log fails the rig-assumption check (not from a suspended robot):
-/// the report is written, every effect abstained. 2 stays "error", 0 "diagnosed" (named effects or not).
-pub const EXIT_RIG_VIOLATED: u8 = 3;
 use robot_model::RobotModel;
 use std::path::{Path, PathBuf};
-use std::process::ExitCode;
+use crate::exit::Exit;
 
 /// `--plant`: which plant the diagnosis simulates (see `gap_diagnosis::diagnose::PlantChoice`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -149,7 +146,7 @@ struct BenchArgs {
     floating: bool,
 }
 
-pub fn run(args: Args) -> Result<ExitCode> {
+pub fn run(args: Args) -> Result<Exit> {
     match args.command {
         GapCommand::Diagnose(a) => diagnose(a),
         GapCommand::Excite(a) => excite(a),
@@ -188,7 +185,7 @@ fn read_log(path: &Path, model: &RobotModel) -> Result<RobotLog> {
     log.with_context(|| format!("reading the log {}", path.display()))
 }
 
-fn diagnose(a: DiagnoseArgs) -> Result<ExitCode> {
+fn diagnose(a: DiagnoseArgs) -> Result<Exit> {
     let model = load(&a.robot)?;
     let engine = EngineChoice::parse(&a.engine).context("--engine")?;
     if !(a.window.is_finite() && a.window > 0.0 && a.block.is_finite() && a.block > 0.0) {
@@ -213,7 +210,7 @@ fn diagnose(a: DiagnoseArgs) -> Result<ExitCode> {
     gap_diagnosis::report::write_all(&report, &a.out).context("writing the report")?;
     let violated = report.outcome == Outcome::RigAssumptionViolated;
     if violated {
-        eprintln!("gap diagnose: ABSTAINED (exit {EXIT_RIG_VIOLATED}): {}", report.rig_check.message);
+        eprintln!("gap diagnose: ABSTAINED (exit {}): {}", Exit::Abstained.code(), report.rig_check.message);
     }
     if a.format == super::OutputFormat::Json {
         println!("{}", serde_json::to_string_pretty(&report)?);
@@ -261,10 +258,10 @@ fn diagnose(a: DiagnoseArgs) -> Result<ExitCode> {
         }
         println!("report: {}", a.out.join("report.md").display());
     }
-    Ok(if violated { ExitCode::from(EXIT_RIG_VIOLATED) } else { ExitCode::SUCCESS })
+    Ok(if violated { Exit::Abstained } else { Exit::Success })
 }
 
-fn excite(a: ExciteArgs) -> Result<ExitCode> {
+fn excite(a: ExciteArgs) -> Result<Exit> {
     let model = load(&a.robot)?;
     if !(a.duration.is_finite() && a.duration > 0.0 && a.duration <= 3600.0) {
         bail!("--duration must be in (0, 3600] s");
@@ -282,7 +279,7 @@ fn excite(a: ExciteArgs) -> Result<ExitCode> {
         a.duration,
         GROUPS
     );
-    Ok(ExitCode::SUCCESS)
+    Ok(Exit::Success)
 }
 
 /// Parses KIND:UNIT:VALUE into the effect set.
@@ -325,7 +322,7 @@ fn parse_effect(text: &str, model: &RobotModel, fx: &mut gap_diagnosis::plant::E
     Ok(())
 }
 
-fn simulate(a: SimulateArgs) -> Result<ExitCode> {
+fn simulate(a: SimulateArgs) -> Result<Exit> {
     let model = load(&a.robot)?;
     if !(a.duration.is_finite() && a.duration >= 1.0 && a.duration <= 600.0) {
         bail!("--duration must be in [1, 600] s");
@@ -343,10 +340,10 @@ fn simulate(a: SimulateArgs) -> Result<ExitCode> {
         log.commands.len(),
         log.states.len()
     );
-    Ok(ExitCode::SUCCESS)
+    Ok(Exit::Success)
 }
 
-fn bench_cmd(a: BenchArgs) -> Result<ExitCode> {
+fn bench_cmd(a: BenchArgs) -> Result<Exit> {
     let model = load(&a.robot)?;
     if a.trials == 0 {
         bail!("--trials must be at least 1");
@@ -469,5 +466,5 @@ fn bench_cmd(a: BenchArgs) -> Result<ExitCode> {
         print!("{table}");
         println!("\nfiles: {}", dir.display());
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(Exit::Success)
 }

@@ -7,7 +7,7 @@ use recording::{channel_type_name, kind_of};
 use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::process::ExitCode;
+use crate::exit::Exit;
 
 /// Arguments of `ulab log`.
 #[derive(Debug, clap::Args)]
@@ -53,7 +53,7 @@ pub struct ExportArgs {
     pub out: Option<PathBuf>,
 }
 
-pub fn run(args: Args) -> Result<ExitCode> {
+pub fn run(args: Args) -> Result<Exit> {
     match args.command {
         LogCommand::Export(a) => export(a),
         LogCommand::Info { file } => info(&file),
@@ -61,7 +61,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     }
 }
 
-fn recover(file: &Path, out: Option<PathBuf>) -> Result<ExitCode> {
+fn recover(file: &Path, out: Option<PathBuf>) -> Result<Exit> {
     let bytes = std::fs::read(file).with_context(|| format!("reading {}", file.display()))?;
     let out = out.unwrap_or_else(|| {
         let stem = file.file_stem().map_or_else(|| "log".into(), |s| s.to_string_lossy().into_owned());
@@ -79,7 +79,7 @@ fn recover(file: &Path, out: Option<PathBuf>) -> Result<ExitCode> {
         Some(why) => eprintln!("{}: {why}; the {} messages before it copied", file.display(), r.messages),
     }
     println!("{}", out.display());
-    Ok(ExitCode::SUCCESS)
+    Ok(Exit::Success)
 }
 
 fn csv_field(s: &str) -> String {
@@ -96,7 +96,7 @@ struct Table {
     rows: u64,
 }
 
-fn export(a: ExportArgs) -> Result<ExitCode> {
+fn export(a: ExportArgs) -> Result<Exit> {
     let bytes = std::fs::read(&a.file).with_context(|| format!("reading {}", a.file.display()))?;
     // First pass: which topics are there.
     let mut topics: BTreeMap<String, String> = BTreeMap::new();
@@ -184,14 +184,14 @@ fn export(a: ExportArgs) -> Result<ExitCode> {
         t.out.flush()?;
         eprintln!("{topic}: {} rows", t.rows);
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(Exit::Success)
 }
 
 fn create(p: &Path) -> Result<std::fs::File> {
     std::fs::File::create(p).with_context(|| format!("creating {}", p.display()))
 }
 
-fn info(file: &Path) -> Result<ExitCode> {
+fn info(file: &Path) -> Result<Exit> {
     let bytes = std::fs::read(file).with_context(|| format!("reading {}", file.display()))?;
     let mut stats: BTreeMap<String, (String, String, u64, u64, u64)> = BTreeMap::new();
     for m in recording::messages(&bytes).with_context(|| format!("reading {}", file.display()))? {
@@ -208,5 +208,5 @@ fn info(file: &Path) -> Result<ExitCode> {
         let span = t1.saturating_sub(*t0) as f64 / 1e9;
         println!("{topic}\t{ty}\t{enc}\t{n} messages\t{span:.2} s");
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(Exit::Success)
 }

@@ -1,4 +1,4 @@
-//! Subcommands. One module per subcommand; each exposes `Args` and `run(Args) -> anyhow::Result<ExitCode>`.
+//! Subcommands. One module per subcommand; each exposes `Args` and `run(Args) -> anyhow::Result<Exit>`.
 pub mod codec;
 pub mod conform;
 pub mod deploy;

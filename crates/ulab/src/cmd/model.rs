@@ -10,7 +10,7 @@ use diff_physics::oracle::{mass_matrix_from_accelerations, random_coords, run_ch
 use diff_physics::{make_engine, CommonSettings, Engine, EngineKind, State};
 use rand::SeedableRng;
 use robot_model::{GenCoords, RobotModel};
-use std::process::ExitCode;
+use crate::exit::Exit;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -76,7 +76,7 @@ struct MjcfArgs {
     robot: String,
 }
 
-pub fn run(args: Args) -> Result<ExitCode> {
+pub fn run(args: Args) -> Result<Exit> {
     match args.command {
         Sub::Check(a) => check(a),
         Sub::Inspect(a) => inspect(a),
@@ -84,7 +84,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
             let model = load(&a.robot)?;
             let e = diff_physics::mujoco::MujocoEngine::mjcf(&model, &CommonSettings::default(), &Default::default());
             print!("{e}");
-            Ok(ExitCode::SUCCESS)
+            Ok(Exit::Success)
         }
     }
 }
@@ -101,7 +101,7 @@ fn parse_engine(s: &str) -> Result<EngineKind> {
     Ok(EngineKind::parse_available(s)?)
 }
 
-fn check(a: CheckArgs) -> Result<ExitCode> {
+fn check(a: CheckArgs) -> Result<Exit> {
     let model = load(&a.robot)?;
     let kinds = if a.engines.is_empty() {
         EngineKind::available()
@@ -118,9 +118,9 @@ fn check(a: CheckArgs) -> Result<ExitCode> {
     }
     if report.engines.is_empty() {
         eprintln!("no engine available in this build");
-        return Ok(ExitCode::from(1));
+        return Ok(Exit::Failed);
     }
-    Ok(if report.passed() { ExitCode::SUCCESS } else { ExitCode::from(1) })
+    Ok(if report.passed() { Exit::Success } else { Exit::Failed })
 }
 
 fn coords(model: &RobotModel, q: &str) -> Result<GenCoords> {
@@ -138,7 +138,7 @@ fn coords(model: &RobotModel, q: &str) -> Result<GenCoords> {
     })
 }
 
-fn inspect(a: InspectArgs) -> Result<ExitCode> {
+fn inspect(a: InspectArgs) -> Result<Exit> {
     let model = load(&a.robot)?;
     let c = coords(&model, &a.q)?;
     let nv = model.nv();
@@ -209,5 +209,5 @@ fn inspect(a: InspectArgs) -> Result<ExitCode> {
             }
         }
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(Exit::Success)
 }

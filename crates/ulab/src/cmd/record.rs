@@ -14,7 +14,7 @@ use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::PathBuf;
-use std::process::ExitCode;
+use crate::exit::Exit;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{mpsc, Arc};
 use std::time::{Duration, Instant};
@@ -101,7 +101,7 @@ fn now_ns() -> u64 {
     std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos() as u64)
 }
 
-pub fn run(args: Args) -> Result<ExitCode> {
+pub fn run(args: Args) -> Result<Exit> {
     let cfg = args.net.domain_config()?;
     if let Some(d) = args.duration {
         if !(d.is_finite() && d > 0.0) {
@@ -242,7 +242,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     if let Some(e) = write_error {
         return Err(e).context("writing the MCAP file (what was written before is kept)");
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(Exit::Success)
 }
 
 fn store(writer: &mut mcap::Writer<BufWriter<File>>, ch: &mut Channel, s: &Sample) -> Result<()> {

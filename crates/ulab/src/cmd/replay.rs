@@ -6,7 +6,7 @@ use anyhow::{bail, Context, Result};
 use dds_transport::{Participant, RawWriter, TopicSpec};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
-use std::process::ExitCode;
+use crate::exit::Exit;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -39,7 +39,7 @@ struct Msg<'a> {
     data: std::borrow::Cow<'a, [u8]>,
 }
 
-pub fn run(args: Args) -> Result<ExitCode> {
+pub fn run(args: Args) -> Result<Exit> {
     if !(args.speed.is_finite() && args.speed > 0.0) {
         bail!("--speed must be a positive number");
     }
@@ -167,5 +167,5 @@ pub fn run(args: Args) -> Result<ExitCode> {
     if errors > 0 {
         bail!("{errors} messages could not be published");
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(Exit::Success)
 }

@@ -12,7 +12,7 @@ use diff_physics::mujoco::MujocoSettings;
 use diff_physics::{make_engine, CommonSettings, EngineKind, State};
 use sim_bridge::suspension::{self, SuspendedMujoco};
 use sim_bridge::{BridgeConfig, Defect, SimRobot};
-use std::process::ExitCode;
+use crate::exit::Exit;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -92,7 +92,7 @@ fn parse_defect(s: &str) -> Result<Defect, String> {
         .ok_or_else(|| format!("unknown defect `{s}` (known: {})", Defect::ALL.map(Defect::name).join(", ")))
 }
 
-pub fn run(args: Args) -> Result<ExitCode> {
+pub fn run(args: Args) -> Result<Exit> {
     anyhow::ensure!(args.state_rate > 0.0 && args.state_rate.is_finite(), "--state-rate must be positive");
     anyhow::ensure!(args.dt > 0.0 && args.dt <= 0.05, "--dt must be in (0, 0.05] s");
     let cfg = args.net.domain_config()?;
@@ -269,7 +269,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         "base": base.summary(&robot.engine().state()),
     });
     eprintln!("sim: summary {summary}");
-    Ok(ExitCode::SUCCESS)
+    Ok(Exit::Success)
 }
 
 /// The pelvis over the run: start and end positions, lowest height and largest tilt (sampled).

@@ -11,7 +11,7 @@ use engine_diff::harness::{builtin_factories, HarnessConfig};
 use engine_diff::triage::AllowList;
 use engine_diff::validate::{standard_commands, validate as run_validation, write_validation, ValidateSetup};
 use std::path::PathBuf;
-use std::process::ExitCode;
+use crate::exit::Exit;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -60,7 +60,7 @@ pub struct Args {
     jobs: Option<usize>,
 }
 
-pub fn run(a: Args) -> Result<ExitCode> {
+pub fn run(a: Args) -> Result<Exit> {
     if !(a.seconds.is_finite() && a.seconds >= 2.0 && a.seconds <= 600.0) {
         bail!("--seconds must be in [2, 600] (the command starts after 1 s)");
     }
@@ -139,9 +139,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
     }
     println!("report in {}", a.out.join("report.md").display());
     if a.fail_on_degrade && !report.flagged().is_empty() {
-        return Ok(ExitCode::from(1));
+        return Ok(Exit::Failed);
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(Exit::Success)
 }
 
 /// Optimises the gait in the training engine (on search seeds the validation does not use) and writes
