@@ -120,7 +120,7 @@ fn check(a: CheckArgs) -> Result<Exit> {
         eprintln!("no engine available in this build");
         return Ok(Exit::Failed);
     }
-    Ok(if report.passed() { Exit::Success } else { Exit::Failed })
+    Ok(Exit::failed_if(!report.passed()))
 }
 
 fn coords(model: &RobotModel, q: &str) -> Result<GenCoords> {
