@@ -1,10 +1,10 @@
 //! `ulab codec decode|encode|crc|validate`: the byte-level contract scripts rely on.
 
+use crate::exit::Exit;
 use anyhow::{bail, Context, Result};
 use clap::{Subcommand, ValueEnum};
 use lowlevel_codec::{cdr, crc, json, validate, Encoding, Endianness, Representation};
 use std::io::{Read, Write};
-use crate::exit::Exit;
 use unitree_idl::{with_message_type, IdlStruct, MessageType};
 
 #[derive(Debug, clap::Args)]

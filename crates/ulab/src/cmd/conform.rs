@@ -5,6 +5,7 @@
 //! failed / a failure was found or reproduced, 2 usage or connection error.
 
 use super::recording::NetArgs;
+use crate::exit::Exit;
 use anyhow::{bail, Context, Result};
 use conformance::fuzz::{self, FuzzOptions, Reproducer};
 use conformance::interop::InteropOptions;
@@ -13,7 +14,6 @@ use conformance::{checks, safety, target::Target};
 use std::collections::BTreeMap;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
-use crate::exit::Exit;
 use std::time::{Duration, Instant};
 
 #[derive(Debug, clap::Args)]

@@ -13,6 +13,7 @@
 //!
 //! Exit codes: 0 the run ended as asked (duration or Ctrl-C), 1 a safety stop, 2 errors (no state, bad input).
 use super::recording::NetArgs;
+use crate::exit::Exit;
 use anyhow::{bail, Context, Result};
 use dds_transport::{Family, Participant, TopicSpec};
 use lowlevel_codec::{cdr, Encoding};
@@ -20,7 +21,6 @@ use policy_deploy::keyboard::{self, Key, KeyEffect};
 use policy_deploy::{DeployConfig, Deployer, Phase, StopReason};
 use std::io::{IsTerminal, Read};
 use std::path::PathBuf;
-use crate::exit::Exit;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{mpsc, Arc};
 use std::time::{Duration, Instant};

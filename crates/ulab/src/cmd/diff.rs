@@ -13,6 +13,7 @@
 //!
 //! Exit codes: 0 report written (or replay identical), 1 candidate engine bugs with `--fail-on-bug` (or a
 //! replay that differs), 2 errors.
+use crate::exit::Exit;
 use anyhow::{bail, Context, Result};
 use engine_diff::harness::{builtin_factories, excitation_factory, ControllerFactory, EngineFactory, HarnessConfig};
 use engine_diff::report::{analyse, write_outputs, Analysis};
@@ -21,7 +22,6 @@ use engine_diff::triage::{AllowList, Class};
 use rayon::prelude::*;
 use robot_model::RobotModel;
 use std::path::{Path, PathBuf};
-use crate::exit::Exit;
 use std::sync::Arc;
 
 #[derive(Debug, clap::Args)]

@@ -8,13 +8,13 @@
 //! (which announces no endpoints and no type information, so it is safe next to Cyclone 0.10.2 peers).
 //! Exit code: 0 no problem found (warnings allowed), 1 at least one problem, 2 the doctor itself failed.
 
+use crate::exit::Exit;
 use anyhow::{Context, Result};
 use dds_transport::probe::{self, AnnouncedParticipant, NetInterface, ProbeTarget};
 use dds_transport::{DiscoveredEndpoint, DomainConfig, Durability, EndpointKind, Participant, Reliability};
 use serde::Serialize;
 use std::collections::{BTreeMap, BTreeSet};
 use std::net::Ipv4Addr;
-use crate::exit::Exit;
 use std::time::{Duration, Instant};
 
 #[derive(Debug, clap::Args)]

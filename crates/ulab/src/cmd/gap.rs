@@ -13,9 +13,9 @@ use gap_diagnosis::diagnose::PlantChoice;
 use gap_diagnosis::plant::{joint_groups, EngineChoice, GROUPS};
 use gap_diagnosis::{effects::Scope, DiagnoseOptions, EffectKind, Outcome, RobotLog};
 
+use crate::exit::Exit;
 use robot_model::RobotModel;
 use std::path::{Path, PathBuf};
-use crate::exit::Exit;
 
 /// `--plant`: which plant the diagnosis simulates (see `gap_diagnosis::diagnose::PlantChoice`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]

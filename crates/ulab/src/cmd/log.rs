@@ -1,13 +1,13 @@
 //! `ulab log`: look into MCAP recordings. `export --format csv` writes one row per message with
 //! one named column per field (`motor_state[3].q`), decoded by our codec.
 
+use crate::exit::Exit;
 use anyhow::{bail, Context, Result};
 use recording::columns::{column_names, decode_flat};
 use recording::{channel_type_name, kind_of};
 use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use crate::exit::Exit;
 
 /// Arguments of `ulab log`.
 #[derive(Debug, clap::Args)]

@@ -5,12 +5,12 @@
 //! - `ulab model inspect --robot h1_2 --engine E --q zero|default|random:SEED [--format json|table]`: nq, nv,
 //!   total mass, COM and the joint-space mass matrix (6 base rows/columns, then joints in slot order).
 //! - `ulab model mjcf --robot h1_2`: the MJCF generated for MuJoCo (free joint, floor).
+use crate::exit::Exit;
 use anyhow::{bail, Context, Result};
 use diff_physics::oracle::{mass_matrix_from_accelerations, random_coords, run_checks, CheckOptions};
 use diff_physics::{make_engine, CommonSettings, Engine, EngineKind, State};
 use rand::SeedableRng;
 use robot_model::{GenCoords, RobotModel};
-use crate::exit::Exit;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {

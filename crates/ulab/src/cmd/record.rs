@@ -7,6 +7,7 @@
 //! reported: LowState tick jumps, arrival gaps and one-second windows with a low rate.
 
 use super::recording::{parse_topic, NetArgs, TopicChoice};
+use crate::exit::Exit;
 use anyhow::{bail, Context, Result};
 use dds_transport::{Participant, ReaderOptions, Sample};
 use recording::lowstate_tick;
@@ -14,7 +15,6 @@ use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::PathBuf;
-use crate::exit::Exit;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{mpsc, Arc};
 use std::time::{Duration, Instant};

@@ -2,11 +2,11 @@
 //! timing (log time, i.e. reception time at recording), optionally sped up or slowed down.
 
 use super::recording::NetArgs;
+use crate::exit::Exit;
 use anyhow::{bail, Context, Result};
 use dds_transport::{Participant, RawWriter, TopicSpec};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
-use crate::exit::Exit;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};

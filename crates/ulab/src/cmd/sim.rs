@@ -6,13 +6,13 @@
 //! `sim_loco` / `sim_bridge::loco`.
 
 use super::recording::NetArgs;
+use crate::exit::Exit;
 use anyhow::{Context, Result};
 use dds_transport::{Participant, TopicSpec};
 use diff_physics::mujoco::MujocoSettings;
 use diff_physics::{make_engine, CommonSettings, EngineKind, State};
 use sim_bridge::suspension::{self, SuspendedMujoco};
 use sim_bridge::{BridgeConfig, Defect, SimRobot};
-use crate::exit::Exit;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};

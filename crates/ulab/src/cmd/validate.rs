@@ -6,12 +6,12 @@
 //! `engine_diff::validate`.
 //!
 //! Exit codes: 0 report written, 1 some engine degrades or fails and `--fail-on-degrade` was given, 2 errors.
+use crate::exit::Exit;
 use anyhow::{bail, Context, Result};
 use engine_diff::harness::{builtin_factories, HarnessConfig};
 use engine_diff::triage::AllowList;
 use engine_diff::validate::{standard_commands, validate as run_validation, write_validation, ValidateSetup};
 use std::path::PathBuf;
-use crate::exit::Exit;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
