@@ -1,0 +1,237 @@
+//! Each effect alone: fit it on the training windows, keep the units that cut their own held-out residual beyond
+//! a floor, and name the effect when the kept units cut the whole held-out gap beyond the noise floor. Its output
+//! is also the candidate list of the forward selection ([`super::select`]).
+use super::breakdown::Baseline;
+use super::fit::{fit_kind, report_value, set_unit, unit_name, unit_value, units_of, RESOLUTION_FRAC};
+use super::options::PlantKind;
+use super::replay::Ctx;
+use super::stats::{bootstrap_mean, bootstrap_ratio, mean, noise_floor, total, Estimate};
+use crate::effects::{EffectKind, Scope};
+use crate::plant::Effects;
+use crate::GapError;
+use rand::Rng;
+use serde::{Deserialize, Serialize};
+
+/// A unit must cut its own held-out residual by at least this fraction (lower bound of the interval).
+pub const UNIT_FLOOR_FRAC: f64 = 0.10;
+
+/// One fitted parameter.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct FittedParam {
+    /// Joint, group, `robot` or `imu_x|y|z`.
+    pub unit: String,
+    pub value: f64,
+    /// Bootstrap standard deviation over training windows.
+    pub sd: f64,
+    /// Held-out reduction of the gap metric credited to this unit (absolute, normalised units per window): its
+    /// own residual's reduction, or, when several units are kept, the whole-gap reduction it gives alone.
+    pub held_out_reduction: f64,
+}
+
+/// An effect's result.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct EffectResult {
+    pub kind: EffectKind,
+    pub parameter: String,
+    pub scope: Scope,
+    /// Named (confident): the held-out reduction's lower bound clears the noise floor (for an effect added to
+    /// the best combination after the first: the reduction of the residual the effects before it leave).
+    pub named: bool,
+    /// Relative held-out reduction of the gap metric (0..1), with a bootstrap interval; for an effect added to the
+    /// combination after the first, relative to the residual that remains with the effects before it.
+    pub reduction: Estimate,
+    /// Held-out gap metric with this effect added (to the effects before it, when named given them).
+    pub metric_after: Estimate,
+    /// Relative noise floor the reduction had to clear.
+    pub noise_floor: f64,
+    /// The units kept (reduction above the unit floor), with values.
+    pub params: Vec<FittedParam>,
+    /// Why it was not fitted or not named, or, when named given other effects, which.
+    pub note: Option<String>,
+}
+
+/// A fitted effect that cut some unit's own held-out residual: a candidate of the forward selection.
+pub(super) struct Candidate {
+    pub kind: EffectKind,
+    /// Its kept units at their fitted values.
+    pub fx: Effects,
+}
+
+/// Held-out gap metric per window of a named effect.
+pub(super) struct NamedScores {
+    pub kind: EffectKind,
+    pub totals: Vec<f64>,
+}
+
+/// Every effect judged alone.
+pub(super) struct Assessment {
+    /// One result per effect tried, named ones first, each group by its held-out reduction.
+    pub results: Vec<EffectResult>,
+    /// The named effects in that order.
+    pub ranked: Vec<EffectKind>,
+    pub candidates: Vec<Candidate>,
+    pub named_scores: Vec<NamedScores>,
+}
+
+/// One effect judged alone.
+struct Assessed {
+    result: EffectResult,
+    /// Its kept units and the held-out gap metric per window with them.
+    kept: Effects,
+    totals: Vec<f64>,
+}
+
+/// Fits and judges every effect of `kinds` in order (the order of the RNG draws).
+pub(super) fn assess(
+    ctx: &Ctx<'_>,
+    kinds: Vec<EffectKind>,
+    baseline: &Baseline,
+    any_contact: bool,
+    rng: &mut impl Rng,
+) -> Result<Assessment, GapError> {
+    let mut results = Vec::new();
+    let mut candidates = Vec::new();
+    let mut named_scores = Vec::new();
+    for kind in kinds {
+        if ctx.plant == PlantKind::Rig && !kind.identifiable_suspended() {
+            results.push(not_identifiable(kind, any_contact, baseline.metric));
+            continue;
+        }
+        let a = assess_one(ctx, kind, baseline, rng)?;
+        // Every effect that cut some unit's own residual stays a candidate of the conditional selection.
+        if !a.result.params.is_empty() {
+            candidates.push(Candidate { kind, fx: a.kept });
+        }
+        if a.result.named {
+            named_scores.push(NamedScores { kind, totals: a.totals });
+        }
+        results.push(a.result);
+    }
+    sort_results(&mut results);
+    let ranked: Vec<EffectKind> = results.iter().filter(|r| r.named).map(|r| r.kind).collect();
+    Ok(Assessment { results, ranked, candidates, named_scores })
+}
+
+/// Named effects first, each group by its reduction (descending).
+pub(super) fn sort_results(results: &mut [EffectResult]) {
+    results.sort_by(|a, b| {
+        (b.named, b.reduction.value).partial_cmp(&(a.named, a.reduction.value)).unwrap_or(std::cmp::Ordering::Equal)
+    });
+}
+
+/// The result of a ground-contact effect on the rig, which has no ground to fit it on.
+fn not_identifiable(kind: EffectKind, any_contact: bool, baseline_metric: Estimate) -> EffectResult {
+    let note = if any_contact {
+        "foot contact is estimated in this log, but the suspended-rig plant has no ground model to fit it on"
+            .to_string()
+    } else {
+        "not identifiable: no foot contact in this log".to_string()
+    };
+    EffectResult {
+        kind,
+        parameter: kind.parameter().into(),
+        scope: kind.scope(),
+        named: false,
+        reduction: Estimate { value: 0.0, lo: 0.0, hi: 0.0 },
+        metric_after: baseline_metric,
+        noise_floor: 0.0,
+        params: vec![],
+        note: Some(note),
+    }
+}
+
+/// Fits `kind` on the training windows, keeps the units whose own held-out residual it cuts, and judges the kept
+/// units against the whole held-out gap.
+fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut impl Rng) -> Result<Assessed, GapError> {
+    let bootstrap = ctx.opts.bootstrap;
+    let null = Effects::none(ctx.nj());
+    let (base_test, base_test_tot) = (&baseline.test, &baseline.test_tot);
+    let fit = fit_kind(ctx, kind, &null, &baseline.train, rng)?;
+    let (fx, sds) = (fit.fx, fit.sds);
+    // Held-out: per-unit reductions decide which units are kept.
+    let after = ctx.eval_many(std::slice::from_ref(&fx), &ctx.test)?.remove(0);
+    let units = units_of(ctx, kind);
+    let mut pruned = null.clone();
+    let mut params = Vec::new();
+    for (u, cols) in units.iter().enumerate() {
+        let before: Vec<f64> = base_test.iter().map(|s| cols.iter().map(|&c| s[c]).sum()).collect();
+        let aft: Vec<f64> = after.iter().map(|s| cols.iter().map(|&c| s[c]).sum()).collect();
+        let diffs: Vec<f64> = before.iter().zip(&aft).map(|(b, a)| b - a).collect();
+        let d = bootstrap_mean(&diffs, bootstrap, rng);
+        let unit_floor = UNIT_FLOOR_FRAC * mean(&before);
+        let value = unit_value(kind, &fx, ctx, u);
+        if d.lo > unit_floor && d.value > 0.0 && kind.scope() == Scope::Imu {
+            kind.copy(&fx, &mut pruned);
+            for (k, axis) in ["imu_x", "imu_y", "imu_z"].into_iter().enumerate() {
+                params.push(FittedParam {
+                    unit: axis.into(),
+                    value: kind.get(&fx, k),
+                    sd: sds[0],
+                    held_out_reduction: d.value,
+                });
+            }
+        } else if d.lo > unit_floor
+            && d.value > 0.0
+            && (value - kind.range().2).abs() >= RESOLUTION_FRAC * (kind.range().1 - kind.range().0)
+        {
+            set_unit(kind, &mut pruned, ctx, u, value);
+            params.push(FittedParam {
+                unit: unit_name(ctx, kind, u),
+                value: report_value(kind, value),
+                sd: report_value(kind, sds[u]),
+                held_out_reduction: d.value,
+            });
+        }
+    }
+    // With several units kept, credit each by the whole-gap reduction it gives alone (a joint's effect also
+    // shows in its neighbours' residuals, so its own column is not a fair measure).
+    if params.len() > 1 && matches!(kind.scope(), Scope::Joint | Scope::Group) {
+        let base_sum: f64 = base_test_tot.iter().sum();
+        let solo: Vec<Effects> = params
+            .iter()
+            .map(|p| {
+                let mut fx = null.clone();
+                if let Some(u) = (0..units.len()).find(|&u| unit_name(ctx, kind, u) == p.unit) {
+                    set_unit(kind, &mut fx, ctx, u, unit_value(kind, &pruned, ctx, u));
+                }
+                fx
+            })
+            .collect();
+        let res = ctx.eval_many(&solo, &ctx.test)?;
+        for (p, r) in params.iter_mut().zip(res) {
+            p.held_out_reduction = (base_sum - r.iter().map(|s| total(s)).sum::<f64>()) / ctx.test.len() as f64;
+        }
+    }
+    let after_tot = if params.is_empty() {
+        base_test_tot.clone()
+    } else {
+        let a = ctx.eval_many(std::slice::from_ref(&pruned), &ctx.test)?.remove(0);
+        a.iter().map(|s| total(s)).collect::<Vec<f64>>()
+    };
+    let red = bootstrap_ratio(base_test_tot, &after_tot, bootstrap, rng);
+    let metric_after = bootstrap_mean(&after_tot, bootstrap, rng);
+    let floor = noise_floor(base_test_tot);
+    let named = !params.is_empty() && red.lo > floor;
+    let note = if named {
+        None
+    } else if params.is_empty() {
+        Some("no joint/group reduced the held-out residual beyond its floor".to_string())
+    } else {
+        Some(format!(
+            "held-out reduction {:.3} (lower bound {:.3}) does not clear the noise floor {:.3}",
+            red.value, red.lo, floor
+        ))
+    };
+    let result = EffectResult {
+        kind,
+        parameter: kind.parameter().into(),
+        scope: kind.scope(),
+        named,
+        reduction: red,
+        metric_after,
+        noise_floor: floor,
+        params,
+        note,
+    };
+    Ok(Assessed { result, kept: pruned, totals: after_tot })
+}

@@ -1,0 +1,228 @@
+//! Replaying windows and scoring them: the engine every later stage calls. A window's score is its normalised
+//! squared residual per column (joints, then the IMU); engines of the unmodified model are pooled because building
+//! one costs far more than replaying a window.
+use super::options::{DiagnoseOptions, PlantKind};
+use super::windows::Windows;
+use crate::floating::{self, Feet, FloatingPlant};
+use crate::log::{Measurement, RobotLog};
+use crate::plant::{imu_reading, joint_groups, predict_window, Effects, EngineChoice, Rig};
+use crate::GapError;
+use rayon::prelude::*;
+use robot_model::RobotModel;
+
+use crate::noise::{SIGMA_DQ, SIGMA_GYRO, SIGMA_Q, SIGMA_QUAT, SIGMA_TAU_FRAC};
+
+/// Per-window scores: `[window][column]`, columns = joints then the IMU.
+pub(super) type Scores = Vec<Vec<f64>>;
+
+/// The engine that replays a window: on the rig, or on the ground.
+pub(super) enum Plant {
+    Rig(Rig),
+    Floating(FloatingPlant),
+}
+
+impl Plant {
+    /// A plant of `kind` for `model` (already carrying the model-level effects of `fx`; `fx` supplies the contact
+    /// time constant of the floating plant).
+    pub(super) fn new(
+        kind: PlantKind,
+        model: &RobotModel,
+        engine: &EngineChoice,
+        fx: &Effects,
+    ) -> Result<Self, GapError> {
+        Ok(match kind {
+            PlantKind::Rig => Plant::Rig(Rig::new(model, engine)?),
+            PlantKind::Floating => Plant::Floating(FloatingPlant::new(model, engine, fx)?),
+        })
+    }
+
+    /// The window's predicted measurements ([`crate::plant::predict_window`] or [`floating::predict_window`]).
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn predict(
+        &mut self,
+        model: &RobotModel,
+        feet: Option<&Feet>,
+        log: &RobotLog,
+        fx: &Effects,
+        start: usize,
+        len: usize,
+        with_imu: bool,
+    ) -> Result<Vec<Measurement>, GapError> {
+        match (self, feet) {
+            (Plant::Rig(rig), _) => predict_window(rig, model, log, fx, start, len, with_imu),
+            (Plant::Floating(p), Some(feet)) => floating::predict_window(p, model, feet, log, fx, start, len, with_imu),
+            (Plant::Floating(_), None) => Err(GapError::Input("floating plant without feet".into())),
+        }
+    }
+}
+
+/// What every stage after the windows shares: the inputs, the windows and the pooled engines.
+pub(super) struct Ctx<'a> {
+    pub model: &'a RobotModel,
+    pub log: &'a RobotLog,
+    pub opts: &'a DiagnoseOptions,
+    pub plant: PlantKind,
+    /// The feet (floating plant only).
+    pub feet: Option<Feet>,
+    /// State sample period of the log (median).
+    pub dt_state: f64,
+    pub starts: Vec<usize>,
+    pub len: usize,
+    pub train: Vec<usize>,
+    pub test: Vec<usize>,
+    /// Group index of each joint ([`crate::plant::GROUPS`]).
+    pub groups: Vec<usize>,
+    sigma_tau: Vec<f64>,
+    null: Effects,
+    /// Idle engines of the unmodified model.
+    pool: std::sync::Mutex<Vec<Plant>>,
+}
+
+impl<'a> Ctx<'a> {
+    /// The context of `windows` (their bookkeeping counts stay with the caller).
+    pub(super) fn new(
+        model: &'a RobotModel,
+        log: &'a RobotLog,
+        opts: &'a DiagnoseOptions,
+        plant: PlantKind,
+        windows: Windows,
+    ) -> Self {
+        Ctx {
+            model,
+            log,
+            opts,
+            plant,
+            feet: windows.feet,
+            dt_state: windows.dt_state,
+            starts: windows.starts,
+            len: windows.len,
+            train: windows.train,
+            test: windows.test,
+            groups: joint_groups(model),
+            sigma_tau: model.joints.iter().map(|j| SIGMA_TAU_FRAC * j.torque_limit.max(1.0)).collect(),
+            null: Effects::none(model.nj()),
+            pool: std::sync::Mutex::new(Vec::new()),
+        }
+    }
+}
+
+impl Ctx<'_> {
+    pub(super) fn nj(&self) -> usize {
+        self.model.nj()
+    }
+
+    /// Scores of the given windows under each configuration (parallel over configurations × window chunks).
+    pub(super) fn eval_many(&self, cfgs: &[Effects], windows: &[usize]) -> Result<Vec<Scores>, GapError> {
+        let chunks = (rayon::current_num_threads() * 2).max(1);
+        let per = windows.len().div_ceil(chunks).max(1);
+        let jobs: Vec<(usize, &[usize])> =
+            (0..cfgs.len()).flat_map(|c| windows.chunks(per).map(move |w| (c, w))).collect();
+        let results: Vec<Result<(usize, Scores), GapError>> = jobs
+            .par_iter()
+            .map(|(c, ws)| {
+                let fx = &cfgs[*c];
+                // Engines of the unmodified model are reused (building one costs far more than a window).
+                let baseline_model = fx.same_model(&self.null);
+                let model = if baseline_model { self.model.clone() } else { fx.apply_to_model(self.model) };
+                let pooled = if baseline_model { self.pool.lock().ok().and_then(|mut p| p.pop()) } else { None };
+                let mut rig = match pooled {
+                    Some(r) => r,
+                    None => Plant::new(self.plant, &model, &self.opts.engine, fx)?,
+                };
+                let mut out = Vec::with_capacity(ws.len());
+                for &w in ws.iter() {
+                    out.push(self.window_scores(&mut rig, &model, fx, w, None)?);
+                }
+                if baseline_model {
+                    if let Ok(mut p) = self.pool.lock() {
+                        p.push(rig);
+                    }
+                }
+                Ok((*c, out))
+            })
+            .collect();
+        let mut all: Vec<Scores> = vec![Vec::new(); cfgs.len()];
+        for r in results {
+            let (c, s) = r?;
+            all[c].extend(s);
+        }
+        Ok(all)
+    }
+
+    /// Normalised squared residual of one window per column; `series` receives the q residual time series.
+    pub(super) fn window_scores(
+        &self,
+        rig: &mut Plant,
+        model: &RobotModel,
+        fx: &Effects,
+        w: usize,
+        series: Option<&mut Vec<Vec<f64>>>,
+    ) -> Result<Vec<f64>, GapError> {
+        let nj = self.nj();
+        let start = self.starts[w];
+        let floating = self.plant == PlantKind::Floating;
+        let pred = rig.predict(model, self.feet.as_ref(), self.log, fx, start, self.len, floating)?;
+        let mut s = vec![0.0; nj + 1];
+        let mut ser = vec![Vec::with_capacity(pred.len()); nj];
+        for (k, p) in pred.iter().enumerate() {
+            let m = &self.log.states[start + 1 + k];
+            for j in 0..nj {
+                let eq = (m.q[j] - p.q[j]) / SIGMA_Q;
+                let edq = (m.dq[j] - p.dq[j]) / SIGMA_DQ;
+                let et = (m.tau[j] - p.tau[j]) / self.sigma_tau[j];
+                s[j] += (eq * eq + edq * edq + et * et) / 3.0;
+                ser[j].push(m.q[j] - p.q[j]);
+            }
+        }
+        let n = pred.len().max(1) as f64;
+        s.iter_mut().take(nj).for_each(|x| *x /= n);
+        s[nj] = if floating { floating_imu_score(self.log, start, &pred) } else { self.imu_score(fx, w)? };
+        if let Some(out) = series {
+            *out = ser;
+        }
+        Ok(s)
+    }
+
+    /// IMU residual of a window: the reading predicted from the logged joints on the rig vs the logged reading.
+    fn imu_score(&self, fx: &Effects, w: usize) -> Result<f64, GapError> {
+        let start = self.starts[w];
+        let mut s = 0.0;
+        let step = 5;
+        let mut n = 0.0_f64;
+        for k in (1..=self.len).step_by(step) {
+            let Some(m) = self.log.states.get(start + k) else { break };
+            let q: Vec<f64> = m.q.iter().zip(&fx.encoder_offset).map(|(a, o)| a - o).collect();
+            let (quat, gyro) = imu_reading(self.model, &q, &m.dq, fx)?;
+            let r = rot_residual(&m.quat, &quat);
+            for k in 0..3 {
+                s += (r[k] / SIGMA_QUAT).powi(2) + ((m.gyro[k] - gyro[k]) / SIGMA_GYRO).powi(2);
+            }
+            n += 1.0;
+        }
+        Ok(s / (6.0 * n.max(1.0)))
+    }
+}
+
+/// IMU sample stride of the IMU score (the IMU changes slowly within a window).
+pub(super) const IMU_STRIDE: usize = 5;
+
+/// Floating base: the IMU residual of a window is the logged reading against the window's predicted one (the
+/// simulated pelvis carries the IMU), at the same samples and in the same units as the rig's [`Ctx::imu_score`].
+fn floating_imu_score(log: &RobotLog, start: usize, pred: &[Measurement]) -> f64 {
+    let (mut s, mut n) = (0.0, 0.0_f64);
+    for k in (1..=pred.len()).step_by(IMU_STRIDE) {
+        let (Some(m), Some(p)) = (log.states.get(start + k), pred.get(k - 1)) else { break };
+        let r = rot_residual(&m.quat, &p.quat);
+        for ((r, gm), gp) in r.iter().zip(&m.gyro).zip(&p.gyro) {
+            s += (r / SIGMA_QUAT).powi(2) + ((gm - gp) / SIGMA_GYRO).powi(2);
+        }
+        n += 1.0;
+    }
+    s / (6.0 * n.max(1.0))
+}
+
+/// Rotation vector taking `pred` to `meas` in the IMU frame.
+pub(super) fn rot_residual(meas: &[f64; 4], pred: &[f64; 4]) -> [f64; 3] {
+    let q = |a: &[f64; 4]| nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(a[0], a[1], a[2], a[3]));
+    (q(pred).inverse() * q(meas)).scaled_axis().into()
+}

@@ -1,0 +1,219 @@
+//! The best combination: conditional forward selection over the candidates of [`super::assess`], and the
+//! abstentions. It starts from the best named effect; each step then judges every candidate (any effect that cut
+//! some unit's own residual, named alone or not) against the residual that REMAINS with the effects already in:
+//! the candidates' fits are evaluated on top of the combination, the best few joint/group/global candidates are
+//! also refitted with the combination applied (an effect fitted alone absorbs part of a confusable one on the same
+//! joints), and the winner must cut the remaining held-out residual by more than that residual's own noise floor.
+//! A small effect beside a large one (an IMU bias beside joint damping) is thus judged against what is left, not
+//! against the whole initial gap.
+use super::assess::{sort_results, Assessment, Candidate, EffectResult, FittedParam};
+use super::breakdown::Baseline;
+use super::fit::{fit_kind, report_value, set_unit, unit_name, unit_value, units_of, RESOLUTION_FRAC};
+use super::replay::{Ctx, Scores};
+use super::stats::{bootstrap_mean, bootstrap_ratio, noise_floor, total, Estimate};
+use crate::effects::{EffectKind, Scope};
+use crate::plant::Effects;
+use crate::GapError;
+use rand::Rng;
+use serde::{Deserialize, Serialize};
+
+/// At most this many effects in the best combination.
+pub const MAX_COMBINATION: usize = 3;
+/// Candidates refitted with the combination applied at each selection step (the best by their own fits).
+pub const REFIT_CANDIDATES: usize = 2;
+
+/// The best combination of named effects.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct Combination {
+    pub effects: Vec<EffectKind>,
+    pub metric_after: Estimate,
+    pub reduction: Estimate,
+}
+
+/// The effects as reported.
+pub(super) struct Selection {
+    /// Every effect tried: named ones first, each group by its own held-out reduction.
+    pub effects: Vec<EffectResult>,
+    /// The named effects: the best combination's selection order, then the other named effects.
+    pub ranked: Vec<EffectKind>,
+    /// Effects not named, with the reason.
+    pub abstentions: Vec<(EffectKind, String)>,
+    pub best_combination: Option<Combination>,
+}
+
+/// An effect added to the best combination after the first.
+struct Conditional {
+    kind: EffectKind,
+    /// Reduction of the residual the effects before it leave.
+    gain: Estimate,
+    /// The noise floor of that residual.
+    floor: f64,
+    metric_after: Estimate,
+    /// Its parameters when refitted on top of the combination.
+    params: Option<Vec<FittedParam>>,
+}
+
+/// The best candidate to add at one selection step.
+struct Trial {
+    /// Index into the candidates tried.
+    index: usize,
+    /// The combination with it added.
+    fx: Effects,
+    /// Held-out gap metric per window with it added.
+    totals: Vec<f64>,
+    /// Its parameters when the refit on top of the combination won.
+    params: Option<Vec<FittedParam>>,
+}
+
+/// Selects the best combination from the assessment and lists the abstentions.
+pub(super) fn select(
+    ctx: &Ctx<'_>,
+    assessment: Assessment,
+    baseline: &Baseline,
+    rng: &mut impl Rng,
+) -> Result<Selection, GapError> {
+    let Assessment { mut results, mut ranked, candidates, named_scores } = assessment;
+    let bootstrap = ctx.opts.bootstrap;
+    let null = Effects::none(ctx.nj());
+    let mut best_combination = None;
+    if !ranked.is_empty() {
+        let get = |k: EffectKind| candidates.iter().find(|c| c.kind == k).map(|c| c.fx.clone());
+        let first = ranked[0];
+        let mut combo = get(first).unwrap_or_else(|| null.clone());
+        let mut members = vec![first];
+        let mut cur: Vec<f64> =
+            named_scores.iter().find(|n| n.kind == first).map(|n| n.totals.clone()).unwrap_or_default();
+        let mut added: Vec<Conditional> = Vec::new();
+        while members.len() < MAX_COMBINATION {
+            let cands: Vec<EffectKind> = candidates.iter().map(|c| c.kind).filter(|k| !members.contains(k)).collect();
+            if cands.is_empty() {
+                break;
+            }
+            let Some(mut trial) = best_trial(ctx, &combo, &cands, &candidates, rng)? else {
+                break;
+            };
+            let gain = bootstrap_ratio(&cur, &trial.totals, bootstrap, rng);
+            let floor = noise_floor(&cur);
+            if gain.lo <= floor {
+                break;
+            }
+            let per_window = (cur.iter().sum::<f64>() - trial.totals.iter().sum::<f64>()) / cur.len().max(1) as f64;
+            let params = trial.params.take().map(|mut ps| {
+                ps.iter_mut().for_each(|p| p.held_out_reduction = per_window);
+                ps
+            });
+            let kind = cands[trial.index];
+            let metric_after = bootstrap_mean(&trial.totals, bootstrap, rng);
+            added.push(Conditional { kind, gain, floor, metric_after, params });
+            combo = trial.fx;
+            members.push(kind);
+            cur = trial.totals;
+        }
+        name_conditionals(&mut results, &members, added);
+        sort_results(&mut results);
+        let named: Vec<EffectKind> = results.iter().filter(|r| r.named).map(|r| r.kind).collect();
+        let rest: Vec<EffectKind> = named.iter().copied().filter(|k| !members.contains(k)).collect();
+        ranked = members.iter().copied().chain(rest).collect();
+        let metric_after = bootstrap_mean(&cur, bootstrap, rng);
+        let reduction = bootstrap_ratio(&baseline.test_tot, &cur, bootstrap, rng);
+        best_combination = Some(Combination { effects: members, metric_after, reduction });
+    }
+    let abstentions: Vec<(EffectKind, String)> =
+        results.iter().filter(|r| !r.named).map(|r| (r.kind, r.note.clone().unwrap_or_default())).collect();
+    Ok(Selection { effects: results, ranked, abstentions, best_combination })
+}
+
+/// Evaluates every candidate `cands` on top of `combo`, refits the most promising non-IMU ones with `combo`
+/// applied, and returns the one leaving the smallest held-out residual (`None`: nothing to try).
+fn best_trial(
+    ctx: &Ctx<'_>,
+    combo: &Effects,
+    cands: &[EffectKind],
+    candidates: &[Candidate],
+    rng: &mut impl Rng,
+) -> Result<Option<Trial>, GapError> {
+    let get = |k: EffectKind| candidates.iter().find(|c| c.kind == k).map(|c| c.fx.clone());
+    let mut trials: Vec<Effects> = cands
+        .iter()
+        .map(|&k| {
+            let mut t = combo.clone();
+            if let Some(fx) = get(k) {
+                k.copy(&fx, &mut t);
+            }
+            t
+        })
+        .collect();
+    let res = ctx.eval_many(&trials, &ctx.test)?;
+    let mut tots: Vec<Vec<f64>> = res.iter().map(|r| r.iter().map(|s| total(s)).collect()).collect();
+    let mut refit_params: Vec<Option<Vec<FittedParam>>> = vec![None; cands.len()];
+    // Refit the most promising non-IMU candidates given the combination (the IMU fits are closed-form on
+    // their own channel and do not depend on it).
+    let mut order: Vec<usize> = (0..cands.len()).filter(|&i| cands[i].scope() != Scope::Imu).collect();
+    order.sort_by(|&x, &y| tots[x].iter().sum::<f64>().total_cmp(&tots[y].iter().sum::<f64>()));
+    order.truncate(REFIT_CANDIDATES);
+    if !order.is_empty() {
+        let combo_train: Scores = ctx.eval_many(std::slice::from_ref(combo), &ctx.train)?.remove(0);
+        let mut refits = Vec::new();
+        for &i in &order {
+            let kind = cands[i];
+            let fit = fit_kind(ctx, kind, combo, &combo_train, rng)?;
+            let (fx, sds) = (fit.fx, fit.sds);
+            let mut t = combo.clone();
+            let mut params = Vec::new();
+            let (lo, hi, v0) = kind.range();
+            for (u, &sd) in sds.iter().enumerate().take(units_of(ctx, kind).len()) {
+                let v = unit_value(kind, &fx, ctx, u);
+                if (v - v0).abs() >= RESOLUTION_FRAC * (hi - lo) {
+                    set_unit(kind, &mut t, ctx, u, v);
+                    params.push(FittedParam {
+                        unit: unit_name(ctx, kind, u),
+                        value: report_value(kind, v),
+                        sd: report_value(kind, sd),
+                        held_out_reduction: 0.0,
+                    });
+                }
+            }
+            if !params.is_empty() {
+                refits.push((i, t, params));
+            }
+        }
+        let cfgs: Vec<Effects> = refits.iter().map(|(_, t, _)| t.clone()).collect();
+        let res = ctx.eval_many(&cfgs, &ctx.test)?;
+        for ((i, t, params), r) in refits.into_iter().zip(res) {
+            let tot: Vec<f64> = r.iter().map(|s| total(s)).collect();
+            if tot.iter().sum::<f64>() < tots[i].iter().sum::<f64>() {
+                trials[i] = t;
+                tots[i] = tot;
+                refit_params[i] = Some(params);
+            }
+        }
+    }
+    let Some((index, _)) =
+        tots.iter().enumerate().min_by(|a, b| a.1.iter().sum::<f64>().total_cmp(&b.1.iter().sum::<f64>()))
+    else {
+        return Ok(None);
+    };
+    Ok(Some(Trial {
+        index,
+        fx: trials.swap_remove(index),
+        totals: tots.swap_remove(index),
+        params: refit_params.swap_remove(index),
+    }))
+}
+
+/// Effects added conditionally are named with their conditional reduction and floor, and say given which.
+fn name_conditionals(results: &mut [EffectResult], members: &[EffectKind], added: Vec<Conditional>) {
+    for (n, c) in added.into_iter().enumerate() {
+        if let Some(r) = results.iter_mut().find(|r| r.kind == c.kind) {
+            let given: Vec<&str> = members[..=n].iter().map(|k| k.name()).collect();
+            r.named = true;
+            r.reduction = c.gain;
+            r.noise_floor = c.floor;
+            r.metric_after = c.metric_after;
+            if let Some(p) = c.params {
+                r.params = p;
+            }
+            r.note = Some(format!("named given {}: reduction of the remaining held-out residual", given.join(" + ")));
+        }
+    }
+}
