@@ -6,6 +6,8 @@
 //! recording and the file is finished properly. At the end, gaps that can be detected are
 //! reported: LowState tick jumps, arrival gaps and one-second windows with a low rate.
 
+mod gaps;
+
 use super::recording::{parse_topic, NetArgs, TopicChoice};
 use crate::exit::Exit;
 use anyhow::{bail, Context, Result};
@@ -86,15 +88,7 @@ struct Channel {
     choice: TopicChoice,
     id: u16,
     sequence: u32,
-    stats: TopicStats,
-}
-
-/// Per-topic arrival record for the gap report.
-#[derive(Default)]
-struct TopicStats {
-    arrivals: Vec<i64>,
-    ticks: Vec<(i64, u32)>,
-    undecodable: u64,
+    stats: gaps::GapStats,
 }
 
 fn now_ns() -> u64 {
@@ -138,7 +132,7 @@ pub fn run(args: Args) -> Result<Exit> {
     for c in choices {
         let id = recording::add_topic(&mut writer, &c.spec.name, &c.spec.type_name)
             .with_context(|| format!("adding the channel of {}", c.spec.name))?;
-        channels.push(Channel { choice: c, id, sequence: 0, stats: TopicStats::default() });
+        channels.push(Channel { choice: c, id, sequence: 0, stats: gaps::GapStats::default() });
     }
 
     let stop = Arc::new(AtomicBool::new(false));
@@ -207,7 +201,7 @@ pub fn run(args: Args) -> Result<Exit> {
                 .iter()
                 .zip(counts_at_status.iter_mut())
                 .map(|(c, prev)| {
-                    let n = c.stats.arrivals.len() as u64;
+                    let n = c.stats.count();
                     let r = (n - *prev) as f64 / dt;
                     *prev = n;
                     format!("{} {r:.1} Hz", c.choice.spec.name)
@@ -229,7 +223,7 @@ pub fn run(args: Args) -> Result<Exit> {
         }
     }
 
-    let report = Report::build(&channels, overflow.load(Ordering::Relaxed), started.elapsed().as_secs_f64());
+    let report = Report::build(channels, overflow.load(Ordering::Relaxed), started.elapsed().as_secs_f64());
     let mut meta = BTreeMap::new();
     meta.insert("domain".to_owned(), cfg.domain_id().to_string());
     meta.insert("interface".to_owned(), cfg.interface_name().to_owned());
@@ -253,24 +247,14 @@ fn store(writer: &mut mcap::Writer<BufWriter<File>>, ch: &mut Channel, s: &Sampl
         &s.data,
     )?;
     ch.sequence = ch.sequence.wrapping_add(1);
-    ch.stats.arrivals.push(s.reception_ns);
-    if let Some(kind) = ch.choice.kind {
-        if matches!(kind, unitree_idl::MessageType::HgLowState | unitree_idl::MessageType::GoLowState) {
-            match lowstate_tick(kind, &s.data) {
-                Some(t) => ch.stats.ticks.push((s.reception_ns, t)),
-                None => ch.stats.undecodable += 1,
-            }
+    let tick = match ch.choice.kind {
+        Some(kind @ (unitree_idl::MessageType::HgLowState | unitree_idl::MessageType::GoLowState)) => {
+            Some(lowstate_tick(kind, &s.data))
         }
-    }
+        _ => None,
+    };
+    ch.stats.push(s.reception_ns, tick);
     Ok(())
-}
-
-fn median(v: &mut [i64]) -> Option<i64> {
-    if v.is_empty() {
-        return None;
-    }
-    v.sort_unstable();
-    Some(v[v.len() / 2])
 }
 
 /// The end-of-recording report.
@@ -281,101 +265,14 @@ struct Report {
 const MAX_LISTED: usize = 10;
 
 impl Report {
-    fn build(channels: &[Channel], overflow: u64, seconds: f64) -> Self {
+    fn build(channels: Vec<Channel>, overflow: u64, seconds: f64) -> Self {
         let mut t = String::new();
         t.push_str(&format!("recorded {seconds:.2} s\n"));
         if overflow > 0 {
             t.push_str(&format!("warning: {overflow} samples lost: the writer could not keep up\n"));
         }
         for ch in channels {
-            let st = &ch.stats;
-            let n = st.arrivals.len();
-            let name = &ch.choice.spec.name;
-            if n == 0 {
-                t.push_str(&format!("{name}: 0 messages\n"));
-                continue;
-            }
-            let span = (st.arrivals[n - 1] - st.arrivals[0]) as f64 / 1e9;
-            let rate = if span > 0.0 { (n - 1) as f64 / span } else { 0.0 };
-            t.push_str(&format!("{name}: {n} messages, {rate:.1} Hz over {span:.2} s\n"));
-            let mut gaps = Vec::new();
-            // Arrival gaps: more than 5 typical periods and 20 ms.
-            let dts: Vec<i64> = st.arrivals.windows(2).map(|w| w[1] - w[0]).collect();
-            let mut sorted = dts.clone();
-            if let Some(med) = median(&mut sorted) {
-                let limit = (5 * med).max(20_000_000);
-                for (i, dt) in dts.iter().enumerate() {
-                    if *dt > limit {
-                        gaps.push(format!(
-                            "arrival gap of {:.1} ms after message {} (typical {:.2} ms)",
-                            *dt as f64 / 1e6,
-                            i,
-                            med as f64 / 1e6
-                        ));
-                    }
-                }
-            }
-            // Tick jumps.
-            let deltas: Vec<i64> = st.ticks.windows(2).map(|w| i64::from(w[1].1) - i64::from(w[0].1)).collect();
-            let mut pos: Vec<i64> = deltas.iter().copied().filter(|d| *d > 0).collect();
-            if let Some(step) = median(&mut pos) {
-                let mut jumps = 0u64;
-                let mut missing = 0i64;
-                for (i, d) in deltas.iter().enumerate() {
-                    if *d <= 0 || *d > step + step / 2 {
-                        jumps += 1;
-                        if *d > 0 {
-                            missing += d / step - 1;
-                        }
-                        if gaps.len() < 3 * MAX_LISTED {
-                            gaps.push(format!(
-                                "tick jump {} -> {} ({:+}, step {step}) at message {}",
-                                st.ticks[i].1,
-                                st.ticks[i + 1].1,
-                                d,
-                                i + 1
-                            ));
-                        }
-                    }
-                }
-                t.push_str(&format!(
-                    "  tick step {step}, {jumps} tick jumps, about {missing} samples missing by tick\n"
-                ));
-            }
-            if st.undecodable > 0 {
-                t.push_str(&format!("  {} samples did not decode (no tick)\n", st.undecodable));
-            }
-            // Rate drops: full one-second windows under half the median window count.
-            let t0 = st.arrivals[0];
-            let nwin = ((st.arrivals[n - 1] - t0) / 1_000_000_000) as usize;
-            if nwin >= 3 {
-                let mut counts = vec![0i64; nwin];
-                for a in &st.arrivals {
-                    let w = ((a - t0) / 1_000_000_000) as usize;
-                    if w < nwin {
-                        counts[w] += 1;
-                    }
-                }
-                let mut c2 = counts.clone();
-                if let Some(med) = median(&mut c2) {
-                    for (w, c) in counts.iter().enumerate() {
-                        if *c * 2 < med {
-                            gaps.push(format!("rate drop to {c} Hz in second {w} (typical {med} Hz)"));
-                        }
-                    }
-                }
-            }
-            if gaps.is_empty() {
-                t.push_str("  no gaps detected\n");
-            } else {
-                t.push_str(&format!("  {} gap findings:\n", gaps.len()));
-                for g in gaps.iter().take(MAX_LISTED) {
-                    t.push_str(&format!("  gap: {g}\n"));
-                }
-                if gaps.len() > MAX_LISTED {
-                    t.push_str(&format!("  ... {} more\n", gaps.len() - MAX_LISTED));
-                }
-            }
+            ch.stats.report(&ch.choice.spec.name, MAX_LISTED, &mut t);
         }
         Report { text: t }
     }
