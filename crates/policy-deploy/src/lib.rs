@@ -11,8 +11,8 @@
 //!    [`DeployConfig::ramp_s`], with stiff leg gains (the policies' own ankle gains cannot hold a pose without the
 //!    policy balancing it);
 //! 3. [`Phase::Running`]: the policy's targets, clamped to the joint, velocity, torque and gain limits;
-//! 4. [`Phase::Damping`]: a safety stop (stale or non-finite state, a policy error, or a stop request): zero
-//!    stiffness, damping only, until the caller stops sending.
+//! 4. [`Phase::Damping`]: a safety stop (stale or non-finite state, a policy error, a fall seen by the torso IMU
+//!    while the policy runs, or a stop request): zero stiffness, damping only, until the caller stops sending.
 #![forbid(unsafe_code)]
 
 pub mod keyboard;
@@ -54,11 +54,18 @@ pub struct DeployConfig {
     pub ramp_s: f64,
     /// A `LowState` older than this (s) when a command is due stops the policy (damping).
     pub stale_s: f64,
+    /// While the policy runs, a torso tilt from vertical above this (rad, from the IMU quaternion) is a fall and
+    /// stops it (damping); `None` switches the check off. The H1-2's waist turns about the vertical only, so the
+    /// torso's tilt is the pelvis's. A walking policy stays within a few degrees; a robot past 40° does not recover.
+    pub max_tilt_rad: Option<f64>,
 }
+
+/// Default fall threshold of [`DeployConfig::max_tilt_rad`]: 0.7 rad (40°).
+pub const DEFAULT_MAX_TILT_RAD: f64 = 0.7;
 
 impl Default for DeployConfig {
     fn default() -> Self {
-        DeployConfig { command: [0.0; 3], ramp_s: 2.0, stale_s: 0.1 }
+        DeployConfig { command: [0.0; 3], ramp_s: 2.0, stale_s: 0.1, max_tilt_rad: Some(DEFAULT_MAX_TILT_RAD) }
     }
 }
 
@@ -83,6 +90,8 @@ pub enum StopReason {
     NonFiniteState { field: String },
     /// The policy failed (its message).
     Policy { message: String },
+    /// The torso tilted `tilt_rad` from vertical while the policy ran (more than [`DeployConfig::max_tilt_rad`]).
+    Fallen { tilt_rad: f64 },
     /// The caller asked to stop (Ctrl-C, end of the run).
     Requested,
 }
@@ -143,6 +152,11 @@ impl Deployer {
         }
         if !(cfg.ramp_s.is_finite() && cfg.ramp_s >= 0.0 && cfg.stale_s.is_finite() && cfg.stale_s > 0.0) {
             return Err(DeployError::Setting(format!("ramp {} s, stale limit {} s", cfg.ramp_s, cfg.stale_s)));
+        }
+        if let Some(t) = cfg.max_tilt_rad {
+            if !(t.is_finite() && t > 0.0 && t < std::f64::consts::PI) {
+                return Err(DeployError::Setting(format!("fall tilt limit {t} rad is not in (0, pi)")));
+            }
         }
         if cfg.command.iter().any(|c| !c.is_finite()) {
             return Err(DeployError::Setting(format!("command {:?} is not finite", cfg.command)));
@@ -254,7 +268,15 @@ impl Deployer {
                 self.moving_to_default(now);
             }
             Phase::MovingToDefault => self.moving_to_default(now),
-            Phase::Running => self.running(now, &latest),
+            Phase::Running => {
+                // The IMU's f32 quaternion is not exactly unit length (an all-zero one never gets here).
+                let n = latest.quat.iter().map(|x| x * x).sum::<f64>().sqrt();
+                let tilt = robot_model::tilt_from_vertical(latest.quat.map(|x| x / n));
+                match self.cfg.max_tilt_rad {
+                    Some(limit) if tilt > limit => self.stop(StopReason::Fallen { tilt_rad: tilt }),
+                    _ => self.running(now, &latest),
+                }
+            }
             Phase::Damping => {}
         }
         let target = if self.phase == Phase::Damping { self.damping_target(&latest) } else { self.target.clone() };
@@ -506,9 +528,66 @@ mod tests {
     }
 
     #[test]
+    fn a_fall_seen_by_the_imu_damps_the_policy_but_not_the_ramp() {
+        let m = model();
+        // An IMU that is not unit length, rolled about x by `angle` (quaternion [cos a/2, sin a/2, 0, 0] scaled).
+        let tilted = |angle: f64| {
+            let mut s = state(0.0);
+            s.imu_state.quaternion = [(angle / 2.0).cos() as f32 * 1.01, (angle / 2.0).sin() as f32 * 1.01, 0.0, 0.0];
+            crc::seal(&mut s);
+            s
+        };
+        let (mut d, calls) = deployer(0.0, false);
+        // Tilted during the ramp (a robot being stood up): no stop.
+        d.on_state(&tilted(1.0), 0.0);
+        d.command(0.0);
+        d.on_state(&tilted(1.0), 0.5);
+        d.command(0.5);
+        assert_eq!(d.phase(), Phase::MovingToDefault);
+        let mut t = 0.5;
+        while d.phase() != Phase::Running {
+            t += 0.002;
+            d.on_state(&state(0.0), t);
+            d.command(t);
+        }
+        // 0.6 rad (34 degrees) is within the 0.7 rad default; 0.75 rad is a fall.
+        for angle in [0.3, 0.6] {
+            t += 0.002;
+            d.on_state(&tilted(angle), t);
+            d.command(t);
+            assert_eq!(d.phase(), Phase::Running, "{angle} rad");
+        }
+        let steps = calls.load(std::sync::atomic::Ordering::SeqCst);
+        t += 0.002;
+        d.on_state(&tilted(0.75), t);
+        let cmd = d.command(t).expect("command");
+        match d.stop_reason() {
+            Some(StopReason::Fallen { tilt_rad }) => assert!((tilt_rad - 0.75).abs() < 1e-3, "{tilt_rad}"),
+            other => panic!("expected a fall, got {other:?}"),
+        }
+        assert!(m.joints.iter().all(|j| cmd.motor_cmd[j.slot].kp == 0.0), "damping");
+        assert_eq!(calls.load(std::sync::atomic::Ordering::SeqCst), steps, "no policy step on a fallen robot");
+
+        // Switched off, the same tilt runs on.
+        let c = Fixed { offset: 0.0, fail: false, model: model(), calls: Default::default() };
+        let cfg = DeployConfig { ramp_s: 0.0, max_tilt_rad: None, ..DeployConfig::default() };
+        let mut d = Deployer::new(model(), Box::new(c), cfg).expect("ok");
+        for k in 0..10 {
+            d.on_state(&tilted(1.5), k as f64 * 0.002);
+            d.command(k as f64 * 0.002);
+        }
+        assert_eq!(d.phase(), Phase::Running);
+    }
+
+    #[test]
     fn bad_settings_are_typed_errors() {
         let c = Fixed { offset: 0.0, fail: false, model: model(), calls: Default::default() };
         let bad = DeployConfig { stale_s: 0.0, ..DeployConfig::default() };
         assert!(matches!(Deployer::new(model(), Box::new(c), bad), Err(DeployError::Setting(_))));
+        for tilt in [0.0, -1.0, 4.0, f64::NAN] {
+            let c = Fixed { offset: 0.0, fail: false, model: model(), calls: Default::default() };
+            let bad = DeployConfig { max_tilt_rad: Some(tilt), ..DeployConfig::default() };
+            assert!(matches!(Deployer::new(model(), Box::new(c), bad), Err(DeployError::Setting(_))), "{tilt}");
+        }
     }
 }

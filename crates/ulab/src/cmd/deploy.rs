@@ -58,6 +58,13 @@ pub struct Args {
     /// A LowState older than this (s) when a command is due stops the policy (damping).
     #[arg(long, default_value_t = 0.1)]
     stale_seconds: f64,
+    /// While the policy runs, a torso tilt (from the IMU) beyond this many degrees from vertical is a fall: damping,
+    /// exit 1.
+    #[arg(long, default_value_t = policy_deploy::DEFAULT_MAX_TILT_RAD.to_degrees().round())]
+    max_tilt_deg: f64,
+    /// No fall check (a robot on a gantry tilted on purpose, a policy that rolls over).
+    #[arg(long, conflicts_with = "max_tilt_deg")]
+    no_fall_check: bool,
     /// Seconds to wait for the first LowState.
     #[arg(long, default_value_t = 10.0)]
     wait_seconds: f64,
@@ -92,12 +99,20 @@ pub fn run(a: Args) -> Result<Exit> {
     {
         bail!("--ramp-seconds and --damp-seconds must be in [0, 60] s, --wait-seconds in [0.1, 600] s");
     }
+    if !positive(a.max_tilt_deg, 1.0, 179.0) {
+        bail!("--max-tilt-deg must be in [1, 179] degrees");
+    }
     let cfg = a.net.domain_config()?;
     let model = robot_model::builtin(&a.robot).with_context(|| format!("loading robot `{}`", a.robot))?;
     let policy = policy_runtime::PolicyController::load(&a.policy)
         .with_context(|| format!("loading policy spec {}", a.policy.display()))?;
     let name = policy_runtime::Controller::name(&policy).to_string();
-    let deploy_cfg = DeployConfig { command: a.command, ramp_s: a.ramp_seconds, stale_s: a.stale_seconds };
+    let deploy_cfg = DeployConfig {
+        command: a.command,
+        ramp_s: a.ramp_seconds,
+        stale_s: a.stale_seconds,
+        max_tilt_rad: (!a.no_fall_check).then(|| a.max_tilt_deg.to_radians()),
+    };
     let mut deployer = Deployer::new(model, Box::new(policy), deploy_cfg).context("setting up the deployment")?;
 
     let stop = Arc::new(AtomicBool::new(false));
