@@ -61,6 +61,16 @@ pub fn run(args: Args) -> Result<Exit> {
     let label = args.label.clone().or_else(|| engine_metadata(&bytes)).unwrap_or_else(|| "log".to_owned());
 
     let poses = estimate_poses(&model, &samples)?;
+    if let (Some(first), Some(last)) = (poses.first(), poses.last()) {
+        let [x0, y0, _] = first.base_pos;
+        let [x1, y1, _] = last.base_pos;
+        eprintln!(
+            "render: estimated pelvis travel ({:.2}, {:.2}) m, {:.2} m in all",
+            x1 - x0,
+            y1 - y0,
+            poses.windows(2).map(|w| dist_xy(&w[0], &w[1])).sum::<f64>()
+        );
+    }
     let t0 = samples[0].t_ns;
     let times: Vec<f64> = samples.iter().map(|s| (s.t_ns - t0) as f64 * 1e-9).collect();
     let duration = times.last().copied().unwrap_or(0.0);
@@ -135,6 +145,10 @@ fn estimate_poses(model: &RobotModel, samples: &[Sample]) -> Result<Vec<GenCoord
         eprintln!("render: {bad} LowState messages have non-finite joint angles; the previous pose is kept");
     }
     Ok(poses)
+}
+
+fn dist_xy(a: &GenCoords, b: &GenCoords) -> f64 {
+    (a.base_pos[0] - b.base_pos[0]).hypot(a.base_pos[1] - b.base_pos[1])
 }
 
 /// The `engine` entry of the recording's metadata records, if any.
