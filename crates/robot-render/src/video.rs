@@ -164,6 +164,11 @@ impl VideoWriter {
         Ok(VideoWriter { child, stdin, stderr, size: (width, height), frames: 0, done: false })
     }
 
+    /// Process id of the ffmpeg child.
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
     /// Frames written so far.
     pub fn frames(&self) -> u64 {
         self.frames

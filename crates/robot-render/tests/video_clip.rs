@@ -132,3 +132,20 @@ fn a_failing_ffmpeg_reports_its_messages() {
     let text = err.to_string();
     assert!(text.contains("No such file") || text.contains("robot-render-no-such-dir"), "{text}");
 }
+
+/// A writer dropped in the middle of a video (an error elsewhere, a panic) stops and reaps its ffmpeg: no child is
+/// left running or as a zombie.
+#[test]
+fn a_dropped_writer_leaves_no_child() {
+    let ffmpeg = find_ffmpeg().unwrap_or_else(|e| panic!("this test needs ffmpeg: {e}"));
+    let dir = std::env::temp_dir().join(format!("robot-render-drop-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let mut v = VideoWriter::create(&ffmpeg, &dir.join("dropped.mp4"), 64, 48, 10.0).expect("ffmpeg starts");
+    v.write(&Frame::new(64, 48)).expect("frame");
+    let pid = v.pid();
+    let proc_dir = std::path::PathBuf::from(format!("/proc/{pid}"));
+    assert!(proc_dir.exists(), "ffmpeg runs while the video is open");
+    drop(v);
+    assert!(!proc_dir.exists(), "ffmpeg (pid {pid}) is still there after the writer was dropped");
+    let _ = std::fs::remove_dir_all(&dir);
+}
