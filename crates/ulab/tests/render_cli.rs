@@ -94,6 +94,47 @@ fn render_draws_a_recording() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// The engine named in a recording's metadata (`engine`) is the label; without it the label is `log`.
+#[test]
+fn render_labels_the_video_with_the_recorded_engine() {
+    let dir = temp_dir("meta");
+    let (plain, tagged, out) = (dir.join("plain.mcap"), dir.join("tagged.mcap"), dir.join("x.mp4"));
+    standing_log(&plain);
+    // The same messages again, with a metadata record naming the engine.
+    {
+        let bytes = std::fs::read(&plain).expect("read");
+        let mut w = recording::write_options("test", recording::Compression::Zstd)
+            .create(std::io::BufWriter::new(std::fs::File::create(&tagged).expect("create")))
+            .expect("writer");
+        let mut channels = std::collections::BTreeMap::new();
+        for m in recording::messages(&bytes).expect("mcap") {
+            let m = m.expect("message");
+            let ty = recording::channel_type_name(&m.channel).expect("type");
+            let ch = *channels
+                .entry(m.channel.topic.clone())
+                .or_insert_with(|| recording::add_topic(&mut w, &m.channel.topic, &ty).expect("channel"));
+            let hdr = mcap::records::MessageHeader {
+                channel_id: ch,
+                sequence: m.sequence,
+                log_time: m.log_time,
+                publish_time: m.publish_time,
+            };
+            w.write_to_known_channel(&hdr, &m.data).expect("message");
+        }
+        let meta = [("engine".to_owned(), "rapier-impulse".to_owned())].into_iter().collect();
+        w.write_metadata(&mcap::records::Metadata { name: "ulab.sim".to_owned(), metadata: meta }).expect("metadata");
+        w.finish().expect("finish");
+    }
+    let out = out.to_str().expect("utf-8");
+    for (log, label) in [(&plain, "(log;"), (&tagged, "(rapier-impulse;")] {
+        let (code, _, err) =
+            run_ulab(&["render", log.to_str().expect("utf-8"), "--out", out, "--fps", "5"], Duration::from_secs(120));
+        assert_eq!(code, Some(0), "{}", tail(&err));
+        assert!(err.contains(label), "expected {label}: {}", tail(&err));
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn render_refuses_bad_input_with_exit_2() {
     let dir = temp_dir("bad");
