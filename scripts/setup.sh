@@ -2,7 +2,7 @@
 # Installs everything a fresh machine needs beyond the Rust toolchain, gcc and Python 3.11:
 # Debian packages (cmake, make, g++, libclang for cyclors' bindgen, Cyclone DDS 0.10.2 for the interop peers,
 # DART 6.12 with its URDF loader and ODE collision detector for the `dart` engine),
-# a Python venv with the oracle packages, and the MuJoCo shared library from the PyPI wheel.
+# a Python venv with the oracle packages and a static ffmpeg (imageio-ffmpeg, for the videos), and the MuJoCo shared library from the PyPI wheel.
 # Idempotent: a second run only checks.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -26,7 +26,7 @@ if [ ! -x "$ULAB_PYTHON" ]; then
   echo "setup: creating Python venv in .venv"
   python3 -m venv "$ULAB_VENV"
 fi
-if ! "$ULAB_PYTHON" -c "import importlib.util as u, mujoco, cyclonedds, mcap, numpy, onnxruntime; assert u.find_spec('unitree_sdk2py')" 2>/dev/null; then
+if ! "$ULAB_PYTHON" -c "import importlib.util as u, mujoco, cyclonedds, mcap, numpy, onnxruntime, imageio_ffmpeg; assert u.find_spec('unitree_sdk2py')" 2>/dev/null; then
   echo "setup: installing Python packages"
   "$ULAB_PYTHON" -m pip install -q --disable-pip-version-check -r scripts/requirements.txt
   # The SDK's own dependency list pins an old cyclonedds; we bring a known one above.

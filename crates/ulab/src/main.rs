@@ -26,6 +26,8 @@ enum Command {
     Replay(cmd::replay::Args),
     /// Inspect and export MCAP recordings (CSV).
     Log(cmd::log::Args),
+    /// A video (H.264 MP4) of a recorded run: the robot drawn from its LowState, base pose estimated.
+    Render(cmd::render::Args),
     /// The robot model in several physics engines: oracles (check), mass matrix dumps (inspect), MJCF export.
     Model(cmd::model::Args),
     /// Simulated robot behind rt/lowcmd and rt/lowstate and the SDK's locomotion RPC (LocoClient).
@@ -51,6 +53,7 @@ fn main() -> ExitCode {
         Command::Record(args) => cmd::record::run(args),
         Command::Replay(args) => cmd::replay::run(args),
         Command::Log(args) => cmd::log::run(args),
+        Command::Render(args) => cmd::render::run(args),
         Command::Model(args) => cmd::model::run(args),
         Command::Sim(args) => cmd::sim::run(args),
         Command::Conform(args) => cmd::conform::run(args),

@@ -9,10 +9,12 @@ pub mod log;
 pub mod model;
 pub mod record;
 pub mod recording;
+pub mod render;
 pub mod replay;
 pub mod sim;
 pub mod sim_loco;
 pub mod validate;
+pub mod video;
 
 /// A help line ending in the engines compiled into this build (they depend on `diff-physics` features), for every
 /// flag that names an engine.

@@ -6,6 +6,7 @@
 //! `sim_loco` / `sim_bridge::loco`.
 
 use super::recording::NetArgs;
+use super::video::{Video, VideoArgs, VideoThread};
 use crate::exit::Exit;
 use anyhow::{Context, Result};
 use dds_transport::{Participant, TopicSpec};
@@ -70,6 +71,10 @@ pub struct Args {
     /// from $ULAB_SHARED/reference/policies/).
     #[arg(long)]
     pub loco_policy: Option<std::path::PathBuf>,
+    /// Write a video of the run (H.264 MP4): the simulator's own pelvis pose and joint angles, 30 frames per second
+    /// of simulated time, with the time and the engine in the picture (rendered on another thread; needs ffmpeg).
+    #[arg(long, value_name = "MP4")]
+    pub video: Option<std::path::PathBuf>,
     /// No status line.
     #[arg(long)]
     pub quiet: bool,
@@ -140,6 +145,14 @@ pub fn run(args: Args) -> Result<Exit> {
         anyhow::ensure!(args.loco_policy.is_none(), "loading the walking policy: {why}");
         eprintln!("sim: WARNING no walking policy ({why}); the locomotion service refuses Start and moves");
     }
+    let mut video = match &args.video {
+        Some(path) => {
+            let v = Video::create(&model, path, &VideoArgs::default())?;
+            let label = format!("{}{}", args.engine.name(), if args.hang { " (hung)" } else { "" });
+            Some(VideoThread::start(v, label))
+        }
+        None => None,
+    };
     let mut robot = SimRobot::new(engine, model, config, &initial).context("starting the simulated robot")?;
 
     let participant = Participant::new(cfg.clone()).context("opening the DDS domain")?;
@@ -186,6 +199,10 @@ pub fn run(args: Args) -> Result<Exit> {
     // The pelvis as the simulator sees it (ground truth for programs that judge a controller: how far it walked,
     // whether it stayed up), sampled every 10 ms of simulated time.
     let mut base = BaseTrack::new(&robot.engine().state());
+    let progress = |wall: f64| args.duration.map(|d| (wall / d).min(1.0));
+    if let Some(v) = video.as_mut() {
+        v.offer(0.0, || robot.engine().state().coords(), progress(0.0));
+    }
     loop {
         let wall = start.elapsed().as_secs_f64();
         if stop.load(Ordering::SeqCst) || args.duration.is_some_and(|d| wall >= d) {
@@ -218,6 +235,9 @@ pub fn run(args: Args) -> Result<Exit> {
         robot.step(start.elapsed().as_secs_f64()).context("physics step")?;
         sim_time += args.dt;
         base.sample(sim_time, || robot.engine().state());
+        if let Some(v) = video.as_mut() {
+            v.offer(sim_time, || robot.engine().state().coords(), progress(start.elapsed().as_secs_f64()));
+        }
         if !args.on_time_state {
             publish_due(&mut robot, &states, sim_time, &mut next_publish, publish_period)?;
         }
@@ -269,6 +289,9 @@ pub fn run(args: Args) -> Result<Exit> {
         "base": base.summary(&robot.engine().state()),
     });
     eprintln!("sim: summary {summary}");
+    if let Some(v) = video {
+        v.finish().context("writing the video")?;
+    }
     Ok(Exit::Success)
 }
 
