@@ -3,7 +3,9 @@
 //! and Rapier's multibody, over DDS, as the robot's low-level controller (LowState in, LowCmd with CRC out at
 //! 500 Hz); the simulator, not the deployer, says what happened: how far the pelvis went, whether it stayed up, how
 //! many commands it accepted with a valid CRC. Where the robot falls (Rapier's impulse joints) the deployer must stop.
-//! Bad arguments exit 2 without sending anything. The Cyclone 0.10.2 client path is `sim_c010_client.rs`.
+//! Bad arguments exit 2 without sending anything. The Cyclone 0.10.2 client path is `sim_c010_client.rs`. Every walk
+//! leaves the simulator's video (`ulab sim --video`) in `target/tmp/ci-demo/ENGINE-POLICY.mp4`, checked with
+//! ffmpeg's decoder (frame count, the robot in every sampled picture, the picture changing as it walks).
 //!
 //! What is independent here: the physics (four engines nobody here wrote), the policies (unitree_rl_gym, Gepetto), and
 //! the simulator's own account of the pelvis; the CRC is checked by
@@ -14,6 +16,7 @@ mod common;
 use common::{interrupt, lease_domain, run_ulab, sim_summary, tail, wait_with_timeout, KillOnDrop, RealtimeSlot};
 use serde_json::Value;
 use std::io::Write;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
@@ -49,6 +52,8 @@ enum Steer {
 /// What one `ulab sim --engine E` + `ulab deploy --policy P` run left: both summaries and the deployer's exit code.
 struct Walk {
     label: String,
+    /// The simulator's video of the run (`ulab sim --video`).
+    video: PathBuf,
     code: Option<i32>,
     deploy: Value,
     sim: Value,
@@ -57,9 +62,12 @@ struct Walk {
 fn walk(engine: &str, spec: &str, steer: Steer, seconds: f64, sim_args: &[&str]) -> Walk {
     let _slot = RealtimeSlot::acquire();
     let domain = lease_domain();
-    let label = format!("{engine} / {}", spec.rsplit('/').next().unwrap_or(spec));
+    let policy = spec.rsplit('/').next().unwrap_or(spec).trim_end_matches(".toml");
+    let label = format!("{engine} / {policy}");
+    let video = demo_dir().join(format!("{engine}-{policy}.mp4"));
     let sim = Command::new(env!("CARGO_BIN_EXE_ulab"))
-        .args(["sim", "--engine", engine, "--domain", &domain.arg(), "--loco-api", "none", "--quiet"])
+        .args(["sim", "--engine", engine, "--domain", &domain.arg(), "--loco-api", "none", "--quiet", "--video"])
+        .arg(&video)
         .args(sim_args)
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
@@ -96,7 +104,82 @@ fn walk(engine: &str, spec: &str, steer: Steer, seconds: f64, sim_args: &[&str])
         .unwrap_or_else(|| panic!("{label}: no deploy summary (exit {code:?}):\n{}", tail(&deploy_err)));
     let sim = sim_summary(&sim_err).unwrap_or_else(|| panic!("{label}: no sim summary:\n{}", tail(&sim_err)));
     eprintln!("{label}\n  deploy: {deploy}\n  sim: {sim}");
-    Walk { label, code, deploy, sim }
+    Walk { label, video, code, deploy, sim }
+}
+
+/// Where the demo's videos go: the test output (`target/tmp/ci-demo/`), listed at the end of each test.
+fn demo_dir() -> PathBuf {
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join("ci-demo");
+    std::fs::create_dir_all(&d).expect("ci-demo dir");
+    d
+}
+
+/// Robot pixels: the renderer draws the robot in warm colours (red well above blue); ground is grey, sky blue.
+fn robot_pixels(rgb: &[u8]) -> usize {
+    rgb.chunks(3).filter(|p| i32::from(p[0]) - i32::from(p[2]) > 40).count()
+}
+
+/// Checks the run's video with ffmpeg's own decoder: as many frames as 30 per second of simulated time, and one
+/// picture per second (decoded by ffmpeg at 1 fps) that shows the robot and differs from the one before (the robot
+/// walks and the ground scrolls under the following camera). Returns the number of frames.
+fn check_video(w: &Walk) -> u64 {
+    let ffmpeg = robot_render::find_ffmpeg().unwrap_or_else(|e| panic!("the CI demo needs ffmpeg: {e}"));
+    let l = &w.label;
+    let count = Command::new(&ffmpeg)
+        .args(["-hide_banner", "-nostdin", "-i"])
+        .arg(&w.video)
+        .args(["-map", "0:v", "-f", "null", "-"])
+        .output()
+        .expect("run ffmpeg");
+    let err = String::from_utf8_lossy(&count.stderr);
+    assert!(count.status.success(), "{l}: ffmpeg cannot read {}: {err}", w.video.display());
+    assert!(err.contains("Video: h264") && err.contains("yuv420p"), "{l}: not H.264 yuv420p: {err}");
+    let frames: u64 = err
+        .rsplit("frame=")
+        .next()
+        .and_then(|t| t.split_whitespace().next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("{l}: no frame count in {err}"));
+    let simulated = w.sim["simulated_seconds"].as_f64().unwrap_or(0.0);
+    assert!(
+        (frames as f64 - 30.0 * simulated).abs() <= 0.03 * 30.0 * simulated + 2.0,
+        "{l}: {frames} frames for {simulated:.1} s"
+    );
+    let pics = Command::new(&ffmpeg)
+        .args(["-hide_banner", "-nostdin", "-i"])
+        .arg(&w.video)
+        .args(["-vf", "fps=1", "-f", "rawvideo", "-pix_fmt", "rgb24", "-"])
+        .output()
+        .expect("run ffmpeg");
+    assert!(pics.status.success(), "{l}: {}", String::from_utf8_lossy(&pics.stderr));
+    let n = 640 * 360 * 3;
+    assert!(
+        pics.stdout.len().is_multiple_of(n) && pics.stdout.len() >= 5 * n,
+        "{l}: {} bytes of pictures",
+        pics.stdout.len()
+    );
+    let pictures: Vec<&[u8]> = pics.stdout.chunks(n).collect();
+    for (k, p) in pictures.iter().enumerate() {
+        assert!(robot_pixels(p) > 1000, "{l}: no robot in the picture at {k} s");
+    }
+    // From the end of the ramp (2 s) on, the robot walks: every picture differs from the one a second before.
+    for k in 3..pictures.len() {
+        let diff: u64 = pictures[k].iter().zip(pictures[k - 1]).map(|(a, b)| u64::from(a.abs_diff(*b))).sum();
+        let mean = diff as f64 / n as f64;
+        assert!(mean > 0.5, "{l}: the picture at {k} s is the one at {} s (mean difference {mean:.2})", k - 1);
+    }
+    frames
+}
+
+/// Lists the demo's videos (the CI log keeps the list; the files stay in the test output).
+fn list_videos() {
+    let Ok(entries) = std::fs::read_dir(demo_dir()) else { return };
+    let mut v: Vec<String> = entries
+        .flatten()
+        .filter_map(|e| Some(format!("{} ({} KiB)", e.path().display(), e.metadata().ok()?.len() / 1024)))
+        .collect();
+    v.sort();
+    eprintln!("ci-demo videos:\n  {}", v.join("\n  "));
 }
 
 impl Walk {
@@ -142,6 +225,8 @@ impl Walk {
         // From standing, both shipped policies average 0.7-1.05x the command over 10 s on the engines here.
         assert!((0.55 * VX..=1.3 * VX).contains(&speed), "{l}: forward speed {speed:.2} m/s for {VX} commanded: {b}");
         assert!(dy.abs() < 0.25 * walked_s, "{l}: lateral drift {dy:.2} m: {b}");
+        let frames = check_video(self);
+        eprintln!("{l}: video {} ({frames} frames)", self.video.display());
     }
 }
 
@@ -156,6 +241,7 @@ fn deploy_walks_both_policies_in_ulab_sim_on_mujoco() {
     assert_eq!(w.deploy["final_command"], serde_json::json!([VX, 0.0, 0.0]), "{}", w.deploy);
     w.assert_walked();
     walk("mujoco", GEPETTO, Steer::Flag, WALK_S, &[]).assert_walked();
+    list_videos();
 }
 
 /// The same walks on the other engines that can walk them (PhysX runs in `scripts/nightly.sh`: its build is slow).
@@ -169,6 +255,7 @@ fn deploy_walks_both_policies_in_ulab_sim_on_bullet_dart_and_rapier() {
             walk(engine, spec, Steer::Flag, WALK_S, &[]).assert_walked();
         }
     }
+    list_videos();
 }
 
 /// A robot lying on its back (the simulator's `fallen-pinned` start, a test-only switch) when the policy would take
