@@ -20,7 +20,7 @@ phase "physx engine"
 cargo test --locked -p ulab --features ulab/physx --test model_cli --test sim_sdk_client --test sim_c010_client \
   -- physx || status=$?
 phase "physx through ulab"
-cargo test --locked -p gap-diagnosis --test effects_found -- --include-ignored || status=$?
+cargo test --locked -p gap-bench --test effects_found -- --include-ignored || status=$?
 phase "effects_found"
 cargo test --locked -p engine-diff --test planted_cheat -- --ignored a_gait_optimised_in_mujoco_transfers || status=$?
 phase "planted cheat control"

@@ -17,6 +17,8 @@ pub mod pd;
 
 #[cfg(feature = "mujoco")]
 pub mod mujoco;
+#[cfg(feature = "mujoco")]
+pub mod suspension;
 
 // Rapier engines (written against `engine.rs` by the Rapier work), behind the default feature `rapier` so that
 // `--no-default-features --features mujoco` builds the rest while they are in progress.

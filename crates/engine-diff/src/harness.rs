@@ -1,6 +1,6 @@
 //! Rollouts in several engines: windowed divergence from identical states, per-engine invariants and
 //! free-running episode outcomes.
-use crate::phase::{ContactPhase, Feet};
+use crate::phase::{ContactPhase, FootContact};
 use crate::scenario::Scenario;
 use crate::DiffError;
 use diff_physics::pd::pd_torques_into;
@@ -339,12 +339,7 @@ pub fn phase_of(contacts: &[Contact]) -> (ContactPhase, Vec<String>) {
     bodies.dedup();
     let foot = |side: &str| bodies.iter().any(|b| b.starts_with(side) && b.contains("ankle"));
     let other = bodies.iter().any(|b| !b.contains("ankle"));
-    let feet = match (foot("left"), foot("right")) {
-        (true, true) => Feet::Double,
-        (true, false) => Feet::Left,
-        (false, true) => Feet::Right,
-        (false, false) => Feet::Flight,
-    };
+    let feet = FootContact::from_feet(foot("left"), foot("right"));
     (ContactPhase { feet, other }, bodies)
 }
 

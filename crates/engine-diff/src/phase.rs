@@ -7,44 +7,23 @@ use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use std::fmt;
 use std::str::FromStr;
 
-/// Which feet are on the ground.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum Feet {
-    /// Neither foot.
-    Flight,
-    /// The left foot only.
-    Left,
-    /// The right foot only.
-    Right,
-    /// Both feet.
-    Double,
-}
-
-impl Feet {
-    const fn name(self) -> &'static str {
-        match self {
-            Feet::Flight => "flight",
-            Feet::Left => "left",
-            Feet::Right => "right",
-            Feet::Double => "double",
-        }
-    }
-}
+/// Which feet are on the ground: the type shared with the gap diagnosis's breakdown by phase.
+pub use robot_model::FootContact;
 
 /// The contact phase of a window.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct ContactPhase {
     /// Which feet touch the ground.
-    pub feet: Feet,
+    pub feet: FootContact,
     /// Whether a body other than the feet (a knee, a hand, the pelvis) touches it too.
     pub other: bool,
 }
 
 impl ContactPhase {
     /// Neither foot nor anything else on the ground.
-    pub const FLIGHT: ContactPhase = ContactPhase { feet: Feet::Flight, other: false };
+    pub const FLIGHT: ContactPhase = ContactPhase { feet: FootContact::Flight, other: false };
     /// Both feet on the ground, nothing else.
-    pub const DOUBLE: ContactPhase = ContactPhase { feet: Feet::Double, other: false };
+    pub const DOUBLE: ContactPhase = ContactPhase { feet: FootContact::Double, other: false };
 
     /// Whether anything touches the ground (every phase but plain flight).
     pub fn has_contact(self) -> bool {
@@ -73,10 +52,7 @@ impl FromStr for ContactPhase {
 
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         let (base, other) = s.strip_suffix("+other").map_or((s, false), |b| (b, true));
-        let feet = [Feet::Flight, Feet::Left, Feet::Right, Feet::Double]
-            .into_iter()
-            .find(|f| f.name() == base)
-            .ok_or_else(|| UnknownPhase(s.to_owned()))?;
+        let feet = FootContact::ALL.into_iter().find(|f| f.name() == base).ok_or_else(|| UnknownPhase(s.to_owned()))?;
         Ok(ContactPhase { feet, other })
     }
 }

@@ -6,10 +6,11 @@
 //! * [`effects`]: the effect library (parameters, ranges, scopes); [`noise`]: sensor noise and residual scales;
 //! * [`diagnose()`]: where the gap lies, which effect explains it, how much it shrinks (held-out, with intervals);
 //! * [`rig_check`]: does the log fit the rig assumption (pelvis held still)? Otherwise the diagnosis abstains;
-//! * [`excite`]: safe excitation plans; [`mod@bench`]: the blind benchmark; [`report`]: Markdown, JSON and SVG plots.
+//! * [`excite`]: safe excitation plans; [`report`]: Markdown, JSON and SVG plots.
+//!
+//! The blind benchmark, with the reference plants that generate its logs, is the `gap-bench` crate.
 #![forbid(unsafe_code)]
 
-pub mod bench;
 pub mod diagnose;
 pub mod effects;
 pub mod excite;

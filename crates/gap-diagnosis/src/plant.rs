@@ -16,10 +16,10 @@ use robot_model::{GenCoords, RobotModel};
 
 /// Physics timestep (s).
 pub const DT: f64 = 0.002;
-/// Pelvis position on the stand (m); the stand is defined once, in [`sim_bridge::suspension`] (also `ulab sim --hang`).
-pub const RIG_BASE_POS: [f64; 3] = sim_bridge::suspension::BASE_POS;
+/// Pelvis position on the stand (m); the stand is defined once, in [`diff_physics::suspension`] (also `ulab sim --hang`).
+pub const RIG_BASE_POS: [f64; 3] = diff_physics::suspension::BASE_POS;
 /// Mass and inertia multiplier of the pelvis on the stand.
-pub const RIG_PELVIS_SCALE: f64 = sim_bridge::suspension::PELVIS_SCALE;
+pub const RIG_PELVIS_SCALE: f64 = diff_physics::suspension::PELVIS_SCALE;
 /// Velocity scale of the smooth Coulomb law (rad/s): `tanh(dq / COULOMB_EPS)`.
 pub const COULOMB_EPS: f64 = 0.05;
 
@@ -185,10 +185,10 @@ pub struct Rig {
 impl Rig {
     /// Builds the rig for `model` (already carrying the model-level effects).
     pub fn new(model: &RobotModel, choice: &EngineChoice) -> Result<Self, GapError> {
-        let common = sim_bridge::suspension::settings(DT);
+        let common = diff_physics::suspension::settings(DT);
         let settings = MujocoSettings { integrator: choice.integrator.clone(), ..MujocoSettings::default() };
-        // The stand (sim_bridge::suspension): a RIG_PELVIS_SCALE times heavier pelvis held by a stiff spring.
-        let rigged = sim_bridge::suspension::suspended_model(model);
+        // The stand (diff_physics::suspension): a RIG_PELVIS_SCALE times heavier pelvis held by a stiff spring.
+        let rigged = diff_physics::suspension::suspended_model(model);
         let engine = MujocoEngine::new(&rigged, &common, &settings).map_err(|e| GapError::Engine(e.to_string()))?;
         Ok(Rig {
             engine,
@@ -201,7 +201,7 @@ impl Rig {
 
     /// Puts the robot on the stand with these joint angles and speeds (true, not measured, values).
     pub fn reset(&mut self, q: &[f64], dq: &[f64]) -> Result<(), GapError> {
-        let s = sim_bridge::suspension::state_on_stand(q, dq);
+        let s = diff_physics::suspension::state_on_stand(q, dq);
         self.engine.reset(&s).map_err(|e| GapError::Engine(e.to_string()))
     }
 
@@ -222,7 +222,7 @@ impl Rig {
     }
 
     fn hold_base(&mut self, s: &State) {
-        let w = sim_bridge::suspension::base_wrench(s, self.weight);
+        let w = diff_physics::suspension::base_wrench(s, self.weight);
         self.engine.raw_data().qfrc_applied_mut()[..6].copy_from_slice(&w);
     }
 }
@@ -424,7 +424,7 @@ pub(crate) fn replay_window<P>(
 }
 
 /// Zero-gain command (before the first logged command).
-pub(crate) fn idle_command(model: &RobotModel, q: &[f64]) -> Command {
+pub fn idle_command(model: &RobotModel, q: &[f64]) -> Command {
     let n = model.nj();
     Command { t: 0.0, q: q.to_vec(), dq: vec![0.0; n], kp: vec![0.0; n], kd: vec![0.0; n], tau: vec![0.0; n] }
 }

@@ -7,8 +7,9 @@ pub enum ModelError {
     UnknownRobot(String),
     #[error("cannot read {path}: {source}")]
     Io { path: String, source: std::io::Error },
-    #[error("URDF: {0}")]
-    Urdf(String),
+    /// The URDF text does not parse (the `urdf_rs` error says where and why).
+    #[error("parsing the URDF")]
+    Urdf(#[source] urdf_rs::UrdfError),
     #[error("sidecar TOML: {0}")]
     Toml(#[from] toml::de::Error),
     #[error("joint {joint:?}: type {kind} is not supported (revolute joints only; fixed joints must be merged)")]

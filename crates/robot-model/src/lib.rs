@@ -14,6 +14,7 @@
 //!   origin in the base-link frame, joint torques.
 #![forbid(unsafe_code)]
 
+mod contact;
 mod dynamics;
 mod error;
 mod kinematics;
@@ -21,6 +22,7 @@ mod load;
 mod mjcf;
 mod model;
 
+pub use contact::FootContact;
 pub use dynamics::{RigidBodyDynamics, GRAVITY_EARTH};
 pub use error::ModelError;
 pub use kinematics::{quat_wxyz, tilt_from_vertical, FkResult, GenCoords};

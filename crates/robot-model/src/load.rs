@@ -198,7 +198,7 @@ impl RobotModel {
     }
 
     fn from_parts(urdf: &str, side: SidecarFile) -> Result<Self, ModelError> {
-        let robot = urdf_rs::read_from_string(urdf).map_err(|e| ModelError::Urdf(e.to_string()))?;
+        let robot = urdf_rs::read_from_string(urdf).map_err(ModelError::Urdf)?;
         let by_name: HashMap<&str, &urdf_rs::Link> = robot.links.iter().map(|l| (l.name.as_str(), l)).collect();
         if by_name.len() != robot.links.len() {
             return Err(ModelError::Invalid("duplicate link names in the URDF".into()));

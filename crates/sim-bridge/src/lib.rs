@@ -19,14 +19,14 @@
 //! [`Defect`]s switch single protocol faults on, for testing conformance tools; none is active in normal use.
 //!
 //! [`suspension`] holds the robot on a stiff stand (pelvis still, feet in the air) for `ulab sim --hang`; the gap
-//! diagnosis's rig uses the same stand.
+//! diagnosis's rig uses the same stand (defined in `diff_physics::suspension`, re-exported here).
 //!
 //! DDS, timing and status lines live in the `ulab sim` command; tests drive this directly.
 #![forbid(unsafe_code)]
 
 mod imu;
 pub mod loco;
-pub mod suspension;
+pub use diff_physics::suspension;
 
 use diff_physics::{pd, Engine, EngineError, PdTarget, State};
 use lowlevel_codec::{cdr, crc, validate, DecodeError};

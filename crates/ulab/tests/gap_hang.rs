@@ -87,8 +87,8 @@ fn diagnose_with_plant_rig_abstains_with_exit_3_on_a_swinging_pelvis() {
     // A rig log whose torso IMU also swings ±6° at 1 Hz about x (the pelvis is not held): the rig check fails and,
     // with `--plant rig`, the CLI writes the abstaining report, says so on stderr and exits 3.
     let m = robot_model::builtin("h1_2").expect("model");
-    let cfg = gap_diagnosis::bench::RealConfig::new(&m, 4.0, 2);
-    let mut log = gap_diagnosis::bench::generate_log(&m, &cfg).expect("log");
+    let cfg = gap_bench::RealConfig::new(&m, 4.0, 2);
+    let mut log = gap_bench::generate_log(&m, &cfg).expect("log");
     for s in &mut log.states {
         // swing ⊗ quat, swing = rotation of 0.1 sin(2π t) rad about the world x axis.
         let half = 0.05 * (2.0 * std::f64::consts::PI * s.t).sin();

@@ -9,7 +9,7 @@ use crate::noise::SIGMA_Q;
 use crate::plant::{Effects, GROUPS};
 use crate::GapError;
 use rand::Rng;
-use robot_model::RobotModel;
+use robot_model::{FootContact, RobotModel};
 use serde::{Deserialize, Serialize};
 
 /// A share of the gap.
@@ -80,7 +80,7 @@ pub(super) fn breakdown(ctx: &Ctx<'_>) -> Result<Breakdown, GapError> {
             Some(feet) => floating_phase(model, feet, log, ctx.starts[w], ctx.len)?,
             None => phase_of(&cont, ctx.starts[w]),
         };
-        let e = phase_sum.entry(phase).or_insert((0.0, 0));
+        let e = phase_sum.entry(phase.name()).or_insert((0.0, 0));
         e.0 += total(&s);
         e.1 += 1;
         base_all.push(s);
@@ -124,39 +124,57 @@ fn contacts(model: &RobotModel, log: &RobotLog) -> Vec<(bool, bool)> {
         .collect()
 }
 
+/// The phase a window is counted under in the breakdown: a touchdown, or which feet are on the ground
+/// ([`FootContact`], the type `engine-diff` classifies its windows with).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum WindowPhase {
+    /// A foot touches down within the window.
+    Impact,
+    /// No touchdown: these feet are on the ground.
+    Feet(FootContact),
+}
+
+impl WindowPhase {
+    /// The report's name: "impact", "stance" (both feet), "swing" (one foot, either side) or "flight".
+    fn name(self) -> &'static str {
+        match self {
+            WindowPhase::Impact => "impact",
+            WindowPhase::Feet(FootContact::Double) => "stance",
+            WindowPhase::Feet(FootContact::Left | FootContact::Right) => "swing",
+            WindowPhase::Feet(FootContact::Flight) => "flight",
+        }
+    }
+}
+
 /// Floating base: the phase of the window starting at `start` from the kinematic contact estimate
-/// ([`floating::contact_state`]): "impact" when a touchdown starts within the window (a sample after the start is
-/// not settled), else "stance" (both feet), "swing" (one) or "flight".
+/// ([`floating::contact_state`]): impact when a touchdown starts within the window (a sample after the start is
+/// not settled), else the feet in stance at the start.
 fn floating_phase(
     model: &RobotModel,
     feet: &Feet,
     log: &RobotLog,
     start: usize,
     len: usize,
-) -> Result<&'static str, GapError> {
+) -> Result<WindowPhase, GapError> {
     let null = Effects::none(model.nj());
     let (stance, _) = floating::contact_state(model, feet, log, start, &null)?;
     for k in (IMU_STRIDE..=len).step_by(IMU_STRIDE) {
         if start + k < log.states.len() && !floating::contact_state(model, feet, log, start + k, &null)?.1 {
-            return Ok("impact");
+            return Ok(WindowPhase::Impact);
         }
     }
-    Ok(match stance {
-        [true, true] => "stance",
-        [true, false] | [false, true] => "swing",
-        [false, false] => "flight",
-    })
+    Ok(WindowPhase::Feet(FootContact::from_feet(stance[0], stance[1])))
 }
 
-fn phase_of(c: &[(bool, bool)], i: usize) -> &'static str {
+/// Rig: the phase of the window starting at sample `i` from the knee-torque contact estimate ([`contacts`]):
+/// impact when a foot took load within the last 25 samples, else the feet carrying load.
+fn phase_of(c: &[(bool, bool)], i: usize) -> WindowPhase {
     let (l, r) = c[i];
     let before = c[i.saturating_sub(25)];
-    let new_contact = (l && !before.0) || (r && !before.1);
-    match (l, r) {
-        _ if new_contact => "impact",
-        (true, true) => "stance",
-        (true, false) | (false, true) => "swing",
-        (false, false) => "flight",
+    if (l && !before.0) || (r && !before.1) {
+        WindowPhase::Impact
+    } else {
+        WindowPhase::Feet(FootContact::from_feet(l, r))
     }
 }
 

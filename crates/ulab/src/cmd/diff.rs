@@ -62,11 +62,25 @@ struct SearchArgs {
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Methods to run (comma-separated: cem, mutation, random).
-    #[arg(long, default_value = "cem,mutation,random")]
-    methods: String,
+    #[arg(long, value_delimiter = ',', default_value = "cem,mutation,random", value_parser = trimmed_method)]
+    methods: Vec<MethodArg>,
     /// Writes every outcome (with its best scenario and progress curve) as JSON here.
     #[arg(long)]
     out: Option<PathBuf>,
+}
+
+/// `--methods`: a search method of `engine_diff::search`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum MethodArg {
+    Cem,
+    Mutation,
+    Random,
+}
+
+/// A `--methods` entry with the spaces around it ignored (`cem, random`), as the comma-separated list always was.
+fn trimmed_method(s: &str) -> Result<MethodArg, String> {
+    <MethodArg as clap::ValueEnum>::from_str(s.trim(), false)
+        .map_err(|_| format!("unknown method {:?} (cem, mutation, random)", s.trim()))
 }
 
 #[derive(Debug, Clone, clap::Args)]
@@ -436,16 +450,11 @@ fn search(a: SearchArgs) -> Result<Exit> {
     if a.budget == 0 || a.budget > 100_000 || a.population < 2 {
         bail!("--budget must be in 1..=100000 and --population at least 2");
     }
-    let methods = a
-        .methods
-        .split(',')
-        .map(|m| match m.trim() {
-            "cem" => Ok(Method::Cem),
-            "mutation" => Ok(Method::Mutation),
-            "random" => Ok(Method::Random),
-            other => bail!("--methods: unknown method {other:?} (cem, mutation, random)"),
-        })
-        .collect::<Result<Vec<_>>>()?;
+    let methods = a.methods.iter().map(|m| match m {
+        MethodArg::Cem => Method::Cem,
+        MethodArg::Mutation => Method::Mutation,
+        MethodArg::Random => Method::Random,
+    });
     let s = setup(&a.common)?;
     let allow = AllowList::builtin().context("allow-list")?;
     let base = if s.is_policy { Scenario::policy(a.seed, a.seconds) } else { Scenario::excitation(a.seed, a.seconds) };

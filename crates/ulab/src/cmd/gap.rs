@@ -8,7 +8,7 @@
 //!   reference plant (demo and test logs)
 //! - `ulab gap bench [--trials N] [--seed S] [--duration S] [--out DIR] [--policy SPEC.toml]... [--floating]`
 use anyhow::{bail, Context, Result};
-use gap_diagnosis::bench::{self, BenchOptions, RealConfig};
+use gap_bench::{self as bench, BenchOptions, RealConfig};
 use gap_diagnosis::diagnose::PlantChoice;
 use gap_diagnosis::plant::{joint_groups, EngineChoice, GROUPS};
 use gap_diagnosis::{effects::Scope, DiagnoseOptions, EffectKind, Outcome, RobotLog};

@@ -4,7 +4,7 @@
 //! pass the check and still have that effect found.
 use diff_physics::mujoco::{MujocoEngine, MujocoSettings};
 use diff_physics::{CommonSettings, Engine, State};
-use gap_diagnosis::bench::{generate_log, RealConfig};
+use gap_bench::{generate_log, RealConfig};
 use gap_diagnosis::log::{Command, Measurement};
 use gap_diagnosis::plant::{joint_groups, Effects};
 use gap_diagnosis::{diagnose, rig_check, DiagnoseOptions, EffectKind, Outcome, RobotLog};

@@ -1,13 +1,23 @@
+//! `gap-bench`: the blind benchmark of the gap diagnosis (issue 6), in its own crate so that `gap-diagnosis` does
+//! not depend on the policy runtime that drives its reference robot (issue 18).
+//!
 //! The blind benchmark: "real" logs from a reference plant that differs from the diagnosing simulator (another
 //! MuJoCo integrator, sensor noise, 50 Hz command timing jitter) with a hidden random subset of effects at random
 //! magnitudes, labels sealed (salted SHA-256) before diagnosis, then scored. The reference robot hangs on the rig
 //! ([`run_trial`]) or walks on the ground under a policy ([`run_floating_trial`], `ulab gap bench --floating`).
-use crate::diagnose::{diagnose, DiagnoseOptions, PlantKind, Report};
-use crate::effects::{EffectKind, Scope};
-use crate::excite;
-use crate::log::{Measurement, RobotLog};
-use crate::plant::{imu_reading, joint_groups, Effects, EngineChoice, Rig, DT, GROUPS};
-use crate::GapError;
+//!
+//! The reference plants ([`generate_log`] on the rig, [`reference::generate_floating_log`] on the ground) also make
+//! the logs of the diagnosis's end-to-end tests (`tests/`).
+#![forbid(unsafe_code)]
+
+pub mod reference;
+
+use gap_diagnosis::diagnose::{diagnose, DiagnoseOptions, PlantKind, Report};
+use gap_diagnosis::effects::{EffectKind, Scope};
+use gap_diagnosis::excite;
+use gap_diagnosis::log::{Command, Measurement, RobotLog};
+use gap_diagnosis::plant::{imu_reading, joint_groups, Effects, EngineChoice, Rig, DT, GROUPS};
+use gap_diagnosis::GapError;
 use policy_runtime::{Controller, PolicyController, PolicySpec, RobotObservation};
 use rand::{Rng, SeedableRng};
 use rand_distr_free::normal;
@@ -15,7 +25,7 @@ use robot_model::RobotModel;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
-pub use crate::noise::SensorNoise;
+pub use reference::{FloatingLog, FloatingRealConfig, SensorNoise};
 
 /// The reference ("real") plant.
 #[derive(Debug, Clone)]
@@ -59,7 +69,7 @@ mod rand_distr_free {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum InputKind {
-    /// The excitation plan ([`crate::excite`]) on every joint.
+    /// The excitation plan ([`gap_diagnosis::excite`]) on every joint.
     Excitation,
     /// A policy rollout on the policy's joints (the legs) with a velocity command drawn per trial; the other
     /// joints (torso, arms, which the policies only hold) follow the excitation plan's targets for them.
@@ -177,7 +187,7 @@ pub fn generate_log_with(
             acc: [0.0; 3], // filled below
         });
         let acc_noise = [0, 1, 2].map(|_| n.acc * normal(&mut rng));
-        truth.push((quat, crate::rig_check::imu_point_velocity(model, &q, &dq)?, acc_noise));
+        truth.push((quat, gap_diagnosis::rig_check::imu_point_velocity(model, &q, &dq)?, acc_noise));
     }
     // Accelerometer: specific force R⁻¹ (a − g) in the (misaligned) IMU frame, `a` the IMU point's acceleration
     // (central difference of its velocity; the torso swings about the waist, the pelvis is still).
@@ -711,14 +721,14 @@ pub fn floating_trial_policy(i: usize, opts: &BenchOptions) -> Option<PolicyInpu
     Some(PolicyInput { spec, command })
 }
 
-pub use crate::floating::{FALLEN_HEIGHT, FALLEN_TILT};
+pub use gap_diagnosis::floating::{FALLEN_HEIGHT, FALLEN_TILT};
 /// Magnitude draws per trial before the benchmark gives up on it.
 pub const MAX_DRAWS: usize = 8;
 
 /// The first logged sample at which the reference robot is down (pelvis below [`FALLEN_HEIGHT`] or tilted more
 /// than [`FALLEN_TILT`]), if any.
-pub fn fell_at(log: &crate::floating::FloatingLog) -> Option<usize> {
-    log.truth.iter().position(|b| crate::floating::is_down(b.pos[2], b.quat))
+pub fn fell_at(log: &FloatingLog) -> Option<usize> {
+    log.truth.iter().position(|b| gap_diagnosis::floating::is_down(b.pos[2], b.quat))
 }
 
 /// Generates the reference log of a floating trial: `policy` closed every 20 ms around what the reference robot
@@ -730,22 +740,16 @@ pub fn generate_walking_log(
     duration: f64,
     seed: u64,
     policy: &PolicyInput,
-) -> Result<crate::floating::FloatingLog, GapError> {
+) -> Result<FloatingLog, GapError> {
     policy.spec.check_robot(model).map_err(|e| GapError::Input(format!("policy {}: {e}", policy.spec.name)))?;
     let mut ctl = PolicyController::from_spec(policy.spec.clone())
         .map_err(|e| GapError::Input(format!("policy {}: {e}", policy.spec.name)))?;
     ctl.reset();
-    let cfg = crate::floating::FloatingRealConfig {
-        effects: fx,
-        ..crate::floating::FloatingRealConfig::new(model, duration, seed)
-    };
+    let cfg = FloatingRealConfig { effects: fx, ..FloatingRealConfig::new(model, duration, seed) };
     let vel = policy.command;
     // The policy sees what the robot reports (noisy joints, the torso IMU turned into the pelvis frame through the
     // waist, as the deploy scripts do); before the first report, the standing pose at rest.
-    let mut act = |t: f64,
-                   s: &diff_physics::State,
-                   m: Option<&crate::log::Measurement>|
-     -> Result<crate::log::Command, GapError> {
+    let mut act = |t: f64, s: &diff_physics::State, m: Option<&Measurement>| -> Result<Command, GapError> {
         let obs = match m {
             Some(m) => RobotObservation::from_torso_imu(t, m.quat, m.gyro, m.q.clone(), m.dq.clone(), vel)
                 .map_err(|e| GapError::Input(format!("policy observation: {e}")))?,
@@ -759,9 +763,9 @@ pub fn generate_walking_log(
             },
         };
         let p = ctl.act(&obs).map_err(|e| GapError::Input(format!("policy step: {e}")))?;
-        Ok(crate::log::Command { t, q: p.q_des, dq: p.dq_des, kp: p.kp, kd: p.kd, tau: p.tau_ff })
+        Ok(Command { t, q: p.q_des, dq: p.dq_des, kp: p.kp, kd: p.kd, tau: p.tau_ff })
     };
-    crate::floating::generate_floating_log(model, &cfg, &mut act)
+    reference::generate_floating_log(model, &cfg, &mut act)
 }
 
 /// Runs floating trial `i` end to end with the benchmark's own draw ([`draw_floating_trial`]).

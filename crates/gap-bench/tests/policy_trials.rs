@@ -1,7 +1,7 @@
 //! Benchmark logs driven by a policy rollout: the unitree_rl_gym LSTM (arrays from `$ULAB_SHARED`) closed around
 //! the suspended reference plant's noisy measurements at 50 Hz with timing jitter drives the legs; torso and arms
 //! follow the excitation plan. The diagnosis must still find an effect injected on a leg.
-use gap_diagnosis::bench::{generate_log, generate_log_with, trial_input, InputKind, PolicyInput, RealConfig};
+use gap_bench::{generate_log, generate_log_with, trial_input, InputKind, PolicyInput, RealConfig};
 use gap_diagnosis::plant::{joint_groups, Effects, GROUPS};
 use gap_diagnosis::{diagnose, DiagnoseOptions, EffectKind, Outcome};
 use policy_runtime::PolicySpec;

@@ -1,12 +1,12 @@
 //! The whole diagnosis on the floating base: a walking robot (Unitree's LSTM policy at 0.5 m/s on MuJoCo RK4 with
-//! ground contact, sensor noise, command jitter; `floating::generate_floating_log`) with one hidden effect, written
+//! ground contact, sensor noise, command jitter; `gap_bench::reference::generate_floating_log`) with one hidden effect, written
 //! as MCAP and read back like a recording, diagnosed by `diagnose` with the default plant choice (auto: the log fails
 //! the rig check, so the floating plant). The injected effect must be named first, on the right limb; a log without
 //! any effect must give no confident attribution. Needs `$ULAB_SHARED` for the policy weights (skips without it).
 mod common;
 
 use common::{lstm_policy, model, shared_set};
-use gap_diagnosis::bench::{fell_at, generate_walking_log};
+use gap_bench::{fell_at, generate_walking_log};
 use gap_diagnosis::diagnose::PlantKind;
 use gap_diagnosis::plant::{joint_groups, Effects};
 use gap_diagnosis::{diagnose, DiagnoseOptions, EffectKind, Report, RobotLog};

@@ -7,11 +7,11 @@
 mod common;
 
 use common::{lstm_policy, model, shared_set};
-use gap_diagnosis::bench::generate_walking_log;
+use gap_bench::{generate_walking_log, FloatingLog};
 use gap_diagnosis::diagnose::{EFFECT_FLOOR_FRAC, SIGMA_DQ, SIGMA_Q};
 use gap_diagnosis::floating::{
     estimate_base, estimate_base_at, predict_window, predict_window_from, settled_start, window_residual, BaseState,
-    Feet, FloatingLog, FloatingPlant, WindowResidual,
+    Feet, FloatingPlant, WindowResidual,
 };
 use gap_diagnosis::log::Measurement;
 use gap_diagnosis::plant::{joint_groups, Effects, EngineChoice, DT};

@@ -2,13 +2,13 @@
 //! check that makes it redraw them, and one short walking trial end to end — labels sealed before the diagnosis,
 //! the diagnosis choosing the floating plant by itself, and a large leg damping scored top-1 against the label that
 //! was injected. The walking trial needs `$ULAB_SHARED` for the policy weights (skips without it).
-use gap_diagnosis::bench::{
+use gap_bench::{
     draw_floating_trial, fell_at, injectable_floating, open, run_floating_trial_drawn, seal, trial_plan, trial_salt,
-    BenchOptions, Injected, InputKind, Labels, Seal,
+    BenchOptions, FloatingLog, Injected, InputKind, Labels, Seal,
 };
 use gap_diagnosis::diagnose::PlantKind;
 use gap_diagnosis::effects::Scope;
-use gap_diagnosis::floating::{BaseState, FloatingLog};
+use gap_diagnosis::floating::BaseState;
 use gap_diagnosis::plant::{joint_groups, Effects, GROUPS};
 use gap_diagnosis::{DiagnoseOptions, EffectKind, RobotLog};
 use policy_runtime::PolicySpec;

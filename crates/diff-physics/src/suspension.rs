@@ -1,13 +1,14 @@
 //! The suspension stand: the robot's pelvis held still high above the ground, as on a gantry. One definition
-//! used by `ulab sim --hang` (through [`SuspendedMujoco`]) and by the gap diagnosis's rig (`gap_diagnosis::plant`),
-//! so a recording of the hung simulator and the diagnosing plant are the same physical system.
+//! used by `ulab sim --hang` (through [`SuspendedMujoco`], re-exported as `sim_bridge::suspension`) and by the gap
+//! diagnosis's rig (`gap_diagnosis::plant`), so a recording of the hung simulator and the diagnosing plant are the
+//! same physical system. It lives with the engines (MuJoCo only) so that the diagnosis needs no simulator bridge.
 //!
 //! The stand is a stiff spring-damper on the free joint (1e7 N/m, 1e6 N·m/rad) with weight feed-forward, applied
 //! as a generalized force (MuJoCo's `qfrc_applied`), on a pelvis made [`PELVIS_SCALE`] times heavier (a rigid
 //! mount), so the spring can be stiff, is integrated stably, and the limbs' reactions barely move the pelvis
 //! (well under a millimetre). No ground and no collisions: the feet hang in the air.
-use diff_physics::mujoco::{MujocoEngine, MujocoSettings};
-use diff_physics::{CommonSettings, Contact, Energy, Engine, EngineError, LinkPose, State};
+use crate::mujoco::{MujocoEngine, MujocoSettings};
+use crate::{CommonSettings, Contact, Energy, Engine, EngineError, LinkPose, State};
 use nalgebra::{Quaternion, UnitQuaternion};
 use robot_model::RobotModel;
 

@@ -5,7 +5,7 @@
 //!
 //! Each case takes ~25 s of a core: CI runs the no-effect control and three effects (armature, friction, latency); the
 //! other nine are ignored here and run by `scripts/nightly.sh` (issue 21: the CI time budget).
-use gap_diagnosis::bench::{generate_log, RealConfig};
+use gap_bench::{generate_log, RealConfig};
 use gap_diagnosis::effects::Scope;
 use gap_diagnosis::plant::{joint_groups, Effects, GROUPS};
 use gap_diagnosis::{diagnose, DiagnoseOptions, EffectKind, Report, RobotLog};
