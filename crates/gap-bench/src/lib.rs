@@ -306,7 +306,7 @@ fn hex(b: &[u8]) -> String {
 
 /// Seals labels with a salt; returns the seal and the salted text needed to open it.
 pub fn seal(labels: &Labels, salt: &[u8; 16]) -> Result<(Seal, String), GapError> {
-    let text = format!("{}:{}", hex(salt), serde_json::to_string(labels).map_err(|e| GapError::Io(e.to_string()))?);
+    let text = format!("{}:{}", hex(salt), serde_json::to_string(labels)?);
     let h = Sha256::digest(text.as_bytes());
     Ok((Seal { trial: labels.trial, sha256: hex(&h) }, text))
 }

@@ -135,7 +135,7 @@ fn unit_quat(q: [f64; 4]) -> UnitQuaternion<f64> {
 fn foot_points_rel(model: &RobotModel, feet: &Feet, q: &[f64]) -> Result<[Vec<Vector3<f64>>; 2], GapError> {
     let fk = model
         .fk(&GenCoords { base_pos: [0.0; 3], base_quat: [1.0, 0.0, 0.0, 0.0], q: q.to_vec() })
-        .map_err(|e| GapError::Engine(e.to_string()))?;
+        .map_err(GapError::from)?;
     Ok([0, 1]
         .map(|s| feet.points[s].iter().map(|p| (fk.link_poses[feet.links[s]] * Point3::from(*p)).coords).collect()))
 }
@@ -174,7 +174,7 @@ fn sample_kinematics(
     // Height: the lowest collision point is on the ground.
     let low = model
         .lowest_point_z(&GenCoords { base_pos: [0.0; 3], base_quat: [rb.w, rb.i, rb.j, rb.k], q: q.clone() })
-        .map_err(|e| GapError::Engine(e.to_string()))?;
+        .map_err(GapError::from)?;
     let z = -low;
     let p0 = foot_points_rel(model, feet, &q)?;
     let p1 = foot_points_rel(model, feet, &q.iter().zip(&m.dq).map(|(a, b)| a + b * EPS).collect::<Vec<_>>())?;
@@ -357,7 +357,7 @@ impl FloatingPlant {
             }
             settings.solref[0] = tc;
         }
-        let engine = MujocoEngine::new(model, &common, &settings).map_err(|e| GapError::Engine(e.to_string()))?;
+        let engine = MujocoEngine::new(model, &common, &settings).map_err(GapError::from)?;
         let mut plant = FloatingPlant {
             engine,
             torque_limit: model.joints.iter().map(|j| j.torque_limit).collect(),
@@ -402,8 +402,7 @@ impl FloatingPlant {
         for k in 0..100 {
             self.step(&hold, &fx)?;
             if k >= 50 {
-                let low =
-                    model.lowest_point_z(&self.engine.state().coords()).map_err(|e| GapError::Engine(e.to_string()))?;
+                let low = model.lowest_point_z(&self.engine.state().coords()).map_err(GapError::from)?;
                 depth -= low;
                 count += 1.0;
             }
@@ -421,7 +420,7 @@ impl FloatingPlant {
             base_ang_vel: base.ang_vel,
             dq: dq.to_vec(),
         };
-        self.engine.reset(&s).map_err(|e| GapError::Engine(e.to_string()))
+        self.engine.reset(&s).map_err(GapError::from)
     }
 
     /// The whole (true) state.
@@ -433,7 +432,7 @@ impl FloatingPlant {
     pub fn step(&mut self, cmd: &Command, fx: &Effects) -> Result<&[f64], GapError> {
         let s = self.engine.state();
         let joint_tau = actuator_torques(cmd, fx, &s.q, &s.dq, &self.torque_limit, &self.speed_limit, &mut self.tau);
-        self.engine.step(&joint_tau).map_err(|e| GapError::Engine(e.to_string()))?;
+        self.engine.step(&joint_tau).map_err(GapError::from)?;
         Ok(&self.tau)
     }
 

@@ -33,10 +33,39 @@ pub enum GapError {
     /// The MCAP file could not be read (its sources say why).
     #[error("reading the MCAP log")]
     Recording(#[from] recording::ReadError),
-    #[error("engine: {0}")]
-    Engine(String),
+    /// The physics engine failed (its error is the source).
+    #[error("engine")]
+    Engine(#[from] diff_physics::EngineError),
+    /// Kinematics or dynamics of the robot model failed (its error is the source).
+    #[error("robot model")]
+    Model(#[from] robot_model::ModelError),
+    /// A numerical solve failed (what, and the solver's message).
+    #[error("numerics: {0}")]
+    Numerics(String),
     #[error("input: {0}")]
     Input(String),
-    #[error("i/o: {0}")]
-    Io(String),
+    /// Writing an MCAP log failed (the writer's error is the source).
+    #[error("writing the MCAP log")]
+    McapWrite(#[from] mcap::McapError),
+    /// Reading or writing a file failed.
+    #[error("file {}", path.display())]
+    File {
+        /// The file or directory.
+        path: std::path::PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// Drawing a plot failed (the plotting library's error is the source).
+    #[error("drawing {}", path.display())]
+    Plot {
+        /// The picture being drawn.
+        path: std::path::PathBuf,
+        /// Why.
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
+    /// Serialising a JSON document failed (the serialiser's error is the source).
+    #[error("serialising JSON")]
+    Json(#[from] serde_json::Error),
 }

@@ -143,7 +143,7 @@ impl RobotLog {
         model: &RobotModel,
         compression: recording::Compression,
     ) -> Result<(), GapError> {
-        let io = |e: mcap::McapError| GapError::Io(e.to_string());
+        let io = GapError::McapWrite;
         let opts = recording::write_options(concat!("ulab gap ", env!("CARGO_PKG_VERSION")), compression);
         let mut w = opts.create(out).map_err(io)?;
         let mut ids = [0u16; 2];

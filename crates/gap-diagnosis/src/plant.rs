@@ -189,7 +189,7 @@ impl Rig {
         let settings = MujocoSettings { integrator: choice.integrator.clone(), ..MujocoSettings::default() };
         // The stand (diff_physics::suspension): a RIG_PELVIS_SCALE times heavier pelvis held by a stiff spring.
         let rigged = diff_physics::suspension::suspended_model(model);
-        let engine = MujocoEngine::new(&rigged, &common, &settings).map_err(|e| GapError::Engine(e.to_string()))?;
+        let engine = MujocoEngine::new(&rigged, &common, &settings).map_err(GapError::from)?;
         Ok(Rig {
             engine,
             weight: rigged.total_mass() * robot_model::GRAVITY_EARTH,
@@ -202,7 +202,7 @@ impl Rig {
     /// Puts the robot on the stand with these joint angles and speeds (true, not measured, values).
     pub fn reset(&mut self, q: &[f64], dq: &[f64]) -> Result<(), GapError> {
         let s = diff_physics::suspension::state_on_stand(q, dq);
-        self.engine.reset(&s).map_err(|e| GapError::Engine(e.to_string()))
+        self.engine.reset(&s).map_err(GapError::from)
     }
 
     /// Joint angles and speeds (true values).
@@ -217,7 +217,7 @@ impl Rig {
         let s = self.engine.state();
         let joint_tau = actuator_torques(cmd, fx, &s.q, &s.dq, &self.torque_limit, &self.speed_limit, &mut self.tau);
         self.hold_base(&s);
-        self.engine.step(&joint_tau).map_err(|e| GapError::Engine(e.to_string()))?;
+        self.engine.step(&joint_tau).map_err(GapError::from)?;
         Ok(&self.tau)
     }
 
@@ -288,7 +288,7 @@ pub fn imu_site_relative(
     );
     let pose = |q: Vec<f64>| -> Result<nalgebra::Isometry3<f64>, GapError> {
         let c = GenCoords { base_pos: RIG_BASE_POS, base_quat: [1.0, 0.0, 0.0, 0.0], q };
-        let fk = model.fk(&c).map_err(|e| GapError::Engine(e.to_string()))?;
+        let fk = model.fk(&c).map_err(GapError::from)?;
         Ok(fk.link_poses[model.imu.link] * site)
     };
     let p0 = pose(q.to_vec())?;

@@ -140,11 +140,11 @@ pub fn markdown(r: &Report) -> String {
 }
 
 fn bar_chart(path: &Path, title: &str, items: &[(String, f64)], floor: Option<f64>) -> Result<(), GapError> {
-    let io = |e: String| GapError::Io(format!("{}: {e}", path.display()));
+    let io = |e: Box<dyn std::error::Error + Send + Sync>| GapError::Plot { path: path.to_owned(), source: e };
     let n = items.len().max(1);
     let height = 80 + 22 * n as u32;
     let root = SVGBackend::new(path, (900, height)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| io(e.to_string()))?;
+    root.fill(&WHITE).map_err(|e| io(Box::new(e)))?;
     let maxv = items.iter().map(|x| x.1).fold(floor.unwrap_or(0.0), f64::max).max(1e-9) * 1.1;
     let minv = items.iter().map(|x| x.1).fold(0.0, f64::min);
     let mut chart = ChartBuilder::on(&root)
@@ -153,7 +153,7 @@ fn bar_chart(path: &Path, title: &str, items: &[(String, f64)], floor: Option<f6
         .x_label_area_size(30)
         .y_label_area_size(180)
         .build_cartesian_2d(minv..maxv, 0..n)
-        .map_err(|e| io(e.to_string()))?;
+        .map_err(|e| io(Box::new(e)))?;
     let labels: Vec<String> = items.iter().map(|x| x.0.clone()).collect();
     chart
         .configure_mesh()
@@ -161,30 +161,29 @@ fn bar_chart(path: &Path, title: &str, items: &[(String, f64)], floor: Option<f6
         .y_labels(n)
         .y_label_formatter(&|y| labels.get(n.saturating_sub(1).saturating_sub(*y)).cloned().unwrap_or_default())
         .draw()
-        .map_err(|e| io(e.to_string()))?;
+        .map_err(|e| io(Box::new(e)))?;
     chart
         .draw_series(items.iter().enumerate().map(|(i, (_, v))| {
             let y = n - 1 - i;
             Rectangle::new([(0.0_f64.min(*v), y), (v.max(0.0), y + 1)], BLUE.mix(0.6).filled())
         }))
-        .map_err(|e| io(e.to_string()))?;
+        .map_err(|e| io(Box::new(e)))?;
     if let Some(f) = floor {
-        chart
-            .draw_series(std::iter::once(PathElement::new(vec![(f, 0), (f, n)], RED)))
-            .map_err(|e| io(e.to_string()))?;
+        chart.draw_series(std::iter::once(PathElement::new(vec![(f, 0), (f, n)], RED))).map_err(|e| io(Box::new(e)))?;
     }
-    root.present().map_err(|e| io(e.to_string()))?;
+    root.present().map_err(|e| io(Box::new(e)))?;
     Ok(())
 }
 
 /// Writes `report.md`, `report.json`, `by_joint.svg` and `effects.svg` into `dir`.
 pub fn write_all(r: &Report, dir: &Path) -> Result<(), GapError> {
-    std::fs::create_dir_all(dir).map_err(|e| GapError::Io(format!("{}: {e}", dir.display())))?;
+    std::fs::create_dir_all(dir).map_err(|source| GapError::File { path: dir.to_owned(), source })?;
     let w = |name: &str, text: String| {
-        std::fs::write(dir.join(name), text).map_err(|e| GapError::Io(format!("{name}: {e}")))
+        let path = dir.join(name);
+        std::fs::write(&path, text).map_err(|source| GapError::File { path, source })
     };
     w("report.md", markdown(r))?;
-    w("report.json", serde_json::to_string_pretty(r).map_err(|e| GapError::Io(e.to_string()))?)?;
+    w("report.json", serde_json::to_string_pretty(r)?)?;
     let joints: Vec<(String, f64)> = r.by_joint.iter().map(|s| (s.name.clone(), s.residual)).collect();
     bar_chart(&dir.join("by_joint.svg"), "Baseline residual by joint (mean normalised)", &joints, None)?;
     let eff: Vec<(String, f64)> = r.effects.iter().map(|e| (e.kind.name().to_string(), e.reduction.value)).collect();

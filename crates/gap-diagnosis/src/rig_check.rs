@@ -118,7 +118,7 @@ pub fn imu_point_velocity(model: &RobotModel, q: &[f64], dq: &[f64]) -> Result<V
     const EPS: f64 = 1e-6;
     let pos = |q: Vec<f64>| -> Result<Vector3<f64>, GapError> {
         let c = GenCoords { base_pos: RIG_BASE_POS, base_quat: [1.0, 0.0, 0.0, 0.0], q };
-        let fk = model.fk(&c).map_err(|e| GapError::Engine(e.to_string()))?;
+        let fk = model.fk(&c).map_err(GapError::from)?;
         Ok((fk.link_poses[model.imu.link] * nalgebra::Point3::from(Vector3::from(model.imu.pos))).coords)
     };
     let p0 = pos(q.to_vec())?;
@@ -167,8 +167,8 @@ pub fn foot_load(model: &RobotModel, legs: &LegChains, s: &Measurement) -> Resul
     let mut v = vec![0.0; model.nv()];
     v[6..].copy_from_slice(&s.dq);
     let g = [0.0, 0.0, -robot_model::GRAVITY_EARTH];
-    let hanging = model.rnea(&c, &v, &vec![0.0; model.nv()], g, false).map_err(|e| GapError::Engine(e.to_string()))?;
-    let fk = model.fk(&c).map_err(|e| GapError::Engine(e.to_string()))?;
+    let hanging = model.rnea(&c, &v, &vec![0.0; model.nv()], g, false).map_err(GapError::from)?;
+    let fk = model.fk(&c).map_err(GapError::from)?;
     let mut fz = 0.0;
     for (foot, chain) in &legs.0 {
         let p = fk.link_poses[*foot].translation.vector;
@@ -184,7 +184,7 @@ pub fn foot_load(model: &RobotModel, legs: &LegChains, s: &Measurement) -> Resul
             }
             rhs[r] = -(s.tau[j] - hanging[6 + j]);
         }
-        let w = jt.svd(true, true).solve(&rhs, 1e-6).map_err(|e| GapError::Engine(format!("foot wrench: {e}")))?;
+        let w = jt.svd(true, true).solve(&rhs, 1e-6).map_err(|e| GapError::Numerics(format!("foot wrench: {e}")))?;
         fz += w[2];
     }
     Ok(fz)

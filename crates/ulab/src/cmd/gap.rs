@@ -387,10 +387,10 @@ fn bench_cmd(a: BenchArgs) -> Result<Exit> {
         // Each generated log goes to disk as MCAP and is read back: the diagnosis sees exactly what a recording gives.
         let mut via_mcap = |i: usize, log: &RobotLog| -> Result<RobotLog, gap_diagnosis::GapError> {
             let p = dir.join(format!("trial_{i:03}.mcap"));
-            let f =
-                std::fs::File::create(&p).map_err(|e| gap_diagnosis::GapError::Io(format!("{}: {e}", p.display())))?;
+            let write_err = |source| gap_diagnosis::GapError::File { path: p.clone(), source };
+            let f = std::fs::File::create(&p).map_err(write_err)?;
             log.write_mcap(std::io::BufWriter::new(f), &model)?;
-            let bytes = std::fs::read(&p).map_err(|e| gap_diagnosis::GapError::Io(format!("{}: {e}", p.display())))?;
+            let bytes = std::fs::read(&p).map_err(write_err)?;
             RobotLog::from_mcap(&bytes, &model)
         };
         let (seal, score, report) = if a.floating {
@@ -398,10 +398,8 @@ fn bench_cmd(a: BenchArgs) -> Result<Exit> {
             let mut via_mcap_sealed =
                 |i: usize, log: &RobotLog, seal: &bench::Seal| -> Result<RobotLog, gap_diagnosis::GapError> {
                     let p = dir.join(format!("trial_{i:03}.seal.json"));
-                    let json =
-                        serde_json::to_string_pretty(seal).map_err(|e| gap_diagnosis::GapError::Io(e.to_string()))?;
-                    std::fs::write(&p, json)
-                        .map_err(|e| gap_diagnosis::GapError::Io(format!("{}: {e}", p.display())))?;
+                    let json = serde_json::to_string_pretty(seal)?;
+                    std::fs::write(&p, json).map_err(|source| gap_diagnosis::GapError::File { path: p, source })?;
                     via_mcap(i, log)
                 };
             bench::run_floating_trial(&model, i, &opts, &mut via_mcap_sealed).with_context(|| format!("trial {i}"))?
