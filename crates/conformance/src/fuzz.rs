@@ -462,7 +462,7 @@ impl Reproducer {
 
     /// Parses and validates a reproducer file's text.
     pub fn from_json(text: &str) -> Result<Reproducer, ConformError> {
-        let r: Reproducer = serde_json::from_str(text).map_err(|e| ConformError::Reproducer(e.to_string()))?;
+        let r: Reproducer = serde_json::from_str(text).map_err(ConformError::ReproducerJson)?;
         if r.schema_version != REPRODUCER_SCHEMA_VERSION {
             return Err(ConformError::Reproducer(format!(
                 "schema_version {} (this tool reads {REPRODUCER_SCHEMA_VERSION})",

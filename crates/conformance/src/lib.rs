@@ -40,6 +40,10 @@ pub enum ConformError {
     BadStartState(String),
     #[error("unsupported robot `{0}` (supported: h1_2)")]
     UnsupportedRobot(String),
+    /// A reproducer file is not valid JSON of the expected shape (the parser's error is the source).
+    #[error("reproducer")]
+    ReproducerJson(#[source] serde_json::Error),
+    /// A reproducer's content is out of range (what).
     #[error("reproducer: {0}")]
     Reproducer(String),
     #[error("{0}")]

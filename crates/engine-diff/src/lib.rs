@@ -45,10 +45,15 @@ pub enum DiffError {
     Io { path: String, source: std::io::Error },
     #[error("json: {0}")]
     Json(#[from] serde_json::Error),
+    /// The allow-list is not valid TOML (the parser's error is the source).
+    #[error("allow-list")]
+    AllowListSyntax(#[source] toml::de::Error),
+    /// An allow-list entry is malformed (which, and why).
     #[error("allow-list: {0}")]
     AllowList(String),
-    #[error("plot: {0}")]
-    Plot(String),
+    /// Drawing a plot failed (the plotting library's error is the source).
+    #[error("plot")]
+    Plot(#[source] Box<dyn std::error::Error + Send + Sync>),
 }
 
 /// Version of the JSON formats written here (`report.json`, reproducers, corpus entries).

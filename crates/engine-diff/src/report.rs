@@ -600,18 +600,18 @@ fn line_plot(path: &Path, series: &[Vec<(f64, f64)>]) -> Result<(), DiffError> {
     let xmax = series.iter().flatten().map(|p| p.0).fold(1.0, f64::max);
     let ymax = series.iter().flatten().map(|p| p.1).filter(|y| y.is_finite()).fold(0.0, f64::max).max(1e-12) * 1.05;
     let root = SVGBackend::new(path, (800, 400)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| DiffError::Plot(e.to_string()))?;
+    root.fill(&WHITE).map_err(|e| DiffError::Plot(Box::new(e)))?;
     let mut chart = ChartBuilder::on(&root)
         .margin(10)
         .build_cartesian_2d(0f64..xmax, 0f64..ymax)
-        .map_err(|e| DiffError::Plot(e.to_string()))?;
+        .map_err(|e| DiffError::Plot(Box::new(e)))?;
     for (i, s) in series.iter().enumerate() {
         let pts: Vec<(f64, f64)> = s.iter().copied().filter(|p| p.1.is_finite()).collect();
         chart
             .draw_series(LineSeries::new(pts, palette(i).stroke_width(2)))
-            .map_err(|e| DiffError::Plot(e.to_string()))?;
+            .map_err(|e| DiffError::Plot(Box::new(e)))?;
     }
-    root.present().map_err(|e| DiffError::Plot(e.to_string()))?;
+    root.present().map_err(|e| DiffError::Plot(Box::new(e)))?;
     Ok(())
 }
 

@@ -74,7 +74,7 @@ impl AllowList {
     /// Parses and checks an allow-list: every entry needs an id, engines, kinds, a positive ratio cap, a
     /// rationale and at least one https citation.
     pub fn parse(text: &str) -> Result<Self, DiffError> {
-        let f: AllowFile = toml::from_str(text).map_err(|e| DiffError::AllowList(e.to_string()))?;
+        let f: AllowFile = toml::from_str(text).map_err(DiffError::AllowListSyntax)?;
         let mut ids = std::collections::BTreeSet::new();
         for e in &f.entry {
             let bad = |why: &str| Err(DiffError::AllowList(format!("entry {:?}: {why}", e.id)));

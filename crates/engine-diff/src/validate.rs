@@ -647,7 +647,7 @@ pub fn write_validation(dir: &std::path::Path, r: &ValidationReport) -> Result<(
     w("report.md", r.markdown())?;
     w("report.json", serde_json::to_string_pretty(r)?)?;
     let path = dir.join("scores.svg");
-    let plot = |e: DrawingAreaErrorKind<std::io::Error>| DiffError::Plot(e.to_string());
+    let plot = |e: DrawingAreaErrorKind<std::io::Error>| DiffError::Plot(Box::new(e));
     let root = SVGBackend::new(&path, (800, 400)).into_drawing_area();
     root.fill(&WHITE).map_err(plot)?;
     let ne = r.engines.len().max(1);
@@ -658,13 +658,13 @@ pub fn write_validation(dir: &std::path::Path, r: &ValidationReport) -> Result<(
         .x_label_area_size(30)
         .y_label_area_size(40)
         .build_cartesian_2d(0f64..nc as f64, 0f64..1.05f64)
-        .map_err(|e| DiffError::Plot(e.to_string()))?;
+        .map_err(|e| DiffError::Plot(Box::new(e)))?;
     chart
         .configure_mesh()
         .x_labels(nc)
         .x_label_formatter(&|x| r.commands.get(x.floor() as usize).map_or(String::new(), |c| c.name.clone()))
         .draw()
-        .map_err(|e| DiffError::Plot(e.to_string()))?;
+        .map_err(|e| DiffError::Plot(Box::new(e)))?;
     for (i, e) in r.engines.iter().enumerate() {
         let colour = crate::report::palette(i);
         let bars = e.score_per_case.iter().enumerate().filter(|(_, (_, v))| v.is_finite()).map(|(c, (_, v))| {
@@ -673,7 +673,7 @@ pub fn write_validation(dir: &std::path::Path, r: &ValidationReport) -> Result<(
         });
         chart
             .draw_series(bars)
-            .map_err(|e| DiffError::Plot(e.to_string()))?
+            .map_err(|e| DiffError::Plot(Box::new(e)))?
             .label(e.engine.clone())
             .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 10, y + 5)], colour.filled()));
     }
@@ -682,7 +682,7 @@ pub fn write_validation(dir: &std::path::Path, r: &ValidationReport) -> Result<(
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
         .draw()
-        .map_err(|e| DiffError::Plot(e.to_string()))?;
+        .map_err(|e| DiffError::Plot(Box::new(e)))?;
     root.present().map_err(plot)?;
     Ok(())
 }

@@ -15,8 +15,13 @@ use thiserror::Error;
 pub enum SpecError {
     #[error("cannot read policy spec {path}: {source}")]
     Io { path: String, source: std::io::Error },
-    #[error("policy spec {path}: {message}")]
-    Parse { path: String, message: String },
+    /// The spec is not valid TOML or has unknown or missing keys (the TOML parser's error is the source).
+    #[error("policy spec {path}")]
+    Parse {
+        path: String,
+        #[source]
+        source: toml::de::Error,
+    },
     #[error("unknown observation term `{term}` (known: {known})")]
     UnknownTerm { term: String, known: String },
     #[error("unknown policy kind `{0}` (known: onnx_mlp, lstm_npz, lstm_torchscript)")]
@@ -317,7 +322,7 @@ impl PolicySpec {
 
     fn parse(text: &str, base_dir: &Path, origin: &str) -> Result<Self, SpecError> {
         let raw: RawSpec =
-            toml::from_str(text).map_err(|e| SpecError::Parse { path: origin.to_string(), message: e.to_string() })?;
+            toml::from_str(text).map_err(|source| SpecError::Parse { path: origin.to_string(), source })?;
         let kind = match raw.kind.as_str() {
             "onnx_mlp" => PolicyKind::OnnxMlp,
             "lstm_npz" => PolicyKind::LstmNpz,
