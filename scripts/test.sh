@@ -29,6 +29,11 @@ phase build
 status=0
 cargo test --workspace --locked --no-fail-fast || status=$?
 phase "cargo test (exit $status)"
+# The CI demo's videos (crates/ulab/tests/deploy_sim.rs): one MP4 per engine and policy, kept in the test output.
+if compgen -G "target/tmp/ci-demo/*.mp4" > /dev/null; then
+  echo "test.sh: CI demo videos:"
+  ls -l target/tmp/ci-demo/*.mp4
+fi
 if [ "${ULAB_FUZZ_SECONDS:-20}" != 0 ]; then
   bash scripts/fuzz.sh smoke "${ULAB_FUZZ_SECONDS:-20}" || status=$?
   phase "fuzz smoke"
