@@ -115,20 +115,7 @@ impl RobotModel {
         let mut low = f64::INFINITY;
         for (l, pose) in self.links.iter().zip(&fk.link_poses) {
             for col in &l.collisions {
-                let w = pose * col.origin;
-                let z = w.translation.vector.z;
-                let r = w.rotation.to_rotation_matrix();
-                let m = r.matrix();
-                // Support of the shape in direction -z: centre z minus the extent along world z.
-                let ext = match col.shape {
-                    crate::Shape::Box { half_extents: h } => (0..3).map(|k| h[k] * m[(2, k)].abs()).sum::<f64>(),
-                    crate::Shape::Sphere { radius } => radius,
-                    crate::Shape::Capsule { radius, half_length } => half_length * m[(2, 2)].abs() + radius,
-                    crate::Shape::Cylinder { radius, half_length } => {
-                        half_length * m[(2, 2)].abs() + radius * (1.0 - m[(2, 2)] * m[(2, 2)]).max(0.0).sqrt()
-                    }
-                };
-                low = low.min(z - ext);
+                low = low.min(col.shape.lowest_z(&(pose * col.origin)));
             }
         }
         Ok(low)

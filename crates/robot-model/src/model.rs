@@ -21,6 +21,24 @@ pub enum Shape {
     Cylinder { radius: f64, half_length: f64 },
 }
 
+impl Shape {
+    /// Lowest world z of the shape placed at `w` (world pose of its frame): its support in direction -z, the centre's
+    /// z minus the shape's extent along world z.
+    pub fn lowest_z(&self, w: &Isometry3<f64>) -> f64 {
+        let r = w.rotation.to_rotation_matrix();
+        let m = r.matrix();
+        let ext = match *self {
+            Shape::Box { half_extents: h } => (0..3).map(|k| h[k] * m[(2, k)].abs()).sum::<f64>(),
+            Shape::Sphere { radius } => radius,
+            Shape::Capsule { radius, half_length } => half_length * m[(2, 2)].abs() + radius,
+            Shape::Cylinder { radius, half_length } => {
+                half_length * m[(2, 2)].abs() + radius * (1.0 - m[(2, 2)] * m[(2, 2)]).max(0.0).sqrt()
+            }
+        };
+        w.translation.vector.z - ext
+    }
+}
+
 /// A collision shape placed in its link's frame.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Collision {

@@ -8,7 +8,7 @@
 //!   that the stance foot stays where it was put down. The stance passes to the other foot when that foot's sole is
 //!   lower by more than [`LegOdometry::SWITCH_M`]. Yaw drift of the IMU and foot slip go straight into the estimate.
 use nalgebra::{Isometry3, Quaternion, UnitQuaternion, Vector3};
-use robot_model::{GenCoords, ModelError, RobotModel, Shape};
+use robot_model::{GenCoords, ModelError, RobotModel};
 
 /// Pelvis orientation `[w, x, y, z]` (pelvis-to-world) from the IMU orientation `imu_quat` (IMU-to-world) and the
 /// joint angles `q` (slot order).
@@ -33,23 +33,8 @@ fn quat([w, x, y, z]: [f64; 4]) -> Result<UnitQuaternion<f64>, ModelError> {
     Ok(UnitQuaternion::from_quaternion(q))
 }
 
-/// Lowest world z of a shape placed at `w` (its support in direction -z).
-fn lowest_z(shape: &Shape, w: &Isometry3<f64>) -> f64 {
-    let m = w.rotation.to_rotation_matrix();
-    let m = m.matrix();
-    let ext = match *shape {
-        Shape::Box { half_extents: h } => (0..3).map(|k| h[k] * m[(2, k)].abs()).sum::<f64>(),
-        Shape::Sphere { radius } => radius,
-        Shape::Capsule { radius, half_length } => half_length * m[(2, 2)].abs() + radius,
-        Shape::Cylinder { radius, half_length } => {
-            half_length * m[(2, 2)].abs() + radius * (1.0 - m[(2, 2)] * m[(2, 2)]).max(0.0).sqrt()
-        }
-    };
-    w.translation.vector.z - ext
-}
-
 fn link_lowest(model: &RobotModel, link: usize, pose: &Isometry3<f64>) -> f64 {
-    model.links[link].collisions.iter().map(|c| lowest_z(&c.shape, &(pose * c.origin))).fold(f64::INFINITY, f64::min)
+    model.links[link].collisions.iter().map(|c| c.shape.lowest_z(&(pose * c.origin))).fold(f64::INFINITY, f64::min)
 }
 
 /// Kinematic leg odometry over a sequence of samples (see the module docs).

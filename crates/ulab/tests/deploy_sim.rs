@@ -13,7 +13,9 @@
 //! tests). Skips without `$ULAB_SHARED` (the policy's weights live there).
 mod common;
 
-use common::{interrupt, lease_domain, run_ulab, sim_summary, tail, wait_with_timeout, KillOnDrop, RealtimeSlot};
+use common::{
+    interrupt, lease_domain, robot_pixels, run_ulab, sim_summary, tail, wait_with_timeout, KillOnDrop, RealtimeSlot,
+};
 use serde_json::Value;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -112,11 +114,6 @@ fn demo_dir() -> PathBuf {
     let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join("ci-demo");
     std::fs::create_dir_all(&d).expect("ci-demo dir");
     d
-}
-
-/// Robot pixels: the renderer draws the robot in warm colours (red well above blue); ground is grey, sky blue.
-fn robot_pixels(rgb: &[u8]) -> usize {
-    rgb.chunks(3).filter(|p| i32::from(p[0]) - i32::from(p[2]) > 40).count()
 }
 
 /// Checks the run's video with ffmpeg's own decoder: as many frames as 30 per second of simulated time, and one

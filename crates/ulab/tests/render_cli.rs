@@ -2,7 +2,7 @@
 //! the robot; bad input ends with exit 2 and a message, never a panic. Needs ffmpeg (`bash scripts/setup.sh`).
 mod common;
 
-use common::{lease_domain, run_ulab, sim_summary, tail};
+use common::{lease_domain, robot_pixels, run_ulab, sim_summary, tail};
 use gap_diagnosis::log::{Command, Measurement};
 use gap_diagnosis::RobotLog;
 use robot_render::video::decode;
@@ -20,18 +20,13 @@ fn ffmpeg() -> PathBuf {
     robot_render::find_ffmpeg().unwrap_or_else(|e| panic!("this test needs ffmpeg: {e}"))
 }
 
-/// Robot pixels: every robot colour is warm (red well above blue); ground is grey, sky blue.
-fn robot_pixels(f: &Frame) -> usize {
-    f.rgb().chunks(3).filter(|p| i32::from(p[0]) - i32::from(p[2]) > 40).count()
-}
-
 /// Decodes `path` and checks it is a browser-playable H.264 video of the robot; returns its frames.
 fn check_video(path: &Path) -> Vec<Frame> {
     let (info, frames) = decode(&ffmpeg(), path).expect("ffmpeg decodes the video");
     assert_eq!((info.codec.as_str(), info.pix_fmt.as_str()), ("h264", "yuv420p"), "{}", info.line);
     assert_eq!((info.width, info.height), (640, 360));
     for (k, f) in frames.iter().enumerate() {
-        assert!(robot_pixels(f) > 1000, "frame {k}: the robot is not in the picture");
+        assert!(robot_pixels(f.rgb()) > 1000, "frame {k}: the robot is not in the picture");
     }
     frames
 }

@@ -67,3 +67,9 @@ pub fn pinned(v: &serde_json::Value, sig: i32, redact: &[&str]) -> serde_json::V
         _ => v.clone(),
     }
 }
+
+/// Robot pixels of an RGB picture from `robot-render`: every robot colour is warm (red well above blue); the ground is
+/// grey and the sky blue.
+pub fn robot_pixels(rgb: &[u8]) -> usize {
+    rgb.chunks(3).filter(|p| i32::from(p[0]) - i32::from(p[2]) > 40).count()
+}
