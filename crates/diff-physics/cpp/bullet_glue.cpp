@@ -398,11 +398,15 @@ void ubt_get_state(const UbtSim* sim, UbtBaseState* base, double* q, double* qd)
     }
 }
 
-// One step of the world with joint torques `tau` (one per link).
-int32_t ubt_step(UbtSim* sim, const double* tau, char* err, size_t errlen) {
+// One step of the world with joint torques `tau` (one per link) and a force (world, through the base COM) and a
+// torque (world) on the base; both 3-vectors, or null for none.
+int32_t ubt_step(UbtSim* sim, const double* tau, const double* base_force, const double* base_torque, char* err,
+                 size_t errlen) {
     try {
         btMultiBody& mb = *sim->w->body;
         for (int i = 0; i < sim->nlinks(); ++i) mb.addJointTorque(i, tau[i]);
+        if (base_force) mb.addBaseForce(v3(base_force));
+        if (base_torque) mb.addBaseTorque(v3(base_torque));
         // maxSubSteps = 0: exactly one internal step of `timestep`, no interpolation.
         sim->w->world->stepSimulation(sim->cfg.timestep, 0, sim->cfg.timestep);
         return 0;

@@ -317,6 +317,15 @@ pub trait Engine: std::fmt::Debug {
     /// Advances one timestep with the given joint torques (slot order, N·m), applied as they are (no clamping:
     /// clamp with [`crate::pd`] beforehand).
     fn step(&mut self, tau: &[f64]) -> Result<(), EngineError>;
+    /// An external wrench on the base link, applied at every following [`Engine::step`] until set again:
+    /// `[force; torque]`, both in the world frame, the force acting at the base frame's origin (the pelvis link
+    /// frame, not its centre of mass). It exists for holding the pelvis on a stand (the suspension rig of the gap
+    /// diagnosis, [`crate::suspension`]) in any engine. A reset clears it. Engines without it return
+    /// [`EngineError::Unsupported`].
+    fn set_base_wrench(&mut self, wrench: [f64; 6]) -> Result<(), EngineError> {
+        let _ = wrench;
+        Err(EngineError::Unsupported(format!("{}: external base wrench", self.name())))
+    }
     /// Current state.
     fn state(&self) -> State;
     /// Simulated time since the last reset (s).

@@ -278,6 +278,23 @@ impl Engine for MujocoEngine {
         Ok(())
     }
 
+    /// Through `qfrc_applied` on the free joint: the force as it is (MuJoCo's free-joint translation is the
+    /// body origin's), the torque turned into the pelvis frame (the free joint's rotational DoFs) at the current
+    /// orientation.
+    fn set_base_wrench(&mut self, wrench: [f64; 6]) -> Result<(), EngineError> {
+        if wrench.iter().any(|x| !x.is_finite()) {
+            return Err(EngineError::Input(format!("non-finite base wrench {wrench:?}")));
+        }
+        let qpos = self.data.qpos();
+        let r =
+            nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(qpos[3], qpos[4], qpos[5], qpos[6]));
+        let t_local = r.inverse() * nalgebra::Vector3::new(wrench[3], wrench[4], wrench[5]);
+        let qa = self.data.qfrc_applied_mut();
+        qa[..3].copy_from_slice(&wrench[..3]);
+        qa[3..6].copy_from_slice(t_local.as_slice());
+        Ok(())
+    }
+
     fn state(&self) -> State {
         let qpos = self.data.qpos();
         let qvel = self.data.qvel();

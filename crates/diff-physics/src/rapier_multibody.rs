@@ -69,6 +69,8 @@ pub struct RapierMultibodyEngine {
     time: f64,
     /// Contact-free twin used for generalized accelerations (built lazily).
     probe: Option<Box<RapierMultibodyEngine>>,
+    /// External wrench on the pelvis (`[force; torque]`, world, at the pelvis origin), see [`Engine::set_base_wrench`].
+    base_wrench: Option<[f64; 6]>,
 }
 
 impl std::fmt::Debug for RapierMultibodyEngine {
@@ -156,6 +158,7 @@ impl RapierMultibodyEngine {
             link_ids,
             time: 0.0,
             probe: None,
+            base_wrench: None,
         };
         engine.configure_and_set(state)?;
         Ok(engine)
@@ -311,6 +314,20 @@ impl RapierMultibodyEngine {
         Ok(t)
     }
 
+    /// Adds the base wrench (if any) to the root body, whose Rapier frame sits at the pelvis' centre of mass: the
+    /// force as it is, the torque plus the moment of the force about the COM (the force acts at the pelvis origin).
+    fn apply_base_wrench(&mut self) {
+        let Some(w) = self.base_wrench else { return };
+        let f = Vector3::new(w[0], w[1], w[2]);
+        let pose = self.pelvis_pose();
+        let origin_from_com = -(pose.rotation * self.robot.frame_offsets[0]);
+        let t = Vector3::new(w[3], w[4], w[5]) + origin_from_com.cross(&f);
+        if let Some(rb) = self.world.bodies.get_mut(self.robot.bodies[0]) {
+            rb.add_force(v_to_r(&f), true);
+            rb.add_torque(v_to_r(&t), true);
+        }
+    }
+
     fn apply_joint_torques(&mut self, tau: &[f64]) {
         clear_user_forces(&mut self.world, &self.robot);
         for (j, &t) in self.model.joints.iter().zip(tau) {
@@ -363,12 +380,21 @@ impl Engine for RapierMultibodyEngine {
     fn step(&mut self, tau: &[f64]) -> Result<(), EngineError> {
         check_tau(&self.model, tau)?;
         self.apply_joint_torques(tau);
+        self.apply_base_wrench();
         self.world.step();
         self.time += self.common.timestep;
         let mb = self.multibody()?;
         if mb.generalized_velocity().iter().any(|x| !x.is_finite()) {
             return Err(EngineError::Diverged(format!("non-finite velocity at t = {}", self.time)));
         }
+        Ok(())
+    }
+
+    fn set_base_wrench(&mut self, wrench: [f64; 6]) -> Result<(), EngineError> {
+        if wrench.iter().any(|x| !x.is_finite()) {
+            return Err(EngineError::Input(format!("non-finite base wrench {wrench:?}")));
+        }
+        self.base_wrench = Some(wrench);
         Ok(())
     }
 

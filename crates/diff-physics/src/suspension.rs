@@ -1,14 +1,16 @@
 //! The suspension stand: the robot's pelvis held still high above the ground, as on a gantry. One definition
-//! used by `ulab sim --hang` (through [`SuspendedMujoco`], re-exported as `sim_bridge::suspension`) and by the gap
+//! used by `ulab sim --hang` (through [`Suspended`], re-exported as `sim_bridge::suspension`) and by the gap
 //! diagnosis's rig (`gap_diagnosis::plant`), so a recording of the hung simulator and the diagnosing plant are the
-//! same physical system. It lives with the engines (MuJoCo only) so that the diagnosis needs no simulator bridge.
+//! same physical system. It lives with the engines so that the diagnosis needs no simulator bridge, and it works in
+//! every engine that takes an external base wrench ([`Engine::set_base_wrench`]: MuJoCo, Rapier multibody, Bullet,
+//! DART), so that the gap benchmark's reference plant can be another engine than the diagnosing one.
 //!
-//! The stand is a stiff spring-damper on the free joint (1e7 N/m, 1e6 N·m/rad) with weight feed-forward, applied
-//! as a generalized force (MuJoCo's `qfrc_applied`), on a pelvis made [`PELVIS_SCALE`] times heavier (a rigid
+//! The stand is a stiff spring-damper on the pelvis (1e7 N/m, 1e6 N·m/rad) with weight feed-forward, applied
+//! as an external wrench at the pelvis origin, on a pelvis made [`PELVIS_SCALE`] times heavier (a rigid
 //! mount), so the spring can be stiff, is integrated stably, and the limbs' reactions barely move the pelvis
 //! (well under a millimetre). No ground and no collisions: the feet hang in the air.
 use crate::mujoco::{MujocoEngine, MujocoSettings};
-use crate::{CommonSettings, Contact, Energy, Engine, EngineError, LinkPose, State};
+use crate::{CommonSettings, Contact, Energy, Engine, EngineError, EngineKind, LinkPose, State};
 use nalgebra::{Quaternion, UnitQuaternion};
 use robot_model::RobotModel;
 
@@ -50,8 +52,8 @@ pub fn state_on_stand(q: &[f64], dq: &[f64]) -> State {
     }
 }
 
-/// Generalized force of the stand on the free joint (world-frame force, then torque on the pelvis' rotational
-/// dofs) for `state`; `weight` (N) is the suspended model's total weight, fed forward.
+/// Wrench of the stand on the pelvis for `state` (`[force; torque]`, world frame, at the pelvis origin: what
+/// [`Engine::set_base_wrench`] takes); `weight` (N) is the suspended model's total weight, fed forward.
 pub fn base_wrench(state: &State, weight: f64) -> [f64; 6] {
     let q = UnitQuaternion::from_quaternion(Quaternion::new(
         state.base_quat[0],
@@ -59,41 +61,66 @@ pub fn base_wrench(state: &State, weight: f64) -> [f64; 6] {
         state.base_quat[2],
         state.base_quat[3],
     ));
-    let rotvec = q.scaled_axis(); // target orientation is identity
+    // The rotation vector of the pelvis (target: identity) is the same in the world and pelvis frames; the angular
+    // velocity is reported in the pelvis frame.
+    let rotvec = q.scaled_axis();
+    let w_world = q * nalgebra::Vector3::from(state.base_ang_vel);
     let mut f = [0.0; 6];
     for k in 0..3 {
         f[k] = -K_LIN * (state.base_pos[k] - BASE_POS[k]) - D_LIN * state.base_lin_vel[k];
-        // Rotational dofs are in the pelvis frame; rotvec is in the world frame (= pelvis frame to first order).
-        f[3 + k] = -K_ROT * rotvec[k] - D_ROT * state.base_ang_vel[k];
+        f[3 + k] = -K_ROT * rotvec[k] - D_ROT * w_world[k];
     }
     f[2] += weight;
     f
 }
 
-/// Writes the stand's wrench into MuJoCo's applied generalized force for the engine's current state.
-pub fn hold(engine: &mut MujocoEngine, weight: f64) {
+/// Sets the stand's wrench on `engine` for its current state (before each step).
+pub fn hold<E: Engine + ?Sized>(engine: &mut E, weight: f64) -> Result<(), EngineError> {
     let s = engine.state();
-    let w = base_wrench(&s, weight);
-    engine.raw_data().qfrc_applied_mut()[..6].copy_from_slice(&w);
+    engine.set_base_wrench(base_wrench(&s, weight))
 }
 
-/// MuJoCo with the robot on the stand: an [`Engine`] whose every step first applies the stand's wrench. Built
-/// from the unmodified model (the pelvis is made heavier inside, and reported so by `link_masses`).
+/// An engine with the robot on the stand: an [`Engine`] whose every step first applies the stand's wrench. Built
+/// from the unmodified model (the pelvis is made heavier inside, and reported so by `link_masses`). `E` is the
+/// engine's type: MuJoCo ([`Suspended::new`], `Send`, what the diagnosis steps on worker threads), or any engine
+/// chosen at run time ([`Suspended::with_engine`]).
 #[derive(Debug)]
-pub struct SuspendedMujoco {
-    engine: MujocoEngine,
+pub struct Suspended<E: Engine + ?Sized = dyn Engine> {
+    engine: Box<E>,
     weight: f64,
 }
 
-impl SuspendedMujoco {
+/// MuJoCo on the stand (`ulab sim --hang`, the diagnosing rig).
+pub type SuspendedMujoco = Suspended<MujocoEngine>;
+
+impl Suspended<MujocoEngine> {
+    /// MuJoCo on the stand with these MuJoCo settings (e.g. its integrator).
     pub fn new(model: &RobotModel, timestep: f64, specific: &MujocoSettings) -> Result<Self, EngineError> {
         let rigged = suspended_model(model);
         let engine = MujocoEngine::new(&rigged, &settings(timestep), specific)?;
-        Ok(SuspendedMujoco { engine, weight: rigged.total_mass() * robot_model::GRAVITY_EARTH })
+        Ok(Suspended { engine: Box::new(engine), weight: rigged.total_mass() * robot_model::GRAVITY_EARTH })
     }
 }
 
-impl Engine for SuspendedMujoco {
+impl<E: Engine + 'static> Suspended<E> {
+    /// The same stand with the engine's type erased.
+    pub fn into_dyn(self) -> Suspended {
+        Suspended { engine: self.engine, weight: self.weight }
+    }
+}
+
+impl Suspended<dyn Engine> {
+    /// Any engine on the stand, with its default specific settings; an engine that cannot take a base wrench is
+    /// refused here ([`EngineError::Unsupported`]), not at its first step.
+    pub fn with_engine(kind: EngineKind, model: &RobotModel, timestep: f64) -> Result<Self, EngineError> {
+        let rigged = suspended_model(model);
+        let mut engine = crate::make_engine(kind, &rigged, &settings(timestep))?;
+        engine.set_base_wrench([0.0; 6])?;
+        Ok(Suspended { engine, weight: rigged.total_mass() * robot_model::GRAVITY_EARTH })
+    }
+}
+
+impl<E: Engine + ?Sized> Engine for Suspended<E> {
     fn name(&self) -> &'static str {
         self.engine.name()
     }
@@ -114,7 +141,7 @@ impl Engine for SuspendedMujoco {
         self.engine.reset(state)
     }
     fn step(&mut self, tau: &[f64]) -> Result<(), EngineError> {
-        hold(&mut self.engine, self.weight);
+        hold(self.engine.as_mut(), self.weight)?;
         self.engine.step(tau)
     }
     fn state(&self) -> State {

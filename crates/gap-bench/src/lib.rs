@@ -39,18 +39,22 @@ pub struct RealConfig {
     pub jitter_s: f64,
     pub duration: f64,
     pub seed: u64,
+    /// Apply damping and Coulomb friction through the engine's own joint parameters ([`in_engine`]) instead of
+    /// the effect layer.
+    pub native_effects: bool,
 }
 
 impl RealConfig {
     pub fn new(model: &RobotModel, duration: f64, seed: u64) -> Self {
         RealConfig {
-            engine: EngineChoice { integrator: "RK4".into() },
+            engine: EngineChoice::mujoco("RK4"),
             effects: Effects::none(model.nj()),
             noise: SensorNoise::default(),
             cmd_rate_hz: 50.0,
             jitter_s: 0.002,
             duration,
             seed,
+            native_effects: false,
         }
     }
 }
@@ -97,9 +101,9 @@ pub fn generate_log_with(
     policy: Option<&PolicyInput>,
 ) -> Result<RobotLog, GapError> {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(cfg.seed);
-    let fx = &cfg.effects;
-    let real_model = fx.apply_to_model(model);
-    let mut rig = Rig::new(&real_model, &cfg.engine)?;
+    let (real_model, engine_fx) = in_engine(&cfg.effects.apply_to_model(model), &cfg.effects, cfg.native_effects);
+    let fx = &engine_fx;
+    let mut rig = Rig::reference(&real_model, &cfg.engine)?;
     let q0 = model.default_q();
     let nj = model.nj();
     rig.reset(&q0, &vec![0.0; nj])?;
@@ -203,6 +207,30 @@ pub fn generate_log_with(
         log.states[i].acc = [0, 1, 2].map(|k| f[k] + truth[i].2[k]);
     }
     Ok(log)
+}
+
+/// Moves the effects the engines model themselves into `model` when `native` is set: extra viscous damping into
+/// the joints' damping and extra Coulomb friction into their dry friction (MuJoCo's `frictionloss`, Rapier's dof
+/// friction, DART's Coulomb constraint, Bullet's joint motor), so that the reference plant applies them with the
+/// engine's own code and not with the effect layer the diagnosis fits; returns the model and the effects left to
+/// the effect layer. (Armature, link mass and COM are always the model's, hence the engine's.) A negative damping
+/// that the joint's own cannot absorb stays in the effect layer.
+pub fn in_engine(model: &RobotModel, fx: &Effects, native: bool) -> (RobotModel, Effects) {
+    let mut m = model.clone();
+    let mut rest = fx.clone();
+    if native {
+        for (j, joint) in m.joints.iter_mut().enumerate() {
+            if joint.damping + fx.damping[j] >= 0.0 {
+                joint.damping += fx.damping[j];
+                rest.damping[j] = 0.0;
+            }
+            if fx.coulomb[j] >= 0.0 {
+                joint.frictionloss += fx.coulomb[j];
+                rest.coulomb[j] = 0.0;
+            }
+        }
+    }
+    (m, rest)
 }
 
 /// One injected effect: kind, the unit it acts on (group, joint, `robot`, `imu`) and its magnitude.
@@ -421,6 +449,24 @@ pub struct BenchOptions {
     pub diagnose: DiagnoseOptions,
     /// Policies for the policy-driven trials (empty: every trial runs the excitation plan).
     pub policies: Vec<PolicySpec>,
+    /// The reference ("real") plant's engine on the rig (default MuJoCo RK4). Another engine than MuJoCo makes the
+    /// logs independent of the diagnosing simulator; its damping and Coulomb friction effects then go through the
+    /// engine's own joint parameters ([`in_engine`]).
+    pub reference: EngineChoice,
+}
+
+impl BenchOptions {
+    /// `trials` trials of `duration` s from `seed`, excitation plan only, reference MuJoCo RK4.
+    pub fn new(trials: usize, seed: u64, duration: f64) -> Self {
+        BenchOptions {
+            trials,
+            seed,
+            duration,
+            diagnose: DiagnoseOptions { seed, ..DiagnoseOptions::default() },
+            policies: Vec::new(),
+            reference: EngineChoice::mujoco("RK4"),
+        }
+    }
 }
 
 /// The input of trial `i`: with policies, half the trials, balanced over the single/single/pair/control
@@ -503,6 +549,8 @@ pub fn run_trial(
     let cfg = RealConfig {
         effects: fx,
         seed: opts.seed.wrapping_mul(31).wrapping_add(i as u64),
+        native_effects: !matches!(opts.reference, EngineChoice::Mujoco { .. }),
+        engine: opts.reference.clone(),
         ..RealConfig::new(model, opts.duration, 0)
     };
     let input = trial_policy(i, opts);

@@ -52,7 +52,7 @@ impl FloatingRealConfig {
     /// MuJoCo RK4, default sensor noise, 50 Hz commands with up to 2 ms delay.
     pub fn new(model: &RobotModel, duration: f64, seed: u64) -> Self {
         FloatingRealConfig {
-            engine: EngineChoice { integrator: "RK4".into() },
+            engine: EngineChoice::mujoco("RK4"),
             effects: Effects::none(model.nj()),
             noise: SensorNoise::default(),
             cmd_period: 0.02,

@@ -101,7 +101,7 @@ fn leg_damping_trial_is_sealed_diagnosed_on_the_floating_plant_and_scored_top1()
     )
     .expect("LSTM policy spec");
     let opts =
-        BenchOptions { trials: 1, seed: 1, duration: 4.0, diagnose: DiagnoseOptions::default(), policies: vec![spec] };
+        BenchOptions { policies: vec![spec], diagnose: DiagnoseOptions::default(), ..BenchOptions::new(1, 1, 4.0) };
     let groups = joint_groups(&m);
     let injected = vec![Injected { kind: EffectKind::Damping, unit: "left_leg".into(), value: 3.0 }];
     // The first draw takes the PD gains off both legs, so the robot collapses and the runner must redraw; the

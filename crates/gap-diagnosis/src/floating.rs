@@ -347,7 +347,8 @@ impl FloatingPlant {
     /// include the contact friction); `fx` supplies the contact time constant, the one engine-level effect.
     pub fn new(model: &RobotModel, choice: &EngineChoice, fx: &Effects) -> Result<Self, GapError> {
         let common = CommonSettings::default();
-        let mut settings = MujocoSettings { integrator: choice.integrator.clone(), ..MujocoSettings::default() };
+        let mut settings =
+            MujocoSettings { integrator: choice.mujoco_integrator()?.to_string(), ..MujocoSettings::default() };
         if let Some(tc) = fx.contact_timeconst {
             if !(tc.is_finite() && tc >= 2.0 * DT) {
                 return Err(GapError::Input(format!(

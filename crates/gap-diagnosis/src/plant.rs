@@ -5,12 +5,14 @@
 //!
 //! Rig assumption (stated once): the pelvis is held by a stiff stand at a known pose high above the ground
 //! ("suspended"), so the joint-level effects are identifiable without estimating the floating base. The stand is a
-//! spring-damper on the free joint (1e7 N/m, 1e6 N·m/rad) with weight feed-forward on a pelvis made 1000x heavier, applied through MuJoCo's
-//! `qfrc_applied`; the pelvis moves by well under a millimetre.
+//! spring-damper on the pelvis (1e7 N/m, 1e6 N·m/rad) with weight feed-forward on a pelvis made 1000x heavier, applied
+//! as an external base wrench (MuJoCo's `qfrc_applied`, or the other engines' own base force); the pelvis moves by
+//! well under a millimetre.
 use crate::log::{Command, Measurement, RobotLog};
 use crate::GapError;
 use diff_physics::mujoco::{MujocoEngine, MujocoSettings};
-use diff_physics::{Engine, State};
+use diff_physics::suspension::Suspended;
+use diff_physics::Engine;
 use nalgebra::{UnitQuaternion, Vector3};
 use robot_model::{GenCoords, RobotModel};
 
@@ -45,15 +47,26 @@ pub fn joint_groups(model: &RobotModel) -> Vec<usize> {
         .collect()
 }
 
-/// The engine variant of a plant.
+/// The engine of a plant: MuJoCo with one of its integrators (the diagnosing simulator, and the default reference
+/// plant), or another engine on the suspension rig (a reference plant independent of MuJoCo: `ulab gap bench
+/// --reference-engine`).
 #[derive(Debug, Clone, PartialEq)]
-pub struct EngineChoice {
-    /// MuJoCo integrator (`implicitfast`, `RK4`, `Euler`, `implicit`).
-    pub integrator: String,
+pub enum EngineChoice {
+    /// MuJoCo with this integrator (`implicitfast`, `RK4`, `Euler`, `implicit`).
+    Mujoco { integrator: String },
+    /// An engine that can hold the pelvis on the stand ([`diff_physics::Engine::set_base_wrench`]): Bullet, DART or
+    /// Rapier multibody. Rig only (the floating plant's contact effects are MuJoCo's).
+    Other(diff_physics::EngineKind),
 }
 
 impl EngineChoice {
-    /// Parses `mujoco` (implicitfast), `mujoco-rk4`, `mujoco-euler`, `mujoco-implicit`.
+    /// MuJoCo with this integrator.
+    pub fn mujoco(integrator: &str) -> Self {
+        EngineChoice::Mujoco { integrator: integrator.into() }
+    }
+
+    /// Parses `mujoco` (implicitfast), `mujoco-rk4`, `mujoco-euler`, `mujoco-implicit`, or `bullet`, `dart`,
+    /// `rapier_multibody` (whether the engine is compiled in is checked when the plant is built).
     pub fn parse(s: &str) -> Result<Self, GapError> {
         let integrator = match s {
             "mujoco" | "mujoco-implicitfast" => "implicitfast",
@@ -61,26 +74,47 @@ impl EngineChoice {
             "mujoco-euler" => "Euler",
             "mujoco-implicit" => "implicit",
             other => {
-                return Err(match diff_physics::EngineKind::parse(other) {
-                    Some(kind) => GapError::Input(format!(
-                        "engine {}: the plants need MuJoCo (the rig applies its stand as a base wrench through \
-                         MuJoCo's qfrc_applied, and the floating plant's contact effect is MuJoCo's solref); compare \
-                         {} with MuJoCo with `ulab diff`; use mujoco, mujoco-rk4, mujoco-euler or mujoco-implicit",
+                use diff_physics::EngineKind;
+                return match EngineKind::parse(other) {
+                    Some(kind @ (EngineKind::Bullet | EngineKind::Dart | EngineKind::RapierMultibody)) => {
+                        Ok(EngineChoice::Other(kind))
+                    }
+                    Some(kind) => Err(GapError::Input(format!(
+                        "engine {}: the plants need an engine that holds the pelvis on the rig by an external wrench \
+                         (mujoco, mujoco-rk4, mujoco-euler, mujoco-implicit, bullet, dart, rapier_multibody); compare \
+                         {} with MuJoCo with `ulab diff`",
                         kind.name(),
                         kind.name()
-                    )),
-                    None => GapError::Input(format!(
-                        "unknown engine {other:?} (mujoco, mujoco-rk4, mujoco-euler, mujoco-implicit)"
-                    )),
-                })
+                    ))),
+                    None => Err(GapError::Input(format!(
+                        "unknown engine {other:?} (mujoco, mujoco-rk4, mujoco-euler, mujoco-implicit, bullet, dart, \
+                         rapier_multibody)"
+                    ))),
+                };
             }
         };
-        Ok(EngineChoice { integrator: integrator.into() })
+        Ok(EngineChoice::mujoco(integrator))
     }
+
+    /// The name [`EngineChoice::parse`] reads.
     pub fn name(&self) -> String {
-        match self.integrator.as_str() {
-            "implicitfast" => "mujoco".into(),
-            other => format!("mujoco-{}", other.to_lowercase()),
+        match self {
+            EngineChoice::Mujoco { integrator } if integrator == "implicitfast" => "mujoco".into(),
+            EngineChoice::Mujoco { integrator } => format!("mujoco-{}", integrator.to_lowercase()),
+            EngineChoice::Other(kind) => kind.name().into(),
+        }
+    }
+
+    /// The MuJoCo integrator, for plants that need MuJoCo (the floating plant); other engines are refused.
+    pub fn mujoco_integrator(&self) -> Result<&str, GapError> {
+        match self {
+            EngineChoice::Mujoco { integrator } => Ok(integrator),
+            EngineChoice::Other(kind) => Err(GapError::Input(format!(
+                "engine {}: the floating plant needs MuJoCo (its contact effect is MuJoCo's solref); {} works on the rig \
+                 only",
+                kind.name(),
+                kind.name()
+            ))),
         }
     }
 }
@@ -172,31 +206,51 @@ impl Effects {
     }
 }
 
-/// A physics engine with the robot on the suspension rig.
+/// A physics engine with the robot on the suspension rig ([`diff_physics::suspension`]): MuJoCo for the diagnosis
+/// ([`Rig::new`], stepped on worker threads), or any engine that can hold the pelvis for a reference plant
+/// ([`Rig::reference`]).
 #[derive(Debug)]
-pub struct Rig {
-    engine: MujocoEngine,
-    weight: f64,
+pub struct Rig<E: Engine + ?Sized = MujocoEngine> {
+    engine: Suspended<E>,
     torque_limit: Vec<f64>,
     speed_limit: Vec<f64>,
     tau: Vec<f64>,
 }
 
-impl Rig {
-    /// Builds the rig for `model` (already carrying the model-level effects).
+impl Rig<MujocoEngine> {
+    /// The diagnosing rig for `model` (already carrying the model-level effects): MuJoCo with the choice's
+    /// integrator.
     pub fn new(model: &RobotModel, choice: &EngineChoice) -> Result<Self, GapError> {
-        let common = diff_physics::suspension::settings(DT);
-        let settings = MujocoSettings { integrator: choice.integrator.clone(), ..MujocoSettings::default() };
-        // The stand (diff_physics::suspension): a RIG_PELVIS_SCALE times heavier pelvis held by a stiff spring.
-        let rigged = diff_physics::suspension::suspended_model(model);
-        let engine = MujocoEngine::new(&rigged, &common, &settings).map_err(GapError::from)?;
-        Ok(Rig {
+        let settings =
+            MujocoSettings { integrator: choice.mujoco_integrator()?.to_string(), ..MujocoSettings::default() };
+        let engine = Suspended::new(model, DT, &settings).map_err(GapError::from)?;
+        Ok(Rig::around(engine, model))
+    }
+}
+
+impl Rig<dyn Engine> {
+    /// A reference rig in any engine of [`EngineChoice`] (MuJoCo with its integrator, Bullet, DART, Rapier).
+    pub fn reference(model: &RobotModel, choice: &EngineChoice) -> Result<Self, GapError> {
+        let engine: Suspended = match choice {
+            EngineChoice::Mujoco { integrator } => {
+                let settings = MujocoSettings { integrator: integrator.clone(), ..MujocoSettings::default() };
+                let s = Suspended::new(model, DT, &settings).map_err(GapError::from)?;
+                s.into_dyn()
+            }
+            EngineChoice::Other(kind) => Suspended::with_engine(*kind, model, DT).map_err(GapError::from)?,
+        };
+        Ok(Rig::around(engine, model))
+    }
+}
+
+impl<E: Engine + ?Sized> Rig<E> {
+    fn around(engine: Suspended<E>, model: &RobotModel) -> Self {
+        Rig {
             engine,
-            weight: rigged.total_mass() * robot_model::GRAVITY_EARTH,
             torque_limit: model.joints.iter().map(|j| j.torque_limit).collect(),
             speed_limit: model.joints.iter().map(|j| j.speed_limit).collect(),
             tau: vec![0.0; model.nj()],
-        })
+        }
     }
 
     /// Puts the robot on the stand with these joint angles and speeds (true, not measured, values).
@@ -211,19 +265,19 @@ impl Rig {
         (s.q, s.dq)
     }
 
+    /// Pelvis position and orientation (`[w, x, y, z]`) on the stand, to check that the stand holds.
+    pub fn pelvis(&self) -> ([f64; 3], [f64; 4]) {
+        let s = self.engine.state();
+        (s.base_pos, s.base_quat)
+    }
+
     /// One physics step: the effect layer turns `cmd` into joint torques; returns the motor torque (what
     /// `tau_est` reports).
     pub fn step(&mut self, cmd: &Command, fx: &Effects) -> Result<&[f64], GapError> {
         let s = self.engine.state();
         let joint_tau = actuator_torques(cmd, fx, &s.q, &s.dq, &self.torque_limit, &self.speed_limit, &mut self.tau);
-        self.hold_base(&s);
         self.engine.step(&joint_tau).map_err(GapError::from)?;
         Ok(&self.tau)
-    }
-
-    fn hold_base(&mut self, s: &State) {
-        let w = diff_physics::suspension::base_wrench(s, self.weight);
-        self.engine.raw_data().qfrc_applied_mut()[..6].copy_from_slice(&w);
     }
 }
 

@@ -129,7 +129,14 @@ extern "C" {
         errlen: usize,
     ) -> i32;
     fn ubt_get_state(sim: *const UbtSim, base: *mut UbtBaseState, q: *mut f64, qd: *mut f64);
-    fn ubt_step(sim: *mut UbtSim, tau: *const f64, err: *mut c_char, errlen: usize) -> i32;
+    fn ubt_step(
+        sim: *mut UbtSim,
+        tau: *const f64,
+        base_force: *const f64,
+        base_torque: *const f64,
+        err: *mut c_char,
+        errlen: usize,
+    ) -> i32;
     fn ubt_body_poses(sim: *mut UbtSim, pos: *mut f64, quat: *mut f64);
     fn ubt_accelerations(
         sim: *mut UbtSim,
@@ -236,12 +243,18 @@ impl Sim {
         (base, q, qd)
     }
 
-    /// One world step with joint torques (one per link).
-    pub fn step(&mut self, tau: &[f64]) -> Result<(), String> {
+    /// One world step with joint torques (one per link) and optionally a base wrench: a force (world, through the
+    /// base COM) and a torque (world).
+    pub fn step(&mut self, tau: &[f64], base: Option<([f64; 3], [f64; 3])>) -> Result<(), String> {
         self.check("joint torques", tau.len(), self.nlinks)?;
         let mut err = [0 as c_char; ERR_LEN];
-        // SAFETY: valid sim; tau has nlinks entries.
-        let rc = unsafe { ubt_step(self.ptr.as_ptr(), tau.as_ptr(), err.as_mut_ptr(), ERR_LEN) };
+        let (force, torque) = match &base {
+            Some((f, t)) => (f.as_ptr(), t.as_ptr()),
+            None => (std::ptr::null(), std::ptr::null()),
+        };
+        // SAFETY: valid sim; tau has nlinks entries; force and torque are null or point at 3 doubles that outlive
+        // the call (`base` is borrowed for it).
+        let rc = unsafe { ubt_step(self.ptr.as_ptr(), tau.as_ptr(), force, torque, err.as_mut_ptr(), ERR_LEN) };
         if rc != 0 {
             return Err(message(&err));
         }

@@ -177,6 +177,9 @@ pub struct BulletEngine {
     /// Viscous damping per Bullet link (0 when disabled), applied as explicit torques.
     damping: Vec<f64>,
     time: f64,
+    /// External wrench on the pelvis (`[force; torque]`, world, at the pelvis origin), see
+    /// [`Engine::set_base_wrench`]; cleared by reset.
+    base_wrench: Option<[f64; 6]>,
 }
 
 impl BulletEngine {
@@ -316,6 +319,7 @@ impl BulletEngine {
             joint_body,
             damping,
             time: 0.0,
+            base_wrench: None,
         };
         e.reset(&State::standing(model))?;
         Ok(e)
@@ -340,7 +344,7 @@ impl BulletEngine {
 
     /// One bare Bullet step with the given per-link torques (no state conversion, no damping).
     pub fn step_raw(&mut self, tau_links: &[f64]) -> Result<(), EngineError> {
-        self.sim.step(tau_links).map_err(EngineError::Diverged)?;
+        self.sim.step(tau_links, None).map_err(EngineError::Diverged)?;
         self.time += self.common.timestep;
         Ok(())
     }
@@ -448,14 +452,31 @@ impl Engine for BulletEngine {
         }
         self.sim.reset(&base, &q, &qd).map_err(EngineError::Build)?;
         self.time = 0.0;
+        self.base_wrench = None;
+        Ok(())
+    }
+
+    fn set_base_wrench(&mut self, wrench: [f64; 6]) -> Result<(), EngineError> {
+        if wrench.iter().any(|x| !x.is_finite()) {
+            return Err(EngineError::Input(format!("non-finite base wrench {wrench:?}")));
+        }
+        self.base_wrench = Some(wrench);
         Ok(())
     }
 
     fn step(&mut self, tau: &[f64]) -> Result<(), EngineError> {
         self.check_tau(tau)?;
-        let (_, _, qd) = self.sim.state();
+        let (b, _, qd) = self.sim.state();
         let t = self.link_torques(tau, &qd);
-        self.sim.step(&t).map_err(EngineError::Diverged)?;
+        let base = self.base_wrench.map(|w| {
+            // Bullet's base force acts through the base COM: add the moment of the force applied at the origin.
+            let f0 = self.frames[0];
+            let r_com = from_xyzw(b.quat) * f0.rot.inverse() * f0.com;
+            let f = Vector3::new(w[0], w[1], w[2]);
+            let t = Vector3::new(w[3], w[4], w[5]) + (-r_com).cross(&f);
+            ([w[0], w[1], w[2]], arr(&t))
+        });
+        self.sim.step(&t, base).map_err(EngineError::Diverged)?;
         self.time += self.common.timestep;
         let (b, q, qd) = self.sim.state();
         let finite =

@@ -154,6 +154,9 @@ pub struct DartEngine {
     /// The base quaternion last reported (or reset to): DART keeps a rotation matrix, whose quaternion has
     /// either sign; the reported one is the one continuous with this (as an integrated quaternion would be).
     quat_ref: [f64; 4],
+    /// External wrench on the pelvis (`[force; torque]`, world, at the pelvis origin), see
+    /// [`Engine::set_base_wrench`]; cleared by reset.
+    base_wrench: Option<[f64; 6]>,
 }
 
 /// Checks a DART state against the bounds within which a step cannot overflow (see the module docs).
@@ -328,6 +331,7 @@ impl DartEngine {
             armature,
             diverged: None,
             quat_ref: standing.base_quat,
+            base_wrench: None,
         })
     }
 
@@ -493,8 +497,15 @@ impl Engine for DartEngine {
         let world = World::new(&self.links, &self.raw_settings, &raw).map_err(EngineError::Build)?;
         self.world = world;
         self.diverged = None;
+        self.base_wrench = None;
         let n = state.base_quat.iter().map(|x| x * x).sum::<f64>().sqrt();
         self.quat_ref = state.base_quat.map(|x| x / n);
+        Ok(())
+    }
+
+    fn set_base_wrench(&mut self, wrench: [f64; 6]) -> Result<(), EngineError> {
+        check_forces(&wrench)?;
+        self.base_wrench = Some(wrench);
         Ok(())
     }
 
@@ -506,6 +517,13 @@ impl Engine for DartEngine {
         }
         let raw = self.raw_state()?;
         let mut f = vec![0.0; 6];
+        if let Some(w) = self.base_wrench {
+            // The interface's base force is [F_world, M_pelvis] at the pelvis origin.
+            let p = &raw.base_pose;
+            let m_b = quat([p[3], p[4], p[5], p[6]]).inverse() * Vector3::new(w[3], w[4], w[5]);
+            f[..3].copy_from_slice(&w[..3]);
+            f[3..].copy_from_slice(m_b.as_slice());
+        }
         f.extend_from_slice(tau);
         let forces = self.to_dart_forces(&f, &raw);
         self.world.step(&forces).map_err(EngineError::Diverged)?;

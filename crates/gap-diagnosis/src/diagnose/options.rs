@@ -97,7 +97,7 @@ impl PlantKind {
 impl Default for DiagnoseOptions {
     fn default() -> Self {
         DiagnoseOptions {
-            engine: EngineChoice { integrator: "implicitfast".into() },
+            engine: EngineChoice::mujoco("implicitfast"),
             window_s: 0.1,
             max_windows: None,
             block_s: 1.0,

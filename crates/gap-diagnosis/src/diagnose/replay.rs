@@ -18,7 +18,7 @@ pub(super) type Scores = Vec<Vec<f64>>;
 /// The engine that replays a window: on the rig, or on the ground.
 pub(super) enum Plant {
     Rig(Rig),
-    Floating(FloatingPlant),
+    Floating(Box<FloatingPlant>),
 }
 
 impl Plant {
@@ -32,7 +32,7 @@ impl Plant {
     ) -> Result<Self, GapError> {
         Ok(match kind {
             PlantKind::Rig => Plant::Rig(Rig::new(model, engine)?),
-            PlantKind::Floating => Plant::Floating(FloatingPlant::new(model, engine, fx)?),
+            PlantKind::Floating => Plant::Floating(Box::new(FloatingPlant::new(model, engine, fx)?)),
         })
     }
 

@@ -114,6 +114,11 @@ struct SimulateArgs {
     effect: Vec<String>,
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Engine of the simulated robot on the rig: mujoco-rk4 (default), mujoco, mujoco-euler, mujoco-implicit,
+    /// bullet, dart, rapier_multibody (with another engine than MuJoCo, damping and Coulomb friction effects go
+    /// through the engine's own joint parameters).
+    #[arg(long, default_value = "mujoco-rk4")]
+    engine: String,
     /// Overwrite the output file.
     #[arg(long)]
     force: bool,
@@ -144,6 +149,11 @@ struct BenchArgs {
     /// policies in turn (at least one --policy); the diagnosis must choose the floating plant by itself.
     #[arg(long)]
     floating: bool,
+    /// Engine of the reference ("real") plant on the rig: mujoco-rk4 (default), mujoco, mujoco-euler,
+    /// mujoco-implicit, or an engine independent of the diagnosing MuJoCo: bullet, dart, rapier_multibody (their
+    /// damping and Coulomb friction effects are then applied through the engine's own joint parameters).
+    #[arg(long, default_value = "mujoco-rk4")]
+    reference_engine: String,
 }
 
 pub fn run(args: Args) -> Result<Exit> {
@@ -328,6 +338,8 @@ fn simulate(a: SimulateArgs) -> Result<Exit> {
         bail!("--duration must be in [1, 600] s");
     }
     let mut cfg = RealConfig::new(&model, a.duration, a.seed);
+    cfg.engine = EngineChoice::parse(&a.engine).context("--engine")?;
+    cfg.native_effects = !matches!(cfg.engine, EngineChoice::Mujoco { .. });
     for e in &a.effect {
         parse_effect(e, &model, &mut cfg.effects)?;
     }
@@ -373,13 +385,11 @@ fn bench_cmd(a: BenchArgs) -> Result<Exit> {
     if a.floating && policies.is_empty() {
         bail!("--floating needs at least one --policy (the walking controller)");
     }
-    let opts = BenchOptions {
-        trials: a.trials,
-        seed: a.seed,
-        duration: a.duration,
-        diagnose: DiagnoseOptions { seed: a.seed, ..Default::default() },
-        policies,
-    };
+    let reference = EngineChoice::parse(&a.reference_engine).context("--reference-engine")?;
+    if a.floating && !matches!(reference, EngineChoice::Mujoco { .. }) {
+        bail!("--floating: the walking reference plant is MuJoCo only (its contact effects are MuJoCo's); --reference-engine works on the rig");
+    }
+    let opts = BenchOptions { policies, reference, ..BenchOptions::new(a.trials, a.seed, a.duration) };
     let mut scores = Vec::new();
     let mut seals = Vec::new();
     let started = std::time::Instant::now();
@@ -450,10 +460,19 @@ fn bench_cmd(a: BenchArgs) -> Result<Exit> {
                 "walking logs, reference plant MuJoCo RK4 with ground contact + noise + 50 Hz commands with 0-2 ms jitter; diagnosing engine MuJoCo implicitfast, plant auto",
             )
         } else {
-            ("", "logs, reference plant MuJoCo RK4 + noise + 50 Hz jitter; diagnosing engine MuJoCo implicitfast")
+            (
+                "",
+                if matches!(opts.reference, EngineChoice::Mujoco { .. }) {
+                    "logs, reference plant MuJoCo + noise + 50 Hz jitter; diagnosing engine MuJoCo implicitfast"
+                } else {
+                    "logs, reference plant in another engine (damping and Coulomb friction through its own joint parameters) + noise + 50 Hz jitter; diagnosing engine MuJoCo implicitfast"
+                },
+            )
         };
+        let reference =
+            if a.floating { String::new() } else { format!(" --reference-engine {}", opts.reference.name()) };
         println!(
-            "ulab gap bench{flag} --trials {} --seed {} --duration {}{} ({} s {what}; {:.0} s total)\n",
+            "ulab gap bench{flag}{reference} --trials {} --seed {} --duration {}{} ({} s {what}; {:.0} s total)\n",
             a.trials,
             a.seed,
             a.duration,
