@@ -5,8 +5,8 @@
 //! A pipeline of stages, one module each, run in order by [`diagnose()`]; a stage imports only from the ones
 //! below it, so each can be read (and tested) without those above. `options` (what is asked) and `stats` (means,
 //! bootstrap, noise floor) are the leaves; `windows` picks the windows, `replay` replays and scores them,
-//! `breakdown` says where the gap lies, `fit` fits one effect, `assess` judges each effect alone and `select` builds
-//! the best combination. One RNG is threaded through the stages in a fixed order, so a seed fixes the report.
+//! `breakdown` says where the gap lies, `fit` fits one effect, `assess` judges each effect alone, `select` builds
+//! the best combination and `remainder` says what is left (per window, robustly, and where). One RNG is threaded through the stages in a fixed order, so a seed fixes the report.
 use crate::effects::EffectKind;
 use crate::log::RobotLog;
 use crate::rig_check::{self, RigCheck};
@@ -19,6 +19,7 @@ mod assess;
 mod breakdown;
 mod fit;
 mod options;
+mod remainder;
 mod replay;
 mod select;
 mod stats;
@@ -28,6 +29,7 @@ pub use assess::{EffectResult, FittedParam, UNIT_FLOOR_FRAC};
 pub use breakdown::Share;
 pub use fit::RESOLUTION_FRAC;
 pub use options::{DiagnoseOptions, PlantChoice, PlantKind, FLOATING_MAX_WINDOWS};
+pub use remainder::{RobustGap, Unexplained, WindowFlag, WindowResidual};
 pub use select::{Combination, MAX_COMBINATION, REFIT_CANDIDATES};
 pub use stats::{Estimate, EFFECT_FLOOR_FRAC};
 pub use windows::{COMMAND_STALE_S, TIMING_TOL_S};
@@ -39,7 +41,7 @@ pub use crate::noise::{TIMING_HI, TIMING_LO};
 /// `/2`: adds `outcome` and `rig_check` (the rig-assumption check, see [`crate::rig_check`]).
 /// `/3`: adds `plant` (rig or floating base) and `windows_unsettled`.
 /// `/4`: adds `windows_down` and `rig_check.foot_load_fraction`.
-pub const SCHEMA_VERSION: &str = "ulab-gap-report/4";
+pub const SCHEMA_VERSION: &str = "ulab-gap-report/5";
 
 /// What the diagnosis concluded about the log as a whole.
 #[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq)]
@@ -96,6 +98,16 @@ pub struct Report {
     pub best_combination: Option<Combination>,
     /// No effect was named: the gap is reported as unexplained.
     pub unexplained: bool,
+    /// Every window's gap metric without effects and with the best combination, flagged by cause (torque at its
+    /// limit, a joint at its range, a fast transient).
+    #[serde(default)]
+    pub window_residuals: Vec<WindowResidual>,
+    /// Held-out gap statistics a few windows cannot dominate (median, trimmed mean).
+    #[serde(default)]
+    pub robust: Option<RobustGap>,
+    /// The residual no named effect explains, against the log's own sensor-noise level, and where it lies.
+    #[serde(default)]
+    pub unexplained_residual: Option<Unexplained>,
     pub elapsed_s: f64,
 }
 
@@ -118,6 +130,8 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
     let kinds: Vec<EffectKind> = opts.kinds.clone().unwrap_or_else(|| EffectKind::ALL.to_vec());
     let assessment = assess::assess(&ctx, kinds, &baseline, breakdown.any_contact, &mut rng)?;
     let selection = select::select(&ctx, assessment, &baseline, &mut rng)?;
+    // What is left: per window, robustly, and where.
+    let rest = remainder::remainder(&ctx, &breakdown.scores, &baseline, selection.combo_fx.as_ref())?;
     Ok(Report {
         schema_version: SCHEMA_VERSION.into(),
         outcome: Outcome::Diagnosed,
@@ -142,6 +156,9 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
         ranked: selection.ranked,
         abstentions: selection.abstentions,
         best_combination: selection.best_combination,
+        window_residuals: rest.windows,
+        robust: Some(rest.robust),
+        unexplained_residual: Some(rest.unexplained),
         elapsed_s: t_start.elapsed().as_secs_f64(),
     })
 }
@@ -196,6 +213,9 @@ fn rig_violated(
         ranked: vec![],
         best_combination: None,
         unexplained: true,
+        window_residuals: vec![],
+        robust: None,
+        unexplained_residual: None,
         elapsed_s: t_start.elapsed().as_secs_f64(),
     }
 }

@@ -105,13 +105,14 @@ impl EngineChoice {
         }
     }
 
-    /// The MuJoCo integrator, for plants that need MuJoCo (the floating plant); other engines are refused.
+    /// The MuJoCo integrator, for the diagnosing plants (which are MuJoCo); other engines are refused.
     pub fn mujoco_integrator(&self) -> Result<&str, GapError> {
         match self {
             EngineChoice::Mujoco { integrator } => Ok(integrator),
             EngineChoice::Other(kind) => Err(GapError::Input(format!(
-                "engine {}: the floating plant needs MuJoCo (its contact effect is MuJoCo's solref); {} works on the rig \
-                 only",
+                "engine {}: the diagnosing simulator is MuJoCo (the floating plant's contact effect is MuJoCo's \
+                 solref, and the rig's window replay is tuned on it); {} serves as an independent reference plant \
+                 (`ulab gap bench --reference-engine`, `ulab gap simulate --engine`)",
                 kind.name(),
                 kind.name()
             ))),

@@ -135,7 +135,63 @@ pub fn markdown(r: &Report) -> String {
     for (k, why) in &r.abstentions {
         s += &format!("- {}: {}\n", k.name(), why);
     }
+    s += &remainder_section(r);
     s += &format!("\nDiagnosis time: {:.1} s. Plots: `by_joint.svg`, `effects.svg`.\n", r.elapsed_s);
+    s
+}
+
+/// What is left after the best combination: robust statistics, flagged windows and the unexplained residual.
+fn remainder_section(r: &Report) -> String {
+    let mut s = String::new();
+    if let Some(u) = &r.unexplained_residual {
+        s += "\n## What is left (held-out windows)\n\n";
+        let where_: Vec<String> = u.by_joint.iter().map(|x| format!("{} {:.0} %", x.name, 100.0 * x.share)).collect();
+        s += &format!(
+            "Remaining gap metric {:.3} = {:.0} % of the baseline; the log's sensor noise alone would leave about {:.3}. {}              It lies mostly on: {}.\n\n",
+            u.metric_after,
+            100.0 * u.fraction_of_baseline,
+            u.noise_metric,
+            if u.significant {
+                "**Part of the gap is unexplained**: more than twice what noise explains remains after the named effects \
+                 (a model mismatch, an effect outside the library, or a difference of the simulators' numerics: timestep, \
+                 integrator, PD rate)."
+            } else {
+                "What remains is within twice the noise level."
+            },
+            where_.join(", ")
+        );
+    }
+    if let Some(g) = &r.robust {
+        let flagged: Vec<String> = g
+            .flagged
+            .iter()
+            .map(|(f, n)| {
+                format!(
+                    "{} {n}",
+                    serde_json::to_value(f).ok().and_then(|v| v.as_str().map(str::to_string)).unwrap_or_default()
+                )
+            })
+            .collect();
+        s += &format!(
+            "| statistic | baseline | after the best combination | reduction |\n|---|---|---|---|\n\
+             | mean (what ranks the effects) | {:.3} | {:.3} | {:.0} % |\n\
+             | trimmed mean (largest {} windows dropped, {} of them flagged) | {:.3} | {:.3} | {:.0} % |\n\
+             | median | {:.3} | {:.3} | median of per-window reductions {:.0} % |\n\n\
+             Held-out windows flagged: {} (per-window residuals and flags in `report.json`, `window_residuals`).\n",
+            r.baseline_metric.value,
+            r.unexplained_residual.as_ref().map_or(r.baseline_metric.value, |u| u.metric_after),
+            100.0 * g.mean_reduction,
+            g.trimmed_windows,
+            g.trimmed_flagged,
+            g.trimmed_mean_baseline,
+            g.trimmed_mean_after,
+            100.0 * g.trimmed_reduction,
+            g.median_baseline,
+            g.median_after,
+            100.0 * g.median_window_reduction,
+            flagged.join(", ")
+        );
+    }
     s
 }
 

@@ -39,6 +39,8 @@ pub(super) struct Selection {
     /// Effects not named, with the reason.
     pub abstentions: Vec<(EffectKind, String)>,
     pub best_combination: Option<Combination>,
+    /// The best combination's effects (None: nothing named).
+    pub combo_fx: Option<Effects>,
 }
 
 /// An effect added to the best combination after the first.
@@ -76,6 +78,7 @@ pub(super) fn select(
     let bootstrap = ctx.opts.bootstrap;
     let null = Effects::none(ctx.nj());
     let mut best_combination = None;
+    let mut combo_fx = None;
     if !ranked.is_empty() {
         let get = |k: EffectKind| candidates.iter().find(|c| c.kind == k).map(|c| c.fx.clone());
         let first = ranked[0];
@@ -117,10 +120,11 @@ pub(super) fn select(
         let metric_after = bootstrap_mean(&cur, bootstrap, rng);
         let reduction = bootstrap_ratio(&baseline.test_tot, &cur, bootstrap, rng);
         best_combination = Some(Combination { effects: members, metric_after, reduction });
+        combo_fx = Some(combo);
     }
     let abstentions: Vec<(EffectKind, String)> =
         results.iter().filter(|r| !r.named).map(|r| (r.kind, r.note.clone().unwrap_or_default())).collect();
-    Ok(Selection { effects: results, ranked, abstentions, best_combination })
+    Ok(Selection { effects: results, ranked, abstentions, best_combination, combo_fx })
 }
 
 /// Evaluates every candidate `cands` on top of `combo`, refits the most promising non-IMU ones with `combo`

@@ -56,8 +56,8 @@ struct DiagnoseArgs {
     #[arg(long, default_value = "h1_2")]
     robot: String,
     /// Diagnosing simulator: mujoco (implicitfast), mujoco-rk4, mujoco-euler, mujoco-implicit. Only MuJoCo: the
-    /// rig applies its stand as a base wrench through MuJoCo's qfrc_applied and the floating plant's contact
-    /// effect is MuJoCo's solref; the other engines are compared with MuJoCo by `ulab diff`.
+    /// floating plant's contact effect is MuJoCo's solref and the window replay is tuned on it; Bullet, DART and
+    /// Rapier serve as independent reference plants (`gap bench --reference-engine`, `gap simulate --engine`).
     #[arg(long, default_value = "mujoco")]
     engine: String,
     /// Plant: rig (suspended robot), floating (standing/walking on flat ground, base state estimated from the log),
@@ -198,6 +198,7 @@ fn read_log(path: &Path, model: &RobotModel) -> Result<RobotLog> {
 fn diagnose(a: DiagnoseArgs) -> Result<Exit> {
     let model = load(&a.robot)?;
     let engine = EngineChoice::parse(&a.engine).context("--engine")?;
+    engine.mujoco_integrator().context("--engine")?;
     if !(a.window.is_finite() && a.window > 0.0 && a.block.is_finite() && a.block > 0.0) {
         bail!("--window and --block must be positive numbers of seconds");
     }
