@@ -25,14 +25,14 @@ mod select;
 mod stats;
 mod windows;
 
-pub use assess::{EffectResult, FittedParam, UNIT_FLOOR_FRAC};
+pub use assess::{EffectResult, FittedParam, MIN_WINDOWS_OFF_LIMIT, UNIT_FLOOR_FRAC};
 pub use breakdown::Share;
 pub use fit::RESOLUTION_FRAC;
 pub use options::{DiagnoseOptions, PlantChoice, PlantKind, FLOATING_MAX_WINDOWS};
 pub use remainder::{RobustGap, Unexplained, WindowFlag, WindowResidual};
 pub use select::{Combination, MAX_COMBINATION, REFIT_CANDIDATES};
 pub use stats::{Estimate, EFFECT_FLOOR_FRAC};
-pub use windows::{COMMAND_STALE_S, TIMING_TOL_S};
+pub use windows::{AT_LIMIT_RAD, COMMAND_STALE_S, TIMING_TOL_S};
 
 pub use crate::noise::{SIGMA_DQ, SIGMA_GYRO, SIGMA_Q, SIGMA_QUAT, SIGMA_TAU_FRAC};
 pub use crate::noise::{TIMING_HI, TIMING_LO};

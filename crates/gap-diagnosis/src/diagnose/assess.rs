@@ -14,6 +14,9 @@ use serde::{Deserialize, Serialize};
 
 /// A unit must cut its own held-out residual by at least this fraction (lower bound of the interval).
 pub const UNIT_FLOOR_FRAC: f64 = 0.10;
+/// A joint or group unit must also cut its own residual on at least this many held-out windows in which none of
+/// its joints reaches a range limit, by [`UNIT_FLOOR_FRAC`] of its residual there.
+pub const MIN_WINDOWS_OFF_LIMIT: usize = 5;
 
 /// One fitted parameter.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
@@ -153,6 +156,7 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
     let units = units_of(ctx, kind);
     let mut pruned = null.clone();
     let mut params = Vec::new();
+    let mut limit_only = Vec::new();
     for (u, cols) in units.iter().enumerate() {
         let before: Vec<f64> = base_test.iter().map(|s| cols.iter().map(|&c| s[c]).sum()).collect();
         let aft: Vec<f64> = after.iter().map(|s| cols.iter().map(|&c| s[c]).sum()).collect();
@@ -160,6 +164,10 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
         let d = bootstrap_mean(&diffs, bootstrap, rng);
         let unit_floor = UNIT_FLOOR_FRAC * mean(&before);
         let value = unit_value(kind, &fx, ctx, u);
+        if d.lo > unit_floor && d.value > 0.0 && !off_limit(ctx, kind, cols, &before, &diffs) {
+            limit_only.push(unit_name(ctx, kind, u));
+            continue;
+        }
         if d.lo > unit_floor && d.value > 0.0 && kind.scope() == Scope::Imu {
             kind.copy(&fx, &mut pruned);
             for (k, axis) in ["imu_x", "imu_y", "imu_z"].into_iter().enumerate() {
@@ -214,6 +222,12 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
     let named = !params.is_empty() && red.lo > floor;
     let note = if named {
         None
+    } else if params.is_empty() && !limit_only.is_empty() {
+        Some(format!(
+            "reduces the held-out residual of {} only in windows where a joint reaches its range limit (simulators \
+             model joint limits differently): not named",
+            limit_only.join(", ")
+        ))
     } else if params.is_empty() {
         Some("no joint/group reduced the held-out residual beyond its floor".to_string())
     } else {
@@ -234,4 +248,29 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
         note,
     };
     Ok(Assessed { result, kept: pruned, totals: after_tot })
+}
+
+/// Whether a joint or group unit (score columns `cols`) also cuts its own held-out residual away from its joints'
+/// range limits: on the held-out windows where none of its joints reaches a limit (at least
+/// [`MIN_WINDOWS_OFF_LIMIT`] of them), by [`UNIT_FLOOR_FRAC`] of its residual there. Other scopes, and units never
+/// at a limit, pass. `before` and `diffs` are per held-out window.
+fn off_limit(ctx: &Ctx<'_>, kind: EffectKind, cols: &[usize], before: &[f64], diffs: &[f64]) -> bool {
+    if !matches!(kind.scope(), Scope::Joint | Scope::Group) {
+        return true;
+    }
+    let free: Vec<usize> = (0..ctx.test.len())
+        .filter(|&i| {
+            let lim = ctx.at_limit.get(ctx.test[i]);
+            !cols.iter().any(|&c| lim.and_then(|l| l.get(c)).copied().unwrap_or(false))
+        })
+        .collect();
+    if free.len() == ctx.test.len() {
+        return true;
+    }
+    if free.len() < MIN_WINDOWS_OFF_LIMIT {
+        return false;
+    }
+    let d: Vec<f64> = free.iter().map(|&i| diffs[i]).collect();
+    let b: Vec<f64> = free.iter().map(|&i| before[i]).collect();
+    mean(&d) > UNIT_FLOOR_FRAC * mean(&b)
 }

@@ -15,8 +15,6 @@ use serde::{Deserialize, Serialize};
 
 /// A torque within this fraction of its limit counts as saturated.
 pub const SATURATED_FRAC: f64 = 0.95;
-/// A joint within this distance of its range (rad) counts as at its limit.
-pub const AT_LIMIT_RAD: f64 = 0.02;
 /// A joint faster than this fraction of its speed limit counts as a fast transient.
 pub const FAST_FRAC: f64 = 0.5;
 /// The trimmed mean drops this fraction of the held-out windows with the largest baseline residual.
@@ -30,7 +28,7 @@ pub const UNEXPLAINED_FACTOR: f64 = 2.0;
 pub enum WindowFlag {
     /// A logged motor torque within [`SATURATED_FRAC`] of its limit.
     Saturated,
-    /// A logged joint angle within [`AT_LIMIT_RAD`] of its range.
+    /// A logged joint angle within [`super::windows::AT_LIMIT_RAD`] of its range.
     AtLimit,
     /// A logged joint speed above [`FAST_FRAC`] of its speed limit.
     FastTransient,
@@ -118,15 +116,15 @@ fn ratio_reduction(before: f64, after: f64) -> f64 {
 
 /// Flags of a window from its logged states.
 fn flags(model: &RobotModel, states: &[Measurement]) -> Vec<WindowFlag> {
-    let (mut sat, mut lim, mut fast) = (false, false, false);
+    let (mut sat, mut fast) = (false, false);
     for m in states {
         for (j, joint) in model.joints.iter().enumerate() {
-            let (Some(&q), Some(&dq), Some(&tau)) = (m.q.get(j), m.dq.get(j), m.tau.get(j)) else { continue };
+            let (Some(&dq), Some(&tau)) = (m.dq.get(j), m.tau.get(j)) else { continue };
             sat |= joint.torque_limit > 0.0 && tau.abs() >= SATURATED_FRAC * joint.torque_limit;
-            lim |= joint.lower < joint.upper && (q - joint.lower < AT_LIMIT_RAD || joint.upper - q < AT_LIMIT_RAD);
             fast |= joint.speed_limit > 0.0 && dq.abs() > FAST_FRAC * joint.speed_limit;
         }
     }
+    let lim = super::windows::joints_at_limit(model, states).iter().any(|&x| x);
     [(sat, WindowFlag::Saturated), (lim, WindowFlag::AtLimit), (fast, WindowFlag::FastTransient)]
         .into_iter()
         .filter_map(|(on, f)| on.then_some(f))

@@ -72,6 +72,8 @@ pub(super) struct Ctx<'a> {
     pub test: Vec<usize>,
     /// Group index of each joint ([`crate::plant::GROUPS`]).
     pub groups: Vec<usize>,
+    /// Per window (indexed like `starts`), which joints reach a range limit in it.
+    pub at_limit: Vec<Vec<bool>>,
     sigma_tau: Vec<f64>,
     null: Effects,
     /// Idle engines of the unmodified model.
@@ -87,11 +89,20 @@ impl<'a> Ctx<'a> {
         plant: PlantKind,
         windows: Windows,
     ) -> Self {
+        let at_limit = windows
+            .starts
+            .iter()
+            .map(|&s| {
+                let end = (s + windows.len + 1).min(log.states.len());
+                super::windows::joints_at_limit(model, log.states.get(s..end).unwrap_or(&[]))
+            })
+            .collect();
         Ctx {
             model,
             log,
             opts,
             plant,
+            at_limit,
             feet: windows.feet,
             dt_state: windows.dt_state,
             starts: windows.starts,

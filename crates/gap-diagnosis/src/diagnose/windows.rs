@@ -15,6 +15,26 @@ pub const COMMAND_STALE_S: f64 = 0.1;
 /// Largest spread (s) of a window's state log times around a regular grid at the median rate.
 pub const TIMING_TOL_S: f64 = 0.005;
 
+/// A joint within this distance of its range (rad) is at its limit: where simulators' joint-limit models (soft,
+/// hard, stiffness) differ most, so a residual found only there says little about the robot.
+pub const AT_LIMIT_RAD: f64 = 0.02;
+
+/// Which joints come within [`AT_LIMIT_RAD`] of their range in these logged states.
+pub(super) fn joints_at_limit(model: &RobotModel, states: &[crate::log::Measurement]) -> Vec<bool> {
+    model
+        .joints
+        .iter()
+        .enumerate()
+        .map(|(j, joint)| {
+            joint.lower < joint.upper
+                && states
+                    .iter()
+                    .filter_map(|m| m.q.get(j))
+                    .any(|&q| q - joint.lower < AT_LIMIT_RAD || joint.upper - q < AT_LIMIT_RAD)
+        })
+        .collect()
+}
+
 /// Every this many samples of a floating-base window are checked for a robot that is down.
 const DOWN_CHECK_STRIDE: usize = 5;
 
