@@ -252,6 +252,18 @@ fn gravity_loaded(model: &RobotModel) -> Vec<usize> {
         .collect()
 }
 
+/// Joints a single-joint effect is drawn on: legs, waist and arms, without the wrists and the ankle rolls, whose
+/// light links and small motions under the excitation plan leave a joint-level effect nearly invisible.
+pub fn single_joint_candidates(model: &RobotModel) -> Vec<usize> {
+    model
+        .joints
+        .iter()
+        .enumerate()
+        .filter(|(_, j)| !j.motor_name.contains("wrist") && !j.motor_name.ends_with("ankle_roll"))
+        .map(|(i, _)| i)
+        .collect()
+}
+
 /// A magnitude of `kind` as the rig benchmark injects it: clearly away from the no-effect value, inside the range the
 /// library fits.
 fn rig_magnitude(kind: EffectKind, rng: &mut impl Rng) -> f64 {
@@ -295,6 +307,13 @@ pub fn inject(model: &RobotModel, kind: EffectKind, fx: &mut Effects, rng: &mut 
         }
         Scope::Joint => {
             let cand = gravity_loaded(model);
+            let j = cand[rng.gen_range(0..cand.len())];
+            kind.set(fx, j, value);
+            model.joints[j].motor_name.clone()
+        }
+        Scope::Group if rng.gen_bool(0.5) => {
+            // A single joint (issue 14: a friction on one elbow, a weak gain on one shoulder), as often as a group.
+            let cand = single_joint_candidates(model);
             let j = cand[rng.gen_range(0..cand.len())];
             kind.set(fx, j, value);
             model.joints[j].motor_name.clone()

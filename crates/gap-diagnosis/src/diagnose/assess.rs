@@ -2,9 +2,12 @@
 //! a floor, and name the effect when the kept units cut the whole held-out gap beyond the noise floor. Its output
 //! is also the candidate list of the forward selection ([`super::select`]).
 use super::breakdown::Baseline;
-use super::fit::{fit_kind, report_value, set_unit, unit_name, unit_value, units_of, RESOLUTION_FRAC};
+use super::fit::{
+    fit_kind, fit_one_joint_per_group, report_value, set_unit, unit_name, unit_value, units_of, RESOLUTION_FRAC,
+};
 use super::options::PlantKind;
 use super::replay::Ctx;
+use super::replay::Scores;
 use super::stats::{bootstrap_mean, bootstrap_ratio, mean, noise_floor, total, Estimate};
 use crate::effects::{EffectKind, Scope};
 use crate::plant::Effects;
@@ -14,6 +17,9 @@ use serde::{Deserialize, Serialize};
 
 /// A unit must cut its own held-out residual by at least this fraction (lower bound of the interval).
 pub const UNIT_FLOOR_FRAC: f64 = 0.10;
+/// A group effect is named on one joint when that joint alone (fitted alone) cuts the group's held-out residual by
+/// at least this fraction of what the whole group's fit cuts, or when only the joint's fit clears the unit floor.
+pub const SINGLE_JOINT_FRAC: f64 = 0.9;
 /// A joint or group unit must also cut its own residual on at least this many held-out windows in which none of
 /// its joints reaches a range limit, by [`UNIT_FLOOR_FRAC`] of its residual there.
 pub const MIN_WINDOWS_OFF_LIMIT: usize = 5;
@@ -157,6 +163,9 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
     let mut pruned = null.clone();
     let mut params = Vec::new();
     let mut limit_only = Vec::new();
+    let single =
+        if kind.scope() == Scope::Group { Some(single_joints(ctx, kind, &baseline.train, rng)?) } else { None };
+    let (lo, hi, v0) = kind.range();
     for (u, cols) in units.iter().enumerate() {
         let before: Vec<f64> = base_test.iter().map(|s| cols.iter().map(|&c| s[c]).sum()).collect();
         let aft: Vec<f64> = after.iter().map(|s| cols.iter().map(|&c| s[c]).sum()).collect();
@@ -164,6 +173,31 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
         let d = bootstrap_mean(&diffs, bootstrap, rng);
         let unit_floor = UNIT_FLOOR_FRAC * mean(&before);
         let value = unit_value(kind, &fx, ctx, u);
+        // The group's single-joint fit, when it explains (nearly) as much as the group fit, or it alone clears.
+        if let (Some(sj), true) = (&single, cols.len() >= 2) {
+            let (j, v) = (sj.joints[u], sj.values[u]);
+            if (v - v0).abs() >= RESOLUTION_FRAC * (hi - lo) {
+                let sdiffs: Vec<f64> =
+                    before.iter().zip(&sj.after).map(|(b, a)| b - cols.iter().map(|&c| a[c]).sum::<f64>()).collect();
+                let sd = bootstrap_mean(&sdiffs, bootstrap, rng);
+                let group_ok = d.lo > unit_floor && d.value > 0.0 && (value - v0).abs() >= RESOLUTION_FRAC * (hi - lo);
+                let single_ok = sd.lo > unit_floor && sd.value > 0.0;
+                if single_ok && (!group_ok || sd.value >= SINGLE_JOINT_FRAC * d.value) {
+                    if !off_limit(ctx, kind, cols, &before, &sdiffs) {
+                        limit_only.push(ctx.model.joints[j].motor_name.clone());
+                        continue;
+                    }
+                    kind.set(&mut pruned, j, v);
+                    params.push(FittedParam {
+                        unit: ctx.model.joints[j].motor_name.clone(),
+                        value: report_value(kind, v),
+                        sd: report_value(kind, sds[u]),
+                        held_out_reduction: sd.value,
+                    });
+                    continue;
+                }
+            }
+        }
         if d.lo > unit_floor && d.value > 0.0 && !off_limit(ctx, kind, cols, &before, &diffs) {
             limit_only.push(unit_name(ctx, kind, u));
             continue;
@@ -178,10 +212,7 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
                     held_out_reduction: d.value,
                 });
             }
-        } else if d.lo > unit_floor
-            && d.value > 0.0
-            && (value - kind.range().2).abs() >= RESOLUTION_FRAC * (kind.range().1 - kind.range().0)
-        {
+        } else if d.lo > unit_floor && d.value > 0.0 && (value - v0).abs() >= RESOLUTION_FRAC * (hi - lo) {
             set_unit(kind, &mut pruned, ctx, u, value);
             params.push(FittedParam {
                 unit: unit_name(ctx, kind, u),
@@ -201,6 +232,9 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
                 let mut fx = null.clone();
                 if let Some(u) = (0..units.len()).find(|&u| unit_name(ctx, kind, u) == p.unit) {
                     set_unit(kind, &mut fx, ctx, u, unit_value(kind, &pruned, ctx, u));
+                } else if let Some(j) = ctx.model.joints.iter().position(|j| j.motor_name == p.unit) {
+                    // A group effect named on one joint (localise).
+                    kind.set(&mut fx, j, kind.get(&pruned, j));
                 }
                 fx
             })
@@ -273,4 +307,37 @@ fn off_limit(ctx: &Ctx<'_>, kind: EffectKind, cols: &[usize], before: &[f64], di
     let d: Vec<f64> = free.iter().map(|&i| diffs[i]).collect();
     let b: Vec<f64> = free.iter().map(|&i| before[i]).collect();
     mean(&d) > UNIT_FLOOR_FRAC * mean(&b)
+}
+
+/// A group-scope effect fitted on one joint per group: the group's joint with the largest training residual, at
+/// its fitted value, and the held-out scores with all of them applied.
+struct SingleJoints {
+    joints: Vec<usize>,
+    values: Vec<f64>,
+    after: Scores,
+}
+
+/// Single-joint effects (issue 14): every group-scope effect is also fitted on the joint of each group that carries
+/// most of its training residual, so that a friction on one elbow is named on the elbow instead of diluted over
+/// the arm (or missed, when spreading it over the arm fits worse than nothing).
+fn single_joints(
+    ctx: &Ctx<'_>,
+    kind: EffectKind,
+    base_train: &Scores,
+    rng: &mut impl Rng,
+) -> Result<SingleJoints, GapError> {
+    let joints: Vec<usize> = units_of(ctx, kind)
+        .iter()
+        .map(|cols| {
+            let res = |c: usize| base_train.iter().map(|s| s[c]).sum::<f64>();
+            cols.iter().copied().max_by(|&a, &b| res(a).total_cmp(&res(b))).unwrap_or(0)
+        })
+        .collect();
+    let values = fit_one_joint_per_group(ctx, kind, &joints, base_train, rng)?;
+    let mut fx = Effects::none(ctx.nj());
+    for (&j, &v) in joints.iter().zip(&values) {
+        kind.set(&mut fx, j, v);
+    }
+    let after = ctx.eval_many(std::slice::from_ref(&fx), &ctx.test)?.remove(0);
+    Ok(SingleJoints { joints, values, after })
 }

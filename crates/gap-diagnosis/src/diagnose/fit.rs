@@ -101,8 +101,9 @@ pub(super) fn fit_kind(
     } else {
         vec![vec![true; units.len()]]
     };
+    let setter = |fx: &mut Effects, u: usize, v: f64| set_unit(kind, fx, ctx, u, v);
     for mask in sets {
-        let fit = fit_units(ctx, kind, base, base_train, rng, &mask)?;
+        let fit = fit_units(ctx, kind, base, base_train, rng, &mask, &setter)?;
         for u in (0..units.len()).filter(|&u| mask[u]) {
             set_unit(kind, &mut fx, ctx, u, fit.values[u]);
             sds[u] = fit.sds[u];
@@ -111,7 +112,28 @@ pub(super) fn fit_kind(
     Ok(Fit { fx, sds })
 }
 
+/// A group-scope effect fitted on one joint per group (`joints[g]`, e.g. the joint carrying most of the group's
+/// residual), each scored on its whole group's residual (a joint's effect also shows in its neighbours'): the
+/// values per group, to compare with the group fit and name a single joint when it explains as much.
+pub(super) fn fit_one_joint_per_group(
+    ctx: &Ctx<'_>,
+    kind: EffectKind,
+    joints: &[usize],
+    base_train: &Scores,
+    rng: &mut impl Rng,
+) -> Result<Vec<f64>, GapError> {
+    let null = Effects::none(ctx.nj());
+    let mask = vec![true; units_of(ctx, kind).len()];
+    let setter = |fx: &mut Effects, u: usize, v: f64| {
+        if let Some(&j) = joints.get(u) {
+            kind.set(fx, j, v)
+        }
+    };
+    Ok(fit_units(ctx, kind, &null, base_train, rng, &mask, &setter)?.values)
+}
+
 /// Grid search then lockstep golden-section refinement of the units in `mask` (the others stay at no effect);
+/// `set` writes a unit's value into an effect set (each unit is scored on its own columns, [`units_of`]);
 /// returns every unit's value and bootstrap standard deviation.
 fn fit_units(
     ctx: &Ctx<'_>,
@@ -120,6 +142,7 @@ fn fit_units(
     base_train: &Scores,
     rng: &mut impl Rng,
     mask: &[bool],
+    set: &dyn Fn(&mut Effects, usize, f64),
 ) -> Result<UnitFit, GapError> {
     let null = base.clone();
     let units = units_of(ctx, kind);
@@ -130,7 +153,7 @@ fn fit_units(
         let mut fx = null.clone();
         for (u, &v) in vals.iter().enumerate() {
             if mask[u] {
-                set_unit(kind, &mut fx, ctx, u, v);
+                set(&mut fx, u, v);
             }
         }
         fx
