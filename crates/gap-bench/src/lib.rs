@@ -391,6 +391,10 @@ pub struct TrialScore {
     pub param_errors: Vec<f64>,
     /// Named effects on a no-effect control.
     pub false_confident: usize,
+    /// Effect trials: named effects that were not injected ranked above an injected one (an injected effect that
+    /// was not named ranks below every named one), a confident misattribution.
+    #[serde(default)]
+    pub misattributed: usize,
     pub abstained: bool,
     pub held_out_reduction: f64,
     pub diagnose_s: f64,
@@ -449,6 +453,7 @@ pub fn score(labels: &Labels, report: &Report) -> TrialScore {
         joints_total: jt,
         param_errors,
         false_confident: if kinds.is_empty() { ranked.len() } else { 0 },
+        misattributed: misattributed(&kinds, &ranked),
         abstained: report.unexplained,
         held_out_reduction: report.best_combination.as_ref().map_or(0.0, |c| c.reduction.value),
         diagnose_s: report.elapsed_s,
@@ -456,6 +461,16 @@ pub fn score(labels: &Labels, report: &Report) -> TrialScore {
         plant: None,
         redraws: None,
     }
+}
+
+/// Named effects that were not injected ranked above an injected one (0 for a control).
+pub fn misattributed(injected: &[EffectKind], ranked: &[EffectKind]) -> usize {
+    if injected.is_empty() {
+        return 0;
+    }
+    // Rank of the last injected effect (not named: below every named one).
+    let last = injected.iter().map(|k| ranked.iter().position(|r| r == k).unwrap_or(ranked.len())).max().unwrap_or(0);
+    ranked.iter().take(last).filter(|r| !injected.contains(r)).count()
 }
 
 /// Benchmark settings.
@@ -600,6 +615,9 @@ pub struct BenchSummary {
     pub joint_accuracy: f64,
     pub median_param_error: f64,
     pub false_confident_controls: usize,
+    /// Sum over effect trials of [`TrialScore::misattributed`].
+    #[serde(default)]
+    pub misattributions: usize,
     pub abstention_effects: f64,
     pub abstention_controls: f64,
     pub mean_held_out_reduction: f64,
@@ -635,6 +653,7 @@ pub fn summarize(scores: &[TrialScore]) -> BenchSummary {
         joint_accuracy: if jt == 0 { f64::NAN } else { jc as f64 / jt as f64 },
         median_param_error: pe.get(pe.len() / 2).copied().unwrap_or(f64::NAN),
         false_confident_controls: controls.iter().map(|s| s.false_confident).sum(),
+        misattributions: effects.iter().map(|s| s.misattributed).sum(),
         abstention_effects: frac(effects.iter().map(|s| s.abstained).collect()),
         abstention_controls: frac(controls.iter().map(|s| s.abstained).collect()),
         mean_held_out_reduction: if effects.is_empty() {
@@ -694,6 +713,11 @@ fn table_rows(s: &BenchSummary) -> Vec<(String, String, String)> {
         row("joint/group attribution", pct(s.joint_accuracy), ""),
         row("median relative parameter error", format!("{:.2}", s.median_param_error), ""),
         row("confident attributions on no-effect controls", s.false_confident_controls.to_string(), "0"),
+        row(
+            "confident misattributions in effect trials (a named effect not injected ranked above an injected one)",
+            s.misattributions.to_string(),
+            "0",
+        ),
         row(
             "abstention rate, effect trials / controls",
             format!("{} / {}", pct(s.abstention_effects), pct(s.abstention_controls)),
@@ -896,4 +920,23 @@ pub fn run_floating_trial_drawn(
     s.plant = Some(report.plant);
     s.redraws = Some(attempt);
     Ok((sealed, s, report))
+}
+
+#[cfg(test)]
+mod misattribution_tests {
+    use super::misattributed;
+    use gap_diagnosis::EffectKind::{Armature, Damping, EncoderOffset, Friction, Latency};
+
+    #[test]
+    fn only_effects_ranked_above_an_injected_one_count() {
+        // Injected damping named first: a friction after it is a secondary effect, not a misattribution.
+        assert_eq!(misattributed(&[Damping], &[Damping, Friction]), 0);
+        // Armature named before the injected damping.
+        assert_eq!(misattributed(&[Damping], &[Armature, Damping, Friction]), 1);
+        // An injected effect not named ranks below every named one.
+        assert_eq!(misattributed(&[Damping, Latency], &[Damping, Friction, EncoderOffset]), 2);
+        assert_eq!(misattributed(&[Damping], &[]), 0);
+        // Controls are scored by their own row.
+        assert_eq!(misattributed(&[], &[Friction]), 0);
+    }
 }
