@@ -3,7 +3,7 @@
 
 Run:  /work/main/.venv/bin/python corpus/golden/gen_golden.py
 
-For each of the 18 hg/go types this builds a few messages with deterministic
+For each of the 21 hg/go types this builds a few messages with deterministic
 pseudo-random values (plus edge cases), sets the ``crc`` of the four
 CRC-carrying types with Unitree's own Python CRC routine (pure-Python path),
 serializes them with the cyclonedds Python serializer in XCDR1/XCDR2 x
@@ -476,7 +476,7 @@ def write_notes(disagreements, packer_diffs, class_source) -> None:
              "(`.` mapped to `::`) and extensibility (@final).\n")
     L.append("## IDL class disagreements\n")
     if not disagreements:
-        L.append("None. All 18 Python classes agree with the headers field by field "
+        L.append(f"None. All {len(ue.TYPE_ORDER)} Python classes agree with the headers field by field "
                  "(names, order, types, array lengths, typename `unitree_xx::msg::dds_::X_`, "
                  "@final). In particular this wheel already has go `LowState.temperature_ntc1`/"
                  "`temperature_ntc2` (uint8, between `adc_reel` and `power_v`), go "

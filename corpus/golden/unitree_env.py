@@ -158,15 +158,29 @@ CPP_LAYOUT: Dict[str, List[Tuple[str, str]]] = {
         ("power_v", "float32"), ("power_a", "float32"), ("fan_frequency", "uint16[4]"),
         ("reserve", "uint32"), ("crc", "uint32"),
     ],
+    # Sport-mode state (`rt/sportmodestate`), which Unitree's MuJoCo bridge also publishes.
+    "go/TimeSpec": [("sec", "int32"), ("nanosec", "uint32")],
+    "go/PathPoint": [
+        ("t_from_start", "float32"), ("x", "float32"), ("y", "float32"), ("yaw", "float32"),
+        ("vx", "float32"), ("vy", "float32"), ("vyaw", "float32"),
+    ],
+    "go/SportModeState": [
+        ("stamp", "go/TimeSpec"), ("error_code", "uint32"), ("imu_state", "go/IMUState"),
+        ("mode", "uint8"), ("progress", "float32"), ("gait_type", "uint8"),
+        ("foot_raise_height", "float32"), ("position", "float32[3]"), ("body_height", "float32"),
+        ("velocity", "float32[3]"), ("yaw_speed", "float32"), ("range_obstacle", "float32[4]"),
+        ("foot_force", "int16[4]"), ("foot_position_body", "float32[12]"),
+        ("foot_speed_body", "float32[12]"), ("path_point", "go/PathPoint[10]"),
+    ],
 }
 
-# The 18 types of the corpus, in a fixed order (dependencies first).
+# The 21 types of the corpus, in a fixed order (dependencies first).
 TYPE_ORDER = [
     "hg/MotorCmd", "hg/LowCmd", "hg/IMUState", "hg/MotorState", "hg/LowState",
     "hg/HandCmd", "hg/PressSensorState", "hg/HandState", "hg/BmsCmd", "hg/BmsState",
     "hg/MainBoardState",
     "go/MotorCmd", "go/BmsCmd", "go/LowCmd", "go/IMUState", "go/MotorState",
-    "go/BmsState", "go/LowState",
+    "go/BmsState", "go/LowState", "go/TimeSpec", "go/PathPoint", "go/SportModeState",
 ]
 assert sorted(TYPE_ORDER) == sorted(CPP_LAYOUT)
 

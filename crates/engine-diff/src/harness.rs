@@ -58,11 +58,15 @@ pub struct HarnessConfig {
     pub common: CommonSettings,
     /// Also run every engine closed-loop over the whole episode (outcomes). Off while fuzzing.
     pub free_runs: bool,
+    /// Keep every free run's states at this many frames per second of simulated time
+    /// ([`EpisodeResult::trajectories`]): what `ulab diff --video` renders after the run. `None`: keep none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub record_fps: Option<f64>,
 }
 
 impl Default for HarnessConfig {
     fn default() -> Self {
-        HarnessConfig { window_steps: 50, common: CommonSettings::default(), free_runs: true }
+        HarnessConfig { window_steps: 50, common: CommonSettings::default(), free_runs: true, record_fps: None }
     }
 }
 
@@ -285,6 +289,33 @@ pub struct EpisodeResult {
     pub timing: Timing,
     /// Distinct contact patterns seen at window starts (fuzzing novelty).
     pub contact_patterns: std::collections::BTreeSet<String>,
+    /// Per engine, the free run's states when [`HarnessConfig::record_fps`] asks for them (for rendering, not for
+    /// the report).
+    pub trajectories: Vec<Trajectory>,
+}
+
+/// One engine's free run sampled at a fixed rate of simulated time: sample `k` is the state at the physics step
+/// nearest `k / fps` seconds (sample 0 the initial state). It ends where the run ended (a fall, an engine error).
+#[derive(Debug, Clone)]
+pub struct Trajectory {
+    pub engine: String,
+    pub fps: f64,
+    /// State and link poses (`model.links` order) of each sample.
+    pub samples: Vec<(State, Vec<LinkPose>)>,
+}
+
+impl Trajectory {
+    /// An empty trajectory of `engine` at `fps` samples per second (filled by [`free_run_recorded`]).
+    pub fn new(engine: &str, fps: f64) -> Self {
+        Trajectory { engine: engine.to_owned(), fps, samples: Vec::new() }
+    }
+
+    /// Takes the samples due by physics step `step` (time `step * dt`) from the engine's current state.
+    fn sample(&mut self, e: &mut dyn Engine, step: usize, dt: f64) {
+        while ((self.samples.len() as f64 / self.fps) / dt).round() as usize <= step {
+            self.samples.push((e.state(), e.link_poses()));
+        }
+    }
 }
 
 impl EpisodeResult {
@@ -719,12 +750,16 @@ pub fn run_episode_on(
         index += 1;
     }
     let mut outcomes = Vec::new();
+    let mut trajectories = Vec::new();
     if cfg.free_runs {
         for (i, e) in engines.iter_mut().enumerate() {
-            let (o, steps) = free_run(e.as_mut(), &names[i], &m, ctrl_factory, scenario, dt, total_steps)?;
+            let mut traj = cfg.record_fps.map(|fps| Trajectory::new(&names[i], fps));
+            let (o, steps) =
+                free_run_recorded(e.as_mut(), &names[i], &m, ctrl_factory, scenario, dt, total_steps, traj.as_mut())?;
             timing.engine_s += o.1;
             timing.steps += steps;
             outcomes.push(o.0);
+            trajectories.extend(traj);
         }
     }
     timing.total_s = wall.elapsed().as_secs_f64();
@@ -736,6 +771,7 @@ pub fn run_episode_on(
         outcomes,
         timing,
         contact_patterns: patterns,
+        trajectories,
     })
 }
 
@@ -756,6 +792,26 @@ pub fn free_run(
     dt: f64,
     total_steps: usize,
 ) -> Result<((Outcome, f64), u64), DiffError> {
+    free_run_recorded(e, name, model, ctrl_factory, s, dt, total_steps, None)
+}
+
+/// [`free_run`], also sampling the states into `traj` when given (a video of the run).
+#[allow(clippy::type_complexity, clippy::too_many_arguments)]
+pub fn free_run_recorded(
+    e: &mut dyn Engine,
+    name: &str,
+    model: &RobotModel,
+    ctrl_factory: &ControllerFactory,
+    s: &Scenario,
+    dt: f64,
+    total_steps: usize,
+    mut traj: Option<&mut Trajectory>,
+) -> Result<((Outcome, f64), u64), DiffError> {
+    if let Some(t) = &traj {
+        if !(t.fps.is_finite() && t.fps > 0.0) {
+            return Err(DiffError::Input(format!("trajectory rate {} frames/s must be positive", t.fps)));
+        }
+    }
     let mut lp = Loop::new(ctrl_factory, model, s, dt)?;
     let limits: Vec<f64> = model.joints.iter().map(|j| j.torque_limit).collect();
     let mut tau = vec![0.0; model.nj()];
@@ -772,6 +828,9 @@ pub fn free_run(
         let init = initial_state(model, s)?;
         start_xy = [init.base_pos[0], init.base_pos[1]];
         e.reset(&init)?;
+        if let Some(t) = traj.as_deref_mut() {
+            t.sample(&mut *e, 0, dt);
+        }
         for g in 0..total_steps {
             let st = e.state();
             lp.target(g, &st, s)?;
@@ -784,6 +843,9 @@ pub fn free_run(
             e.step(&tau)?;
             engine_s += t0.elapsed().as_secs_f64();
             steps += 1;
+            if let Some(t) = traj.as_deref_mut() {
+                t.sample(&mut *e, g + 1, dt);
+            }
             let st = e.state();
             out.survived_s = (g + 1) as f64 * dt;
             out.distance_m = (st.base_pos[0] - start_xy[0]).hypot(st.base_pos[1] - start_xy[1]);

@@ -8,7 +8,8 @@
 //! streams), so the score difference of one (command, seed) pair isolates the engine. The test is a sign-flip
 //! permutation test on the paired differences (no distributional assumption; exact below 16 pairs).
 use crate::harness::{
-    free_run, initial_state, run_episode, scenario_model, ControllerFactory, EngineFactory, HarnessConfig, Outcome,
+    free_run_recorded, initial_state, run_episode, scenario_model, ControllerFactory, EngineFactory, HarnessConfig,
+    Outcome, Trajectory,
 };
 use crate::scenario::{CommandSegment, Scenario};
 use crate::triage::AllowList;
@@ -282,6 +283,22 @@ pub fn episode_score(
     seconds: f64,
     cfg: &HarnessConfig,
 ) -> Result<EpisodeScore, DiffError> {
+    episode_score_recorded(model, f, controller, case, seed, seconds, cfg, None)
+}
+
+/// [`episode_score`], also sampling the episode's states into `traj` when given (`ulab validate --video`
+/// recomputes one episode this way: the same function, so the same rollout).
+#[allow(clippy::too_many_arguments)]
+pub fn episode_score_recorded(
+    model: &RobotModel,
+    f: &dyn EngineFactory,
+    controller: &ControllerFactory,
+    case: &CommandCase,
+    seed: u64,
+    seconds: f64,
+    cfg: &HarnessConfig,
+    traj: Option<&mut Trajectory>,
+) -> Result<EpisodeScore, DiffError> {
     let sc = scenario_for(case, seed, seconds);
     sc.validate()?;
     let m = scenario_model(model, &sc);
@@ -289,7 +306,7 @@ pub fn episode_score(
     let steps = (seconds / dt).round() as usize;
     let name = f.name();
     let outcome = match f.build(&m, &cfg.common) {
-        Ok(mut e) => free_run(e.as_mut(), &name, &m, controller, &sc, dt, steps)?.0 .0,
+        Ok(mut e) => free_run_recorded(e.as_mut(), &name, &m, controller, &sc, dt, steps, traj)?.0 .0,
         Err(err) => {
             Outcome { fell: true, fall_time: Some(0.0), error: Some(err.to_string()), ..Outcome::before_start(&name) }
         }

@@ -26,7 +26,8 @@ fn main() {
         })
         .collect();
     // Warm-up, then timed rendering alone.
-    let cap = |k: usize| Caption { time_s: k as f64 / fps, label: "bench", progress: Some(k as f64 / n as f64) };
+    let cap =
+        |k: usize| Caption { time_s: k as f64 / fps, label: "bench", progress: Some(k as f64 / n as f64), detail: "" };
     r.render(&poses[0], 0.0, &cap(0)).expect("frame");
     let started = Instant::now();
     let mut frames = Vec::with_capacity(n);

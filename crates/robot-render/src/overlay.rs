@@ -99,14 +99,20 @@ fn text(frame: &mut Frame, x: u32, y: u32, scale: u32, s: &str) {
     }
 }
 
-/// The caption at the top left and, when `progress` is given (0 to 1), a bar along the bottom.
-pub(crate) fn draw(frame: &mut Frame, caption: &str, progress: Option<f64>) {
+/// The caption lines at the top left, one under the other, and, when `progress` is given (0 to 1), a bar along
+/// the bottom.
+pub(crate) fn draw(frame: &mut Frame, lines: &[&str], progress: Option<f64>) {
     let scale = (frame.height() / 180).max(1);
     let margin = 4 * scale;
     let pad = 2 * scale;
-    let n = caption.chars().count() as u32;
-    dim(frame, margin, margin, n * ADVANCE * scale + 2 * pad - scale, 7 * scale + 2 * pad);
-    text(frame, margin + pad, margin + pad, scale, caption);
+    let line_h = 7 * scale + 2 * pad;
+    let mut y = margin;
+    for line in lines.iter().filter(|l| !l.is_empty()) {
+        let n = line.chars().count() as u32;
+        dim(frame, margin, y, n * ADVANCE * scale + 2 * pad - scale, line_h);
+        text(frame, margin + pad, y + pad, scale, line);
+        y += line_h;
+    }
     if let Some(p) = progress {
         let p = if p.is_finite() { p.clamp(0.0, 1.0) } else { 0.0 };
         let h = 3 * scale;
@@ -131,11 +137,14 @@ mod tests {
         }
         assert_eq!(glyph('m'), glyph('M'));
         let mut f = Frame::new(320, 180);
-        draw(&mut f, "T = 1.00 S", Some(0.5));
+        draw(&mut f, &["T = 1.00 S", "", "D = 2"], Some(0.5));
         let lit = |f: &Frame, y0: u32, y1: u32, x0: u32, x1: u32| {
             (y0..y1).flat_map(|y| (x0..x1).map(move |x| (x, y))).filter(|&(x, y)| f.pixel(x, y) == Some(TEXT)).count()
         };
         assert!(lit(&f, 0, 20, 0, 100) > 40, "the caption is written at the top left");
+        // The empty line takes no room: the third line comes right under the first.
+        assert!(lit(&f, 20, 31, 0, 100) > 10, "the second caption line is under the first");
+        assert_eq!(lit(&f, 31, 60, 0, 320), 0, "nothing further down");
         // Half the bar is filled: its colour up to the middle, not beyond.
         let row = 180 - 4 - 1;
         assert_eq!(f.pixel(100, row), Some(BAR));

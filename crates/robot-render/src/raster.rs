@@ -45,6 +45,24 @@ impl Frame {
         Some([self.rgb[i], self.rgb[i + 1], self.rgb[i + 2]])
     }
 
+    /// The frames side by side, left to right (the panels of one video), or `None` when their heights differ or
+    /// there are none.
+    pub fn side_by_side(panels: &[&Frame]) -> Option<Frame> {
+        let height = panels.first()?.height;
+        if panels.iter().any(|p| p.height != height) {
+            return None;
+        }
+        let width = panels.iter().map(|p| p.width).sum();
+        let mut rgb = Vec::with_capacity(width as usize * height as usize * 3);
+        for y in 0..height as usize {
+            for p in panels {
+                let row = p.width as usize * 3;
+                rgb.extend_from_slice(&p.rgb[y * row..(y + 1) * row]);
+            }
+        }
+        Some(Frame { width, height, rgb })
+    }
+
     pub(crate) fn set(&mut self, i: usize, c: [u8; 3]) {
         self.rgb[3 * i..3 * i + 3].copy_from_slice(&c);
     }
@@ -191,6 +209,19 @@ mod tests {
         assert!((580..=620).contains(&red(&c)));
         c.tri([t[0], t[2], t[1]].map(|p| (p.0, p.1, 2.0)), [0, 0, 255]);
         assert_eq!(red(&c), 0);
+    }
+
+    #[test]
+    fn side_by_side_puts_each_panel_in_its_columns() {
+        let a = Frame::from_rgb(2, 2, vec![1; 12]).expect("2x2");
+        let b = Frame::from_rgb(3, 2, (0..18).collect()).expect("3x2");
+        let s = Frame::side_by_side(&[&a, &b]).expect("same height");
+        assert_eq!((s.width(), s.height()), (5, 2));
+        assert_eq!(s.pixel(1, 1), Some([1, 1, 1]));
+        assert_eq!(s.pixel(2, 0), Some([0, 1, 2]), "b starts in column 2");
+        assert_eq!(s.pixel(4, 1), Some([15, 16, 17]), "b's last pixel is the last");
+        assert!(Frame::side_by_side(&[&a, &Frame::new(2, 4)]).is_none(), "heights differ");
+        assert!(Frame::side_by_side(&[]).is_none());
     }
 
     #[test]

@@ -47,6 +47,9 @@ pub struct Caption<'a> {
     pub label: &'a str,
     /// Fraction of the run done (0 to 1), drawn as a bar; `None`: no bar.
     pub progress: Option<f64>,
+    /// A second line under the first (empty: none): what a panel of a side-by-side video adds, such as its
+    /// divergence from the lead engine.
+    pub detail: &'a str,
 }
 
 /// Direction toward the light (world), unnormalised: high, from the camera's side.
@@ -108,9 +111,21 @@ impl Renderer {
 
     /// Renders the robot at `pose`, `dt` seconds after the previous frame (the camera follows with its lag).
     pub fn render(&mut self, pose: &GenCoords, dt: f64, caption: &Caption<'_>) -> Result<&Frame, RenderError> {
+        self.render_following(pose, pose.base_pos, dt, caption)
+    }
+
+    /// [`Renderer::render`] with the camera following `followed` (world, m) instead of this robot's pelvis:
+    /// panels of one video that follow the same point show how far their robots are apart.
+    pub fn render_following(
+        &mut self,
+        pose: &GenCoords,
+        followed: [f64; 3],
+        dt: f64,
+        caption: &Caption<'_>,
+    ) -> Result<&Frame, RenderError> {
         let fk = self.model.fk(pose)?;
         let (w, h) = (self.canvas.frame.width(), self.canvas.frame.height());
-        let cam = self.follow.update(pose.base_pos, dt, w, h);
+        let cam = self.follow.update(followed, dt, w, h);
         let basis = cam.basis();
         self.canvas.background(&cam);
 
@@ -151,7 +166,7 @@ impl Renderer {
         }
 
         let text = format!("t = {:.2} s  {}", caption.time_s, caption.label);
-        overlay::draw(&mut self.canvas.frame, &text, caption.progress);
+        overlay::draw(&mut self.canvas.frame, &[&text, caption.detail], caption.progress);
         self.camera = Some(cam);
         Ok(&self.canvas.frame)
     }

@@ -35,7 +35,7 @@ fn standing_robot_is_centred_and_as_tall_as_a_robot_of_1_7_to_1_8_m() {
     let mut pose = GenCoords::standing(&model);
     pose.base_pos[0] = 0.0;
     pose.base_pos[1] = 0.0;
-    let caption = Caption { time_s: 0.0, label: "test", progress: Some(0.0) };
+    let caption = Caption { time_s: 0.0, label: "test", progress: Some(0.0), detail: "" };
     let frame = r.render(&pose, 0.0, &caption).expect("frame").clone();
     let (w, h) = (frame.width(), frame.height());
 

@@ -48,7 +48,8 @@ fn a_rendered_clip_decodes_as_h264_and_shows_the_robot_moving() {
     let mut v = VideoWriter::create(&ffmpeg, &out, opts.width, opts.height, FPS).expect("ffmpeg starts");
     for k in 0..FRAMES {
         let t = k as f64 / FPS;
-        let caption = Caption { time_s: t, label: "synthetic", progress: Some(k as f64 / (FRAMES - 1) as f64) };
+        let caption =
+            Caption { time_s: t, label: "synthetic", progress: Some(k as f64 / (FRAMES - 1) as f64), detail: "" };
         let frame = r.render(&pose_at(&model, t), 1.0 / FPS, &caption).expect("frame");
         v.write(frame).expect("frame written");
     }
@@ -104,7 +105,7 @@ fn a_rendered_clip_decodes_as_h264_and_shows_the_robot_moving() {
     assert!(scroll > 4.0, "the ground does not move under the walking robot (mean difference {scroll:.1})");
     // A still robot: the same two frames of a standing pose leave the ground still (the check above can fail).
     let mut still = Renderer::new(&model, &opts).expect("renderer");
-    let cap = Caption { time_s: 0.0, label: "still", progress: None };
+    let cap = Caption { time_s: 0.0, label: "still", progress: None, detail: "" };
     let s0 = still.render(&GenCoords::standing(&model), 1.0 / FPS, &cap).expect("frame").clone();
     let s1 = still.render(&GenCoords::standing(&model), 2.0 / FPS, &cap).expect("frame").clone();
     assert!(ground_diff(&s0, &s1) < 0.5);

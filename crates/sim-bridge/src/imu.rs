@@ -39,18 +39,32 @@ type ImuKinematics = (Isometry3<f64>, Vector3<f64>, Vector3<f64>);
 const EPS: f64 = 1e-7;
 
 impl ImuTracker {
+    /// The robot's IMU (the model's IMU site: the H1-2's is on the torso).
     pub(crate) fn new(model: &RobotModel) -> Result<Self, ModelError> {
         let imu = &model.imu;
-        if imu.link >= model.links.len() {
-            return Err(ModelError::Invalid(format!("IMU link index {} out of range", imu.link)));
+        Self::at(model, imu.link, imu.pos, imu.quat)
+    }
+
+    /// An IMU at the origin of the base link (the pelvis), axes along the pelvis's: what reports the pelvis pose.
+    pub(crate) fn on_base(model: &RobotModel) -> Result<Self, ModelError> {
+        let base = model
+            .links
+            .iter()
+            .position(|l| l.parent_link.is_none())
+            .ok_or_else(|| ModelError::Invalid("the model has no base link".into()))?;
+        Self::at(model, base, [0.0; 3], [1.0, 0.0, 0.0, 0.0])
+    }
+
+    fn at(model: &RobotModel, link: usize, pos: [f64; 3], q: [f64; 4]) -> Result<Self, ModelError> {
+        if link >= model.links.len() {
+            return Err(ModelError::Invalid(format!("IMU link index {link} out of range")));
         }
-        let q = imu.quat;
         let site = Isometry3::from_parts(
-            Vector3::from(imu.pos).into(),
+            Vector3::from(pos).into(),
             UnitQuaternion::from_quaternion(Quaternion::new(q[0], q[1], q[2], q[3])),
         );
         Ok(ImuTracker {
-            link: imu.link,
+            link,
             site,
             gravity: Vector3::zeros(),
             velocity: Vector3::zeros(),

@@ -32,7 +32,7 @@ use diff_physics::{pd, Engine, EngineError, PdTarget, State};
 use lowlevel_codec::{cdr, crc, validate, DecodeError};
 use robot_model::RobotModel;
 use std::collections::BTreeSet;
-use unitree_idl::hg;
+use unitree_idl::{go, hg};
 
 pub use imu::ImuReading;
 
@@ -259,6 +259,8 @@ pub struct SimRobot {
     prev_dq: Vec<f64>,
     ddq: Vec<f64>,
     imu: imu::ImuTracker,
+    /// An IMU on the pelvis: the `imu_state` of [`SimRobot::sport_mode_state`].
+    pelvis_imu: imu::ImuTracker,
     stale: Option<(hg::LowState_, u32)>,
     counters: Counters,
 }
@@ -276,6 +278,7 @@ impl SimRobot {
             return Err(BridgeError::SlotMismatch { model: n, slots: hg::MOTOR_SLOTS });
         }
         let imu = imu::ImuTracker::new(&model)?;
+        let pelvis_imu = imu::ImuTracker::on_base(&model)?;
         let mut robot = SimRobot {
             limits: model.joints.iter().map(|j| j.torque_limit).collect(),
             damping_kd: model.joints.iter().map(|j| j.kd).collect(),
@@ -293,6 +296,7 @@ impl SimRobot {
             prev_dq: vec![0.0; n],
             ddq: vec![0.0; n],
             imu,
+            pelvis_imu,
             stale: None,
             counters: Counters::default(),
             model,
@@ -312,6 +316,7 @@ impl SimRobot {
         self.prev_dq.clone_from(&state.dq);
         self.ddq.iter_mut().for_each(|a| *a = 0.0);
         self.imu.reset(&self.model, state, self.engine.common().gravity)?;
+        self.pelvis_imu.reset(&self.model, state, self.engine.common().gravity)?;
         self.stale = None;
         self.brakes = if self.config.has(Defect::FallenPinned) {
             self.model
@@ -466,6 +471,7 @@ impl SimRobot {
         }
         self.prev_dq.clone_from(&next.dq);
         self.imu.update(&self.model, &next, dt)?;
+        self.pelvis_imu.update(&self.model, &next, dt)?;
         Ok(())
     }
 
@@ -532,6 +538,41 @@ impl SimRobot {
         }
         self.seal(&mut s);
         Ok(s)
+    }
+
+    /// The simulator's own pelvis pose as the sport controller's state (`rt/sportmodestate`, as Unitree's MuJoCo
+    /// bridge publishes it): `position` the pelvis origin and `velocity` its velocity (world frame = odometry frame,
+    /// the ground at z = 0, so `body_height` is the pelvis height), `yaw_speed` the world z angular velocity,
+    /// `imu_state` an ideal IMU at the pelvis origin (its quaternion is the pelvis orientation `[w, x, y, z]`),
+    /// `stamp` the simulated time. The sport-controller fields (mode, gait, feet, path) stay zero: no sport
+    /// controller runs.
+    pub fn sport_mode_state(&self) -> go::SportModeState_ {
+        let state = self.engine.state();
+        let r = self.pelvis_imu.reading();
+        let t = self.engine.time().max(0.0);
+        let [w, x, y, z] = state.base_quat;
+        // World z of the body-frame angular velocity: third row of the rotation matrix times it.
+        let rz = [2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)];
+        let yaw_speed: f64 = rz.iter().zip(state.base_ang_vel).map(|(a, b)| a * b).sum();
+        let mut s = go::SportModeState_ {
+            stamp: go::TimeSpec_ { sec: t.floor().min(f64::from(i32::MAX)) as i32, nanosec: (t.fract() * 1e9) as u32 },
+            position: state.base_pos.map(|v| v as f32),
+            body_height: state.base_pos[2] as f32,
+            velocity: state.base_lin_vel.map(|v| v as f32),
+            yaw_speed: yaw_speed as f32,
+            ..Default::default()
+        };
+        s.imu_state.quaternion = r.quaternion.map(|v| v as f32);
+        s.imu_state.gyroscope = r.gyroscope.map(|v| v as f32);
+        s.imu_state.accelerometer = r.accelerometer.map(|v| v as f32);
+        s.imu_state.rpy = r.rpy.map(|v| v as f32);
+        s.imu_state.temperature = 40;
+        s
+    }
+
+    /// [`SimRobot::sport_mode_state`] as CDR bytes (XCDR1 little-endian).
+    pub fn sport_mode_state_bytes(&self) -> Vec<u8> {
+        cdr::encode(&self.sport_mode_state(), lowlevel_codec::Encoding::UNITREE)
     }
 
     /// The LowState as CDR bytes (XCDR1 little-endian, what Unitree's SDK expects).

@@ -289,3 +289,35 @@ fn defects_break_exactly_their_protection() {
     assert!((after - before).abs() < 0.02, "pinned elbow moved {before} -> {after}");
     assert!(r.applied_torques()[i] > 8.0, "motor torque {}", r.applied_torques()[i]);
 }
+
+/// The sport state (`rt/sportmodestate`) against free-fall kinematics: after t seconds without ground the pelvis has
+/// dropped g t²/2 and moves down at g t, its IMU reads no specific force; at rest it reads +g and the pelvis
+/// orientation; the bytes decode to the same message.
+#[test]
+fn sport_state_is_the_pelvis_pose_by_free_fall_and_rest() {
+    let flight = CommonSettings { ground: false, collisions: false, ..CommonSettings::default() };
+    let g = -flight.gravity[2];
+    let mut r = robot(EngineKind::Mujoco, flight, &[]);
+    let s0 = r.sport_mode_state();
+    let t = run(&mut r, None, 100, 0.0);
+    let s = r.sport_mode_state();
+    let drop = f64::from(s0.position[2] - s.position[2]);
+    assert!((drop - 0.5 * g * t * t).abs() < 0.01, "dropped {drop} m in {t} s");
+    assert!((f64::from(s.velocity[2]) + g * t).abs() < 0.05, "vz {}", s.velocity[2]);
+    assert!((f64::from(s.body_height) - f64::from(s.position[2])).abs() < 1e-6);
+    let stamp = f64::from(s.stamp.sec) + 1e-9 * f64::from(s.stamp.nanosec);
+    assert!((stamp - r.engine().time()).abs() < 1e-6, "stamp {stamp}");
+    let a = s.imu_state.accelerometer;
+    assert!(a.iter().map(|x| x * x).sum::<f32>().sqrt() < 0.5, "free-fall accelerometer {a:?}");
+
+    let r = robot(EngineKind::Mujoco, CommonSettings::default(), &[]);
+    let s = r.sport_mode_state();
+    let a = s.imu_state.accelerometer;
+    assert!((f64::from(a[2]) - g).abs() < 0.05 && a[0].abs() < 0.05 && a[1].abs() < 0.05, "{a:?}");
+    let pelvis = r.engine().state().base_quat;
+    for (q, p) in s.imu_state.quaternion.iter().zip(pelvis) {
+        assert!((f64::from(*q) - p).abs() < 1e-6, "{:?} vs {pelvis:?}", s.imu_state.quaternion);
+    }
+    let back = lowlevel_codec::decode::<unitree_idl::go::SportModeState_>(&r.sport_mode_state_bytes()).expect("decode");
+    assert_eq!(back.value.position, s.position);
+}

@@ -195,3 +195,73 @@ idl_struct! {
         crc: u32,
     }
 }
+
+idl_struct! {
+    /// A time stamp (`builtin_interfaces` style).
+    "unitree_go" struct TimeSpec_ {
+        /// Seconds.
+        sec: i32,
+        /// Nanoseconds within the second.
+        nanosec: u32,
+    }
+}
+
+idl_struct! {
+    /// One point of the sport mode's planned path.
+    "unitree_go" struct PathPoint_ {
+        /// Time of the point from the start of the path (s).
+        t_from_start: f32,
+        /// Position x (m).
+        x: f32,
+        /// Position y (m).
+        y: f32,
+        /// Heading (rad).
+        yaw: f32,
+        /// Velocity x (m/s).
+        vx: f32,
+        /// Velocity y (m/s).
+        vy: f32,
+        /// Yaw rate (rad/s).
+        vyaw: f32,
+    }
+}
+
+idl_struct! {
+    /// The sport (high-level) controller's state, topic [`crate::topics::SPORTMODESTATE`]: the body's pose and
+    /// velocity in the odometry frame. Unitree's MuJoCo bridge publishes it with the simulator's own pelvis pose,
+    /// and so does `ulab sim`.
+    "unitree_go" struct SportModeState_ {
+        /// Time of the state.
+        stamp: TimeSpec_,
+        /// Error code of the sport controller; 0 = none.
+        error_code: u32,
+        /// The body IMU.
+        imu_state: IMUState_,
+        /// Sport mode.
+        mode: u8,
+        /// Progress of the current motion (0 to 1).
+        progress: f32,
+        /// Gait type.
+        gait_type: u8,
+        /// Foot raise height (m).
+        foot_raise_height: f32,
+        /// Body position, odometry frame (m).
+        position: [f32; 3],
+        /// Body height above the ground (m).
+        body_height: f32,
+        /// Body velocity, odometry frame (m/s).
+        velocity: [f32; 3],
+        /// Yaw rate (rad/s).
+        yaw_speed: f32,
+        /// Distance to obstacles in four directions (m).
+        range_obstacle: [f32; 4],
+        /// Foot contact forces (raw units).
+        foot_force: [i16; 4],
+        /// Foot positions in the body frame (m), x, y, z per foot.
+        foot_position_body: [f32; 12],
+        /// Foot velocities in the body frame (m/s), x, y, z per foot.
+        foot_speed_body: [f32; 12],
+        /// The planned path.
+        path_point: [PathPoint_; 10],
+    }
+}

@@ -41,6 +41,12 @@ pub enum MessageType {
     GoBmsCmd,
     /// `go/BmsState`: [`go::BmsState_`].
     GoBmsState,
+    /// `go/TimeSpec`: [`go::TimeSpec_`].
+    GoTimeSpec,
+    /// `go/PathPoint`: [`go::PathPoint_`].
+    GoPathPoint,
+    /// `go/SportModeState`: [`go::SportModeState_`].
+    GoSportModeState,
     /// `api/Request`: [`api::Request_`].
     ApiRequest,
     /// `api/RequestHeader`: [`api::RequestHeader_`].
@@ -149,6 +155,9 @@ registry! {
     GoImuState => "go/IMUState", go::IMUState_;
     GoBmsCmd => "go/BmsCmd", go::BmsCmd_;
     GoBmsState => "go/BmsState", go::BmsState_;
+    GoTimeSpec => "go/TimeSpec", go::TimeSpec_;
+    GoPathPoint => "go/PathPoint", go::PathPoint_;
+    GoSportModeState => "go/SportModeState", go::SportModeState_;
     ApiRequest => "api/Request", api::Request_;
     ApiRequestHeader => "api/RequestHeader", api::RequestHeader_;
     ApiRequestIdentity => "api/RequestIdentity", api::RequestIdentity_;

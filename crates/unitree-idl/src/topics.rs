@@ -8,6 +8,9 @@ pub const LOWSTATE: &str = "rt/lowstate";
 pub const ARM_SDK: &str = "rt/arm_sdk";
 /// Second IMU on the pelvis of humanoids (hg IMUState_).
 pub const SECONDARY_IMU: &str = "rt/secondary_imu";
+/// State of the sport (high-level) controller, go SportModeState_: body position and velocity in the odometry
+/// frame. Simulators publish the simulated pelvis pose on it (Unitree's MuJoCo bridge, `ulab sim`).
+pub const SPORTMODESTATE: &str = "rt/sportmodestate";
 /// Low-frequency variant of the state topic (prefix `rt/lf/`).
 pub const LF_LOWSTATE: &str = "rt/lf/lowstate";
 

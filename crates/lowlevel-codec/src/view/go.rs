@@ -114,3 +114,46 @@ struct_view! {
         crc: value(u32),
     }
 }
+
+struct_view! {
+    /// View of [`unitree_idl::go::TimeSpec_`].
+    unitree_idl::go::TimeSpec_ => TimeSpecView {
+        sec: value(i32),
+        nanosec: value(u32),
+    }
+}
+
+struct_view! {
+    /// View of [`unitree_idl::go::PathPoint_`].
+    unitree_idl::go::PathPoint_ => PathPointView {
+        t_from_start: value(f32),
+        x: value(f32),
+        y: value(f32),
+        yaw: value(f32),
+        vx: value(f32),
+        vy: value(f32),
+        vyaw: value(f32),
+    }
+}
+
+struct_view! {
+    /// View of [`unitree_idl::go::SportModeState_`] (`rt/sportmodestate`).
+    unitree_idl::go::SportModeState_ => SportModeStateView {
+        stamp: view(TimeSpecView),
+        error_code: value(u32),
+        imu_state: view(IMUStateView),
+        mode: value(u8),
+        progress: value(f32),
+        gait_type: value(u8),
+        foot_raise_height: value(f32),
+        position: value([f32; 3]),
+        body_height: value(f32),
+        velocity: value([f32; 3]),
+        yaw_speed: value(f32),
+        range_obstacle: value([f32; 4]),
+        foot_force: value([i16; 4]),
+        foot_position_body: value([f32; 12]),
+        foot_speed_body: value([f32; 12]),
+        path_point: views(PathPointView, 10),
+    }
+}

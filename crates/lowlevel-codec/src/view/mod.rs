@@ -614,6 +614,18 @@ macro_rules! with_viewable_type {
                 type $T = go::BmsState_;
                 Some($body)
             }
+            M::GoTimeSpec => {
+                type $T = go::TimeSpec_;
+                Some($body)
+            }
+            M::GoPathPoint => {
+                type $T = go::PathPoint_;
+                Some($body)
+            }
+            M::GoSportModeState => {
+                type $T = go::SportModeState_;
+                Some($body)
+            }
             // Sequences, strings or booleans (the RPC types): no view.
             M::HgHandCmd
             | M::HgHandState

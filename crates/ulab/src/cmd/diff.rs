@@ -3,7 +3,9 @@
 //! - `ulab diff --robot h1_2 [--policy SPEC] --engines mujoco,rapier-multibody,rapier-impulse [--episodes N]
 //!   [--seconds T] [--seed S] --out DIR`: windowed divergence, invariants, outcome distributions, triaged and
 //!   minimized entries; writes `DIR/report.md`, `report.json`, SVG plots and `repro_*.json`. Without
-//!   `--policy` the built-in excitation input drives the robot.
+//!   `--policy` the built-in excitation input drives the robot. `--video OUT.mp4` also renders the first
+//!   episode's free runs (every engine closed-loop from the same start) side by side, with the divergence from
+//!   the lead written in each panel (`super::video::render_trajectories`).
 //! - `ulab diff fuzz ... --out DIR [--iterations N] [--corpus DIR]`: feedback-driven perturbation search,
 //!   then the same report over what it found; the corpus goes to `DIR/corpus/`.
 //! - `ulab diff replay FILE`: recomputes a reproducer; exit 0 if bit-identical, 1 if not.
@@ -122,6 +124,12 @@ struct RunArgs {
     /// Exit 1 when an entry is triaged as a candidate engine bug.
     #[arg(long)]
     fail_on_bug: bool,
+    /// Also render the first episode (seed S) as a video: one panel per engine, lead leftmost, every camera
+    /// following the lead's pelvis, each panel's divergence from the lead in its caption (H.264 MP4).
+    #[arg(long)]
+    video: Option<PathBuf>,
+    #[command(flatten)]
+    video_args: super::video::VideoArgs,
 }
 
 #[derive(Debug, clap::Args)]
@@ -285,9 +293,16 @@ fn diff(a: RunArgs) -> Result<Exit> {
             }
         })
         .collect();
+    // The video's episode keeps its free runs' states (the windowed runs restart every engine from the lead's
+    // state each window, so only the free runs show how far the engines drift apart).
+    let video_cfg = HarnessConfig { record_fps: Some(a.video_args.fps), ..s.cfg.clone() };
     let episodes = scenarios
         .par_iter()
-        .map(|sc| engine_diff::harness::run_episode(&s.model, &s.factories, s.ctrl.as_ref(), sc, &s.cfg))
+        .enumerate()
+        .map(|(i, sc)| {
+            let cfg = if i == 0 && a.video.is_some() { &video_cfg } else { &s.cfg };
+            engine_diff::harness::run_episode(&s.model, &s.factories, s.ctrl.as_ref(), sc, cfg)
+        })
         .collect::<Result<Vec<_>, _>>()
         .context("running episodes")?;
     let allow = AllowList::builtin().context("allow-list")?;
@@ -302,6 +317,13 @@ fn diff(a: RunArgs) -> Result<Exit> {
     };
     let (report, repros) = analyse(&an, &episodes).context("analysing")?;
     write_outputs(&out, &report, &repros, &episodes).with_context(|| format!("writing {}", out.display()))?;
+    if let (Some(path), Some(first)) = (&a.video, episodes.first()) {
+        let ends = super::video::render_trajectories(&s.model, path, &a.video_args, &first.trajectories)
+            .with_context(|| format!("rendering {}", path.display()))?;
+        for (t, d) in first.trajectories.iter().zip(ends).skip(1) {
+            println!("video: {} ends {d:.3} m from {} (pelvis)", t.engine, first.engines[0]);
+        }
+    }
     Ok(summarize(&out, &report, a.fail_on_bug))
 }
 

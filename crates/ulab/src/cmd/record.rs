@@ -61,8 +61,9 @@ pub struct Args {
     /// Stop after this many seconds (default: until Ctrl-C).
     #[arg(long)]
     pub duration: Option<f64>,
-    /// Topics to record: rt/lowcmd, rt/lowstate, or TOPIC=TYPE with TYPE a codec name
-    /// (hg/HandState) or a DDS type name. Default: rt/lowcmd and rt/lowstate.
+    /// Topics to record: rt/lowcmd, rt/lowstate, rt/sportmodestate, or TOPIC=TYPE with TYPE a codec name
+    /// (hg/HandState) or a DDS type name. Default: rt/lowcmd, rt/lowstate and rt/sportmodestate (the base pose
+    /// a simulator publishes; `ulab render` uses it).
     #[arg(long, num_args = 1.., value_delimiter = ',')]
     pub topics: Vec<String>,
     /// Message family of rt/lowcmd and rt/lowstate: hg (H1-2, G1) or go (Go2, H1, B2).
@@ -95,6 +96,9 @@ fn now_ns() -> u64 {
     std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos() as u64)
 }
 
+/// What `ulab record` records without `--topics`.
+pub const DEFAULT_TOPICS: [&str; 3] = ["rt/lowcmd", "rt/lowstate", unitree_idl::topics::SPORTMODESTATE];
+
 pub fn run(args: Args) -> Result<Exit> {
     let cfg = args.net.domain_config()?;
     if let Some(d) = args.duration {
@@ -103,7 +107,7 @@ pub fn run(args: Args) -> Result<Exit> {
         }
     }
     let texts: Vec<String> =
-        if args.topics.is_empty() { vec!["rt/lowcmd".into(), "rt/lowstate".into()] } else { args.topics.clone() };
+        if args.topics.is_empty() { DEFAULT_TOPICS.map(str::to_owned).to_vec() } else { args.topics.clone() };
     let mut choices: Vec<TopicChoice> = Vec::new();
     for t in &texts {
         let c = parse_topic(t, args.family.name())?;

@@ -42,19 +42,21 @@ pub struct TopicChoice {
 }
 
 /// Parses `TOPIC=TYPE` (TYPE a short name like `hg/LowState` or a DDS type name) or a bare
-/// `rt/lowcmd` / `rt/lowstate`, whose type follows `family` (`hg` or `go`).
+/// `rt/lowcmd` / `rt/lowstate`, whose type follows `family` (`hg` or `go`), or `rt/sportmodestate` (go).
 pub fn parse_topic(text: &str, family: &str) -> Result<TopicChoice> {
     let (name, ty) = match text.split_once('=') {
         Some((n, t)) => (n.trim(), t.trim().to_owned()),
         None => {
-            let short = match text.trim() {
-                "rt/lowcmd" => "LowCmd",
-                "rt/lowstate" => "LowState",
+            let ty = match text.trim() {
+                "rt/lowcmd" => format!("{family}/LowCmd"),
+                "rt/lowstate" => format!("{family}/LowState"),
+                // unitree_go on every robot (Unitree's MuJoCo bridge publishes it for humanoids too).
+                unitree_idl::topics::SPORTMODESTATE => MessageType::GoSportModeState.name().to_owned(),
                 other => {
                     bail!("topic {other:?} needs a type: write it as {other}=hg/LowState or {other}=<DDS type name>")
                 }
             };
-            (text.trim(), format!("{family}/{short}"))
+            (text.trim(), ty)
         }
     };
     if name.is_empty() || ty.is_empty() {
@@ -78,6 +80,8 @@ mod tests {
         assert_eq!(t.kind, Some(MessageType::HgLowState));
         let t = parse_topic("rt/lowcmd", "go").expect("parse");
         assert_eq!(t.spec.type_name, "unitree_go::msg::dds_::LowCmd_");
+        let t = parse_topic("rt/sportmodestate", "hg").expect("parse");
+        assert_eq!(t.spec.type_name, "unitree_go::msg::dds_::SportModeState_");
         let t = parse_topic("rt/x=hg/HandCmd", "hg").expect("parse");
         assert_eq!(t.kind, Some(MessageType::HgHandCmd));
         let t = parse_topic("rt/y=foo::Bar_", "hg").expect("parse");

@@ -3,7 +3,9 @@
 //! `rt/lowstate`. The protocol logic (gates, PD law, damping timeout, IMU, CRC) is
 //! `sim_bridge::SimRobot`; this module adds DDS, pacing and the status line. It also serves the
 //! SDK's locomotion RPC (`LocoClient`: stand, walk at a velocity, stop, damp) through
-//! `sim_loco` / `sim_bridge::loco`.
+//! `sim_loco` / `sim_bridge::loco`. Like Unitree's MuJoCo bridge it also publishes the simulator's own pelvis pose
+//! on `rt/sportmodestate` (go SportModeState_, `--sport-state-rate`, 100 Hz by default), so that a recording of
+//! the run carries the ground-truth base pose (`ulab render` draws it instead of estimating one).
 
 use super::recording::NetArgs;
 use super::video::{Video, VideoArgs, VideoThread};
@@ -31,6 +33,11 @@ pub struct Args {
     /// LowState publish rate (Hz); the real robot publishes about 500 Hz.
     #[arg(long, default_value_t = 500.0)]
     pub state_rate: f64,
+    /// Publish rate (Hz) of `rt/sportmodestate` (go SportModeState_: the simulator's pelvis position, velocity and
+    /// orientation, the ground truth of a recording); 0 publishes none. 100 Hz is three samples per frame of a
+    /// 30 fps video and a fifth of the LowState traffic.
+    #[arg(long, default_value_t = 100.0)]
+    pub sport_state_rate: f64,
     /// Physics timestep (s).
     #[arg(long, default_value_t = 0.002)]
     pub dt: f64,
@@ -100,6 +107,10 @@ fn parse_defect(s: &str) -> Result<Defect, String> {
 pub fn run(args: Args) -> Result<Exit> {
     anyhow::ensure!(args.state_rate > 0.0 && args.state_rate.is_finite(), "--state-rate must be positive");
     anyhow::ensure!(args.dt > 0.0 && args.dt <= 0.05, "--dt must be in (0, 0.05] s");
+    anyhow::ensure!(
+        args.sport_state_rate >= 0.0 && args.sport_state_rate.is_finite(),
+        "--sport-state-rate must be 0 (off) or positive"
+    );
     let cfg = args.net.domain_config()?;
     let model = robot_model::builtin(&args.robot).with_context(|| format!("loading robot `{}`", args.robot))?;
     let fallen = args.unsafe_defects.contains(&Defect::FallenPinned);
@@ -163,6 +174,17 @@ pub fn run(args: Args) -> Result<Exit> {
         state_topic.name.clone_from(name);
     }
     let states = participant.writer(&state_topic).context("creating the rt/lowstate writer")?;
+    let sport = if args.sport_state_rate > 0.0 {
+        let topic = TopicSpec::new(
+            unitree_idl::topics::SPORTMODESTATE,
+            unitree_idl::MessageType::GoSportModeState.dds_type_name(),
+        );
+        let writer = participant.writer(&topic).context("creating the rt/sportmodestate writer")?;
+        Some((writer, 1.0 / args.sport_state_rate))
+    } else {
+        None
+    };
+    let mut next_sport = 0.0;
     let mut loco = if args.loco_api.0.is_empty() {
         None
     } else {
@@ -240,6 +262,14 @@ pub fn run(args: Args) -> Result<Exit> {
         }
         if !args.on_time_state {
             publish_due(&mut robot, &states, sim_time, &mut next_publish, publish_period)?;
+        }
+        if let Some((writer, period)) = &sport {
+            if sim_time + 1e-9 >= next_sport {
+                if let Err(e) = writer.write(&robot.sport_mode_state_bytes()) {
+                    eprintln!("sim: publishing rt/sportmodestate failed: {e}");
+                }
+                next_sport += period;
+            }
         }
         let since = window.0.elapsed().as_secs_f64();
         if since >= 1.0 {

@@ -5,6 +5,11 @@
 //! fails) with the windowed divergence that points at where it degrades. The computation is
 //! `engine_diff::validate`.
 //!
+//! `--video OUT.mp4` renders one rollout side by side, the training engine leftmost: the first command of
+//! `--commands` with the first seed (`--seed`), recomputed after the validation with the same function
+//! (`engine_diff::validate::episode_score_recorded`, so the same deterministic rollout), every engine's panel
+//! captioned with its divergence from the training engine (`super::video::render_trajectories`).
+//!
 //! Exit codes: 0 report written, 1 some engine degrades or fails and `--fail-on-degrade` was given, 2 errors.
 use crate::exit::Exit;
 use anyhow::{bail, Context, Result};
@@ -58,6 +63,11 @@ pub struct Args {
     /// Worker threads (default: all cores).
     #[arg(long)]
     jobs: Option<usize>,
+    /// Also render the first command's first-seed rollout in every engine side by side (H.264 MP4).
+    #[arg(long)]
+    video: Option<PathBuf>,
+    #[command(flatten)]
+    video_args: super::video::VideoArgs,
 }
 
 pub fn run(a: Args) -> Result<Exit> {
@@ -138,10 +148,46 @@ pub fn run(a: Args) -> Result<Exit> {
         );
     }
     println!("report in {}", a.out.join("report.md").display());
+    if let Some(path) = &a.video {
+        render_rollout(&setup, path, &a.video_args).with_context(|| format!("rendering {}", path.display()))?;
+    }
     if a.fail_on_degrade && !report.flagged().is_empty() {
         return Ok(Exit::Failed);
     }
     Ok(Exit::Success)
+}
+
+/// The video of `--video`: the first command's first-seed rollout recomputed in every engine, the training
+/// engine first (the lead the others are compared with).
+fn render_rollout(s: &ValidateSetup<'_>, path: &std::path::Path, args: &super::video::VideoArgs) -> Result<()> {
+    use engine_diff::harness::Trajectory;
+    let (Some(case), Some(&seed)) = (s.commands.first(), s.seeds.first()) else { bail!("no rollout to render") };
+    let mut order: Vec<_> = s.factories.iter().collect();
+    order.sort_by_key(|f| f.name() != s.train_engine);
+    let mut trajs = Vec::new();
+    for f in order {
+        let mut t = Trajectory::new(&f.name(), args.fps);
+        let e = engine_diff::validate::episode_score_recorded(
+            s.model,
+            f.as_ref(),
+            s.controller,
+            case,
+            seed,
+            s.seconds,
+            s.cfg,
+            Some(&mut t),
+        )
+        .with_context(|| format!("{} in {}", case.name, f.name()))?;
+        if t.samples.is_empty() {
+            bail!("{} did not run: {}", f.name(), e.outcome.error.unwrap_or_default());
+        }
+        trajs.push(t);
+    }
+    let ends = super::video::render_trajectories(s.model, path, args, &trajs)?;
+    for (t, d) in trajs.iter().zip(ends).skip(1) {
+        println!("video ({} seed {seed}): {} ends {d:.3} m from {} (pelvis)", case.name, t.engine, s.train_engine);
+    }
+    Ok(())
 }
 
 /// Optimises the gait in the training engine (on search seeds the validation does not use) and writes

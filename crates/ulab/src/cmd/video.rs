@@ -1,8 +1,9 @@
-//! Video output shared by `ulab render` and `ulab sim --video`: a `robot_render::Renderer` feeding an ffmpeg
-//! child (H.264 MP4), with the time each stage takes.
+//! Video output shared by `ulab render`, `ulab sim --video`, `ulab diff --video` and `ulab validate --video`:
+//! `robot_render::Renderer`s (one per panel) feeding an ffmpeg child (H.264 MP4), with the time each stage takes.
 use anyhow::{Context, Result};
+use engine_diff::harness::{Div, Trajectory};
 use robot_model::{GenCoords, RobotModel};
-use robot_render::{Caption, RenderOptions, Renderer, VideoWriter};
+use robot_render::{Caption, Frame, RenderOptions, Renderer, VideoWriter};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -26,10 +27,10 @@ impl Default for VideoArgs {
     }
 }
 
-/// A video being written.
+/// A video being written: one panel, or several side by side (each `--width` wide).
 #[derive(Debug)]
 pub struct Video {
-    renderer: Renderer,
+    renderers: Vec<Renderer>,
     writer: VideoWriter,
     out: PathBuf,
     fps: f64,
@@ -41,24 +42,58 @@ pub struct Video {
 impl Video {
     /// Finds ffmpeg and starts writing `out`.
     pub fn create(model: &RobotModel, out: &Path, args: &VideoArgs) -> Result<Self> {
+        Self::create_panels(model, out, args, 1)
+    }
+
+    /// [`Video::create`] with `panels` pictures side by side, each `args.width` wide.
+    pub fn create_panels(model: &RobotModel, out: &Path, args: &VideoArgs, panels: usize) -> Result<Self> {
         anyhow::ensure!(args.fps.is_finite() && args.fps > 0.0 && args.fps <= 240.0, "--fps must be in (0, 240]");
+        anyhow::ensure!((1..=8).contains(&panels), "a video has 1 to 8 panels, not {panels}");
         let opts = RenderOptions { width: args.width, height: args.height, ..RenderOptions::default() };
-        let renderer = Renderer::new(model, &opts).context("setting up the renderer")?;
+        let renderers = (0..panels)
+            .map(|_| Renderer::new(model, &opts))
+            .collect::<Result<Vec<_>, _>>()
+            .context("setting up the renderer")?;
         let ffmpeg = robot_render::find_ffmpeg().context("a video needs ffmpeg")?;
-        let writer = VideoWriter::create(&ffmpeg, out, args.width, args.height, args.fps)
+        let writer = VideoWriter::create(&ffmpeg, out, args.width * panels as u32, args.height, args.fps)
             .with_context(|| format!("starting the video {}", out.display()))?;
-        Ok(Video { renderer, writer, out: out.to_owned(), fps: args.fps, last_t: None, render_s: 0.0, write_s: 0.0 })
+        Ok(Video { renderers, writer, out: out.to_owned(), fps: args.fps, last_t: None, render_s: 0.0, write_s: 0.0 })
     }
 
     /// Appends the frame of `pose` at time `t` (s).
     pub fn frame(&mut self, pose: &GenCoords, t: f64, label: &str, progress: Option<f64>) -> Result<()> {
+        self.frame_panels(&[Panel { pose, followed: pose.base_pos, label, detail: "" }], t, progress)
+    }
+
+    /// Appends a frame of one panel per renderer, left to right, at time `t` (s).
+    pub fn frame_panels(&mut self, panels: &[Panel<'_>], t: f64, progress: Option<f64>) -> Result<()> {
+        anyhow::ensure!(
+            panels.len() == self.renderers.len(),
+            "{} panels for a video of {}",
+            panels.len(),
+            self.renderers.len()
+        );
         let dt = self.last_t.map_or(0.0, |last| t - last);
         self.last_t = Some(t);
         let started = Instant::now();
-        let frame = self
-            .renderer
-            .render(pose, dt, &Caption { time_s: t, label, progress })
+        let frames = self
+            .renderers
+            .iter_mut()
+            .zip(panels)
+            .map(|(r, p)| {
+                let caption = Caption { time_s: t, label: p.label, progress, detail: p.detail };
+                r.render_following(p.pose, p.followed, dt, &caption)
+            })
+            .collect::<Result<Vec<&Frame>, _>>()
             .with_context(|| format!("rendering the frame at t = {t:.3} s"))?;
+        let tiled;
+        let frame = match frames.as_slice() {
+            [one] => *one,
+            many => {
+                tiled = Frame::side_by_side(many).context("panels of different heights")?;
+                &tiled
+            }
+        };
         let rendered = Instant::now();
         self.writer.write(frame).with_context(|| format!("writing {}", self.out.display()))?;
         self.render_s += (rendered - started).as_secs_f64();
@@ -84,6 +119,72 @@ impl Video {
         );
         Ok(())
     }
+}
+
+/// One panel of a frame: the robot's pose, the point the camera follows, the caption.
+#[derive(Debug, Clone, Copy)]
+pub struct Panel<'a> {
+    pub pose: &'a GenCoords,
+    /// World point (m) the panel's camera follows.
+    pub followed: [f64; 3],
+    /// Written after the time (the engine).
+    pub label: &'a str,
+    /// The caption's second line (empty: none).
+    pub detail: &'a str,
+}
+
+/// Renders free runs of several engines side by side, the lead (`trajs[0]`) leftmost, one frame per trajectory
+/// sample, and returns how far each engine's pelvis ended from the lead's (m).
+///
+/// Every panel's camera follows the lead's pelvis, not its own robot: the engines start from the same state, so
+/// the panels start identical, and a robot that drifts, turns or falls differently from the lead is seen moving
+/// away from the centre of its panel. A camera per robot would keep every robot centred and hide exactly that
+/// drift. Each non-lead panel's second caption line is its divergence from the lead at that instant (pelvis
+/// distance, largest joint-angle difference: `engine_diff::harness::Div`, the quantities of the diff report).
+/// A run that ended early (a fall, an engine error) keeps its last state, captioned `stopped`.
+pub fn render_trajectories(model: &RobotModel, out: &Path, args: &VideoArgs, trajs: &[Trajectory]) -> Result<Vec<f64>> {
+    let Some(lead) = trajs.first() else { anyhow::bail!("no trajectory to render") };
+    anyhow::ensure!(trajs.iter().all(|t| !t.samples.is_empty()), "a trajectory without samples");
+    anyhow::ensure!(trajs.iter().all(|t| (t.fps - args.fps).abs() < 1e-9), "trajectories not sampled at --fps");
+    let frames = trajs.iter().map(|t| t.samples.len()).max().unwrap_or(0);
+    let mut video = Video::create_panels(model, out, args, trajs.len())?;
+    /// Sample `k`, or the last one of a run that ended before it (none is empty, checked above).
+    fn at(t: &Trajectory, k: usize) -> &(diff_physics::State, Vec<diff_physics::LinkPose>) {
+        &t.samples[k.min(t.samples.len().saturating_sub(1))]
+    }
+    let mut last_div = vec![0.0; trajs.len()];
+    let result = (0..frames).try_for_each(|k| {
+        let (lead_st, lead_links) = at(lead, k);
+        let poses: Vec<GenCoords> = trajs.iter().map(|t| at(t, k).0.coords()).collect();
+        let details: Vec<String> = trajs
+            .iter()
+            .enumerate()
+            .map(|(i, t)| {
+                let stopped = if k >= t.samples.len() { "stopped  " } else { "" };
+                if i == 0 {
+                    return format!("{stopped}lead");
+                }
+                let (st, links) = at(t, k);
+                let d = Div::between(lead_st, lead_links, st, links);
+                last_div[i] = d.base_pos;
+                format!("{stopped}vs {}: pelvis {:.3} m, joint {:.2} rad", lead.engine, d.base_pos, d.max_q())
+            })
+            .collect();
+        let panels: Vec<Panel<'_>> = trajs
+            .iter()
+            .zip(&poses)
+            .zip(&details)
+            .map(|((t, pose), detail)| Panel { pose, followed: lead_st.base_pos, label: &t.engine, detail })
+            .collect();
+        let progress = if frames > 1 { k as f64 / (frames - 1) as f64 } else { 1.0 };
+        video.frame_panels(&panels, k as f64 / args.fps, Some(progress))
+    });
+    if let Err(e) = result.and_then(|()| video.finish()) {
+        // What ffmpeg left of a stopped encode is no playable file.
+        let _ = std::fs::remove_file(out);
+        return Err(e);
+    }
+    Ok(last_div)
 }
 
 /// A frame for the video thread: time (s), pose, progress.
