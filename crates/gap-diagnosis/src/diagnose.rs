@@ -29,7 +29,9 @@ pub use assess::{EffectResult, FittedParam, MIN_WINDOWS_OFF_LIMIT, UNIT_FLOOR_FR
 pub use breakdown::Share;
 pub use fit::RESOLUTION_FRAC;
 pub use options::{DiagnoseOptions, PlantChoice, PlantKind, FLOATING_MAX_WINDOWS};
-pub use remainder::{RobustGap, Unexplained, WindowFlag, WindowResidual};
+pub use remainder::{
+    RobustGap, Unexplained, WindowFlag, WindowResidual, FAST_FRAC, SATURATED_FRAC, TRIM_FRAC, UNEXPLAINED_FACTOR,
+};
 pub use select::{Combination, MAX_COMBINATION, REFIT_CANDIDATES};
 pub use stats::{Estimate, EFFECT_FLOOR_FRAC};
 pub use windows::{AT_LIMIT_RAD, COMMAND_STALE_S, TIMING_TOL_S};

@@ -28,7 +28,7 @@ pub const UNEXPLAINED_FACTOR: f64 = 2.0;
 pub enum WindowFlag {
     /// A logged motor torque within [`SATURATED_FRAC`] of its limit.
     Saturated,
-    /// A logged joint angle within [`super::windows::AT_LIMIT_RAD`] of its range.
+    /// A logged joint angle within [`crate::diagnose::AT_LIMIT_RAD`] of its range.
     AtLimit,
     /// A logged joint speed above [`FAST_FRAC`] of its speed limit.
     FastTransient,
