@@ -30,6 +30,8 @@ pub use reference::{FloatingLog, FloatingRealConfig, SensorNoise};
 /// The reference ("real") plant.
 #[derive(Debug, Clone)]
 pub struct RealConfig {
+    /// With another engine than MuJoCo, damping and Coulomb friction effects go through the engine's own joint
+    /// parameters ([`in_engine`]) instead of the effect layer.
     pub engine: EngineChoice,
     pub effects: Effects,
     pub noise: SensorNoise,
@@ -39,9 +41,6 @@ pub struct RealConfig {
     pub jitter_s: f64,
     pub duration: f64,
     pub seed: u64,
-    /// Apply damping and Coulomb friction through the engine's own joint parameters ([`in_engine`]) instead of
-    /// the effect layer.
-    pub native_effects: bool,
 }
 
 impl RealConfig {
@@ -54,7 +53,6 @@ impl RealConfig {
             jitter_s: 0.002,
             duration,
             seed,
-            native_effects: false,
         }
     }
 }
@@ -101,7 +99,7 @@ pub fn generate_log_with(
     policy: Option<&PolicyInput>,
 ) -> Result<RobotLog, GapError> {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(cfg.seed);
-    let (real_model, engine_fx) = in_engine(&cfg.effects.apply_to_model(model), &cfg.effects, cfg.native_effects);
+    let (real_model, engine_fx) = in_engine(&cfg.effects.apply_to_model(model), &cfg.effects, !cfg.engine.is_mujoco());
     let fx = &engine_fx;
     let mut rig = Rig::reference(&real_model, &cfg.engine)?;
     let q0 = model.default_q();
@@ -484,8 +482,7 @@ pub struct BenchOptions {
     /// Policies for the policy-driven trials (empty: every trial runs the excitation plan).
     pub policies: Vec<PolicySpec>,
     /// The reference ("real") plant's engine on the rig (default MuJoCo RK4). Another engine than MuJoCo makes the
-    /// logs independent of the diagnosing simulator; its damping and Coulomb friction effects then go through the
-    /// engine's own joint parameters ([`in_engine`]).
+    /// logs independent of the diagnosing simulator (see [`RealConfig::engine`]).
     pub reference: EngineChoice,
 }
 
@@ -583,7 +580,6 @@ pub fn run_trial(
     let cfg = RealConfig {
         effects: fx,
         seed: opts.seed.wrapping_mul(31).wrapping_add(i as u64),
-        native_effects: !matches!(opts.reference, EngineChoice::Mujoco { .. }),
         engine: opts.reference.clone(),
         ..RealConfig::new(model, opts.duration, 0)
     };

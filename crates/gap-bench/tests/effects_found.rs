@@ -49,8 +49,7 @@ fn run(fx: Effects, seed: u64) -> Report {
 /// its own joint parameters, as `ulab gap bench --reference-engine` does) and a log of `duration` s.
 fn run_in(engine: EngineChoice, duration: f64, fx: Effects, seed: u64) -> Report {
     let m = model();
-    let native = !matches!(engine, EngineChoice::Mujoco { .. });
-    let cfg = RealConfig { effects: fx, engine, native_effects: native, ..RealConfig::new(&m, duration, seed) };
+    let cfg = RealConfig { effects: fx, engine, ..RealConfig::new(&m, duration, seed) };
     let log = generate_log(&m, &cfg).expect("generate");
     let mut buf = std::io::Cursor::new(Vec::new());
     log.write_mcap(&mut buf, &m).expect("write mcap");

@@ -96,6 +96,11 @@ impl EngineChoice {
         Ok(EngineChoice::mujoco(integrator))
     }
 
+    /// Whether this is MuJoCo (the diagnosing simulator's engine, with any integrator).
+    pub fn is_mujoco(&self) -> bool {
+        matches!(self, EngineChoice::Mujoco { .. })
+    }
+
     /// The name [`EngineChoice::parse`] reads.
     pub fn name(&self) -> String {
         match self {
@@ -222,22 +227,21 @@ impl Rig<MujocoEngine> {
     /// The diagnosing rig for `model` (already carrying the model-level effects): MuJoCo with the choice's
     /// integrator.
     pub fn new(model: &RobotModel, choice: &EngineChoice) -> Result<Self, GapError> {
-        let settings =
-            MujocoSettings { integrator: choice.mujoco_integrator()?.to_string(), ..MujocoSettings::default() };
-        let engine = Suspended::new(model, DT, &settings).map_err(GapError::from)?;
-        Ok(Rig::around(engine, model))
+        Ok(Rig::around(mujoco_on_stand(model, choice.mujoco_integrator()?)?, model))
     }
+}
+
+/// MuJoCo with `integrator` holding `model` on the stand.
+fn mujoco_on_stand(model: &RobotModel, integrator: &str) -> Result<Suspended<MujocoEngine>, GapError> {
+    let settings = MujocoSettings { integrator: integrator.to_string(), ..MujocoSettings::default() };
+    Suspended::new(model, DT, &settings).map_err(GapError::from)
 }
 
 impl Rig<dyn Engine> {
     /// A reference rig in any engine of [`EngineChoice`] (MuJoCo with its integrator, Bullet, DART, Rapier).
     pub fn reference(model: &RobotModel, choice: &EngineChoice) -> Result<Self, GapError> {
         let engine: Suspended = match choice {
-            EngineChoice::Mujoco { integrator } => {
-                let settings = MujocoSettings { integrator: integrator.clone(), ..MujocoSettings::default() };
-                let s = Suspended::new(model, DT, &settings).map_err(GapError::from)?;
-                s.into_dyn()
-            }
+            EngineChoice::Mujoco { integrator } => mujoco_on_stand(model, integrator)?.into_dyn(),
             EngineChoice::Other(kind) => Suspended::with_engine(*kind, model, DT).map_err(GapError::from)?,
         };
         Ok(Rig::around(engine, model))

@@ -5,7 +5,7 @@
 //! nothing here changes which effects are named.
 use super::breakdown::{Baseline, Share};
 use super::replay::{Ctx, Scores};
-use super::stats::total;
+use super::stats::{mean, median, total};
 use crate::log::Measurement;
 use crate::noise::{SIGMA_DQ, SIGMA_Q, SIGMA_TAU_FRAC};
 use crate::plant::Effects;
@@ -92,20 +92,6 @@ pub(super) struct Remainder {
     pub unexplained: Unexplained,
 }
 
-fn median(x: &[f64]) -> f64 {
-    if x.is_empty() {
-        return 0.0;
-    }
-    let mut v = x.to_vec();
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
-}
-
 fn ratio_reduction(before: f64, after: f64) -> f64 {
     if before > 0.0 {
         1.0 - after / before
@@ -173,7 +159,6 @@ pub(super) fn remainder(
     let kept = &order[n_trim.min(order.len())..];
     let tmean =
         |x: &[f64]| if kept.is_empty() { 0.0 } else { kept.iter().map(|&i| x[i]).sum::<f64>() / kept.len() as f64 };
-    let mean = |x: &[f64]| if x.is_empty() { 0.0 } else { x.iter().sum::<f64>() / x.len() as f64 };
     let per_window: Vec<f64> = before.iter().zip(&after).map(|(&b, &a)| ratio_reduction(b, a)).collect();
     let count = |f: WindowFlag| held.iter().filter(|w| w.flags.contains(&f)).count();
     let robust = RobustGap {

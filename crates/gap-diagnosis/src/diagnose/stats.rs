@@ -28,6 +28,21 @@ pub(super) fn mean(x: &[f64]) -> f64 {
     }
 }
 
+/// The median (0 for no values).
+pub(super) fn median(x: &[f64]) -> f64 {
+    if x.is_empty() {
+        return 0.0;
+    }
+    let mut v = x.to_vec();
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
 /// Percentile interval of the mean by resampling `x` with replacement.
 pub(super) fn bootstrap_mean(x: &[f64], b: usize, rng: &mut impl Rng) -> Estimate {
     let v = mean(x);

@@ -340,7 +340,6 @@ fn simulate(a: SimulateArgs) -> Result<Exit> {
     }
     let mut cfg = RealConfig::new(&model, a.duration, a.seed);
     cfg.engine = EngineChoice::parse(&a.engine).context("--engine")?;
-    cfg.native_effects = !matches!(cfg.engine, EngineChoice::Mujoco { .. });
     for e in &a.effect {
         parse_effect(e, &model, &mut cfg.effects)?;
     }
@@ -387,7 +386,7 @@ fn bench_cmd(a: BenchArgs) -> Result<Exit> {
         bail!("--floating needs at least one --policy (the walking controller)");
     }
     let reference = EngineChoice::parse(&a.reference_engine).context("--reference-engine")?;
-    if a.floating && !matches!(reference, EngineChoice::Mujoco { .. }) {
+    if a.floating && !reference.is_mujoco() {
         bail!("--floating: the walking reference plant is MuJoCo only (its contact effects are MuJoCo's); --reference-engine works on the rig");
     }
     let opts = BenchOptions { policies, reference, ..BenchOptions::new(a.trials, a.seed, a.duration) };
@@ -463,7 +462,7 @@ fn bench_cmd(a: BenchArgs) -> Result<Exit> {
         } else {
             (
                 "",
-                if matches!(opts.reference, EngineChoice::Mujoco { .. }) {
+                if opts.reference.is_mujoco() {
                     "logs, reference plant MuJoCo + noise + 50 Hz jitter; diagnosing engine MuJoCo implicitfast"
                 } else {
                     "logs, reference plant in another engine (damping and Coulomb friction through its own joint parameters) + noise + 50 Hz jitter; diagnosing engine MuJoCo implicitfast"
