@@ -17,6 +17,9 @@ export CARGO_TERM_COLOR=never INSTA_UPDATE=no
 status=0
 cargo test --locked -p diff-physics --features diff-physics/physx --test physx_engine || status=$?
 phase "physx engine"
+# The PhysX experiments on the campaign's candidate bugs (issue 16): friction offset, contact offset.
+cargo test --locked -p engine-diff --features engine-diff/physx --test campaign_triage -- physx || status=$?
+phase "physx campaign triage"
 cargo test --locked -p ulab --features ulab/physx --test model_cli --test sim_sdk_client --test sim_c010_client \
   -- physx || status=$?
 phase "physx through ulab"

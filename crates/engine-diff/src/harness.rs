@@ -478,6 +478,8 @@ fn apply_push(e: &mut dyn Engine, dv: [f64; 3]) -> Result<(), EngineError> {
 #[derive(Debug, Default)]
 struct InvariantState {
     worst: std::collections::BTreeMap<(usize, &'static str), (f64, f64)>,
+    /// Largest value of every invariant checked, violated or not (what an experiment measures).
+    peak: std::collections::BTreeMap<(usize, &'static str), (f64, f64)>,
     energy_start: Vec<f64>,
     work: Vec<f64>,
     abs_work: Vec<f64>,
@@ -487,6 +489,10 @@ struct InvariantState {
 
 fn note(inv: &mut InvariantState, e: usize, what: &'static str, value: f64, bound: f64) {
     let v = if value.is_nan() { f64::INFINITY } else { value };
+    let p = inv.peak.entry((e, what)).or_insert((v, bound));
+    if v > p.0 {
+        *p = (v, bound);
+    }
     if v > bound {
         let ent = inv.worst.entry((e, what)).or_insert((v, bound));
         if v > ent.0 {
@@ -516,6 +522,9 @@ pub struct WindowRun {
     pub after_k: Vec<(State, Vec<LinkPose>)>,
     /// Per engine `(quantity, value, bound)` of violated invariants.
     pub invariants: Vec<Vec<(String, f64, f64)>>,
+    /// Per engine `(quantity, largest value, bound)` of every invariant checked in the window, violated or not:
+    /// how far below its bound an engine stayed (the allow-list experiments measure with it).
+    pub invariant_peaks: Vec<Vec<(String, f64, f64)>>,
     pub engine_time: Duration,
     /// When requested: per step, per engine, state and link poses.
     pub trace: Vec<Vec<(State, Vec<LinkPose>)>>,
@@ -627,7 +636,11 @@ fn simulate_window(
     for ((i, what), (v, b)) in inv.worst {
         invariants[i].push((what.to_string(), v, b));
     }
-    Ok(WindowRun { after_one, after_k, invariants, engine_time, trace: tr })
+    let mut invariant_peaks = vec![Vec::new(); ne];
+    for ((i, what), (v, b)) in inv.peak {
+        invariant_peaks[i].push((what.to_string(), v, b));
+    }
+    Ok(WindowRun { after_one, after_k, invariants, invariant_peaks, engine_time, trace: tr })
 }
 
 /// Replays a window (no controller): the same function the episode used, so results are bit-identical.

@@ -1,0 +1,260 @@
+//! Experiments on the candidate bugs of the 2026-11-25 campaign (issue 16, item 4), replayed from their
+//! committed reproducers (`corpus/campaign-2026-11-25/`): each changes only the ingredient a triage names and
+//! checks that the finding moves as that explanation predicts. The counterparts are the other engines on the same
+//! state and torques: an engine is an outlier only against engines that agree with each other.
+//!
+//! - one-step joint-velocity divergences at touch-down (nine entries): with collisions off every pair of engines
+//!   agrees within the bound, so they are contact differences; the largest (Rapier 23-25x, PhysX 21x on one
+//!   landing) vanish when Rapier's speculative prediction distance or PhysX's contact offset goes to 0.1-0.2 mm
+//!   (the engine then agrees with MuJoCo, Bullet and DART within the bound); on the hard landing where the engines
+//!   split into two groups, stiffening MuJoCo's soft contact moves it towards the rigid engines.
+//! - MuJoCo penetration 2.02 cm: the soft contact's compliance; it falls with the contact time constant.
+//! - PhysX free-fall COM error (`physx` feature, `scripts/nightly.sh`): NOT the link angular-velocity clamp first
+//!   suspected (lifting it changes nothing). In the step that breaks free fall PhysX reports no contact and no
+//!   vertical force acts (COM z acceleration -9.79 m/s²), yet the COM accelerates 2.7 m/s² sideways; the error
+//!   vanishes with the scene's friction offset threshold (4 cm, Isaac Lab's value) at 1 mm: friction from contact
+//!   points that carry no normal impulse. Still a candidate bug (Coulomb: no friction without normal force); a
+//!   standalone reproduction is open (a separated box sliding in PhysX 5.3 through SAPIEN gets no friction).
+use diff_physics::mujoco::{MujocoEngine, MujocoSettings};
+use diff_physics::{make_engine, CommonSettings, Engine, EngineError, EngineKind};
+use engine_diff::harness::{self, EngineFactory, WindowRun};
+use engine_diff::repro::Reproducer;
+use robot_model::RobotModel;
+use std::sync::Arc;
+
+type Build = dyn Fn(&RobotModel, &CommonSettings) -> Result<Box<dyn Engine>, EngineError> + Send + Sync;
+
+/// An engine with non-default settings, for one experiment.
+struct Variant {
+    name: String,
+    build: Box<Build>,
+}
+
+impl std::fmt::Debug for Variant {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "Variant({})", self.name)
+    }
+}
+
+impl EngineFactory for Variant {
+    fn name(&self) -> String {
+        self.name.clone()
+    }
+    fn build(&self, model: &RobotModel, common: &CommonSettings) -> Result<Box<dyn Engine>, EngineError> {
+        (self.build)(model, common)
+    }
+}
+
+fn builtin(kind: EngineKind) -> Arc<dyn EngineFactory> {
+    Arc::new(Variant { name: kind.name().into(), build: Box::new(move |m, c| make_engine(kind, m, c)) })
+}
+
+fn mujoco_with(settings: MujocoSettings) -> Arc<dyn EngineFactory> {
+    Arc::new(Variant {
+        name: "mujoco".into(),
+        build: Box::new(move |m, c| Ok(Box::new(MujocoEngine::new(m, c, &settings)?) as Box<dyn Engine>)),
+    })
+}
+
+fn load(file: &str) -> Reproducer {
+    let path = format!("{}/../../corpus/campaign-2026-11-25/{file}", env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{path}: {e}"))
+}
+
+/// Replays the reproducer's window (its minimized length, or `steps`) on `factories` (lead first).
+fn replay(r: &Reproducer, factories: &[Arc<dyn EngineFactory>], steps: Option<usize>) -> WindowRun {
+    let model = RobotModel::h1_2().expect("built-in model");
+    let m = harness::scenario_model(&model, &r.scenario);
+    let w = r.window.input(m.nj()).expect("window");
+    let mut engines = harness::build_engines(factories, &m, &r.common).expect("engines");
+    harness::replay_window(&mut engines, &m, &w, steps.unwrap_or(r.steps), r.common.timestep, false).expect("replay")
+}
+
+/// The largest value of invariant `quantity` in engine `i` over the window, violated or not.
+fn peak(run: &WindowRun, i: usize, quantity: &str) -> f64 {
+    run.invariant_peaks[i].iter().find(|(q, _, _)| q == quantity).map_or(0.0, |x| x.1)
+}
+
+use engine_diff::harness::Div;
+
+/// One-step joint-velocity difference between engines `i` and `j` of a run, over the finding's bound.
+fn dq_ratio(r: &Reproducer, run: &WindowRun, i: usize, j: usize) -> f64 {
+    let (a, b) = (&run.after_k[i], &run.after_k[j]);
+    Div::between(&a.0, &a.1, &b.0, &b.1).max_dq() / r.finding.bound
+}
+
+const CPU_ENGINES: [EngineKind; 5] =
+    [EngineKind::Mujoco, EngineKind::RapierMultibody, EngineKind::RapierImpulse, EngineKind::Bullet, EngineKind::Dart];
+
+const TOUCHDOWN: [&str; 9] = [
+    "gepetto-seed12-D01.json",
+    "gepetto-seed12-D02.json",
+    "gepetto-seed12-D03.json",
+    "gepetto-seed12-D04.json",
+    "gepetto-seed12-D05.json",
+    "gepetto-seed13-D01.json",
+    "gepetto-seed13-D02.json",
+    "gepetto-seed13-D03.json",
+    "lstm-seed12-D01.json",
+];
+
+#[test]
+fn touchdown_divergences_are_contact_differences() {
+    let f: Vec<_> = CPU_ENGINES.iter().map(|k| builtin(*k)).collect();
+    for file in TOUCHDOWN {
+        let r = load(file);
+        assert_eq!((r.finding.kind.as_str(), r.finding.quantity.as_str()), ("one_step_bound", "joint velocity"));
+        let with = replay(&r, &f, Some(1));
+        let mut off = r.clone();
+        off.common.collisions = false;
+        let without = replay(&off, &f, Some(1));
+        let mut worst = (0.0_f64, 0.0_f64);
+        for i in 0..f.len() {
+            for j in i + 1..f.len() {
+                worst.0 = worst.0.max(dq_ratio(&r, &with, i, j));
+                worst.1 = worst.1.max(dq_ratio(&r, &without, i, j));
+            }
+        }
+        eprintln!(
+            "{file}: largest pairwise one-step joint-velocity difference / bound: {:.2} with contacts, {:.2} without",
+            worst.0, worst.1
+        );
+        // The finding is there (some pair exceeds the bound); without contacts every pair is back at the bound
+        // or below it (measured 0.24-1.03): what exceeds it comes from the contact models, not from the joints,
+        // the integrators or the torques. The two marginal findings (1.03x and 1.17x of the bound) sit where the
+        // engines already are without contact; for every other the contact-free difference is under a quarter.
+        assert!(worst.0 > 1.0, "{file}: no pair exceeds the bound with contacts ({})", worst.0);
+        assert!(worst.1 < 1.05, "{file}: engines disagree without contacts ({})", worst.1);
+        if worst.0 > 2.0 {
+            assert!(worst.1 < 0.35 * worst.0, "{file}: contacts explain little ({worst:?})");
+        }
+    }
+}
+
+#[test]
+fn rapier_touchdown_outlier_is_its_speculative_margin() {
+    use diff_physics::rapier_multibody::{RapierMultibodyEngine, RapierMultibodySettings};
+    let r = load("gepetto-seed13-D02.json");
+    let rapier = |prediction: f64| -> Arc<dyn EngineFactory> {
+        let mut s = RapierMultibodySettings::default();
+        s.solver.prediction_distance_m = prediction;
+        Arc::new(Variant {
+            name: "rapier_multibody".into(),
+            build: Box::new(move |m, c| Ok(Box::new(RapierMultibodyEngine::new(m, c, &s)?) as Box<dyn Engine>)),
+        })
+    };
+    let others = [EngineKind::Mujoco, EngineKind::Bullet, EngineKind::Dart];
+    let ratios = |prediction: f64| -> Vec<f64> {
+        let mut f: Vec<_> = others.iter().map(|k| builtin(*k)).collect();
+        f.push(rapier(prediction));
+        let run = replay(&r, &f, Some(1));
+        (0..others.len()).map(|j| dq_ratio(&r, &run, 3, j)).collect()
+    };
+    let default = ratios(RapierMultibodySettings::default().solver.prediction_distance_m);
+    let thin = ratios(1e-4);
+    eprintln!("Rapier multibody against MuJoCo, Bullet, DART: {default:.2?} (5 mm prediction), {thin:.2?} (0.1 mm)");
+    // The three other engines agree with each other (checked by the first test's matrix: <= 0.9x); Rapier is
+    // the outlier against every one of them, and only because it engages contacts before the foot touches.
+    assert!(default.iter().all(|&x| x > 10.0), "{default:?}");
+    assert!(thin.iter().all(|&x| x < 1.0), "{thin:?}");
+}
+
+#[test]
+fn stiffer_soft_contact_moves_mujoco_towards_the_rigid_engines() {
+    let r = load("gepetto-seed12-D05.json");
+    let ratios = |timeconst: f64| -> (f64, f64) {
+        let s = MujocoSettings { solref: [timeconst, 1.0], ..MujocoSettings::default() };
+        let f = vec![mujoco_with(s), builtin(EngineKind::Dart), builtin(EngineKind::RapierMultibody)];
+        let run = replay(&r, &f, Some(1));
+        (dq_ratio(&r, &run, 0, 1), dq_ratio(&r, &run, 0, 2))
+    };
+    let soft = ratios(0.02);
+    let stiff = ratios(0.004);
+    eprintln!("MuJoCo against DART, Rapier multibody: {soft:.2?} (solref 0.02 s), {stiff:.2?} (0.004 s = 2 steps)");
+    // DART's and Rapier's rigid contacts stop the landing foot within the step; MuJoCo's soft contact builds its
+    // force over its time constant. Making it stiffer must bring MuJoCo towards both.
+    assert!(stiff.0 < 0.5 * soft.0 && stiff.1 < 0.5 * soft.1, "{soft:?} -> {stiff:?}");
+}
+
+#[test]
+fn mujoco_penetration_is_its_soft_contact() {
+    let r = load("lstm-seed12-D02.json");
+    assert_eq!(r.finding.quantity, "penetration depth");
+    let depth = |timeconst: f64| -> (f64, f64) {
+        let s = MujocoSettings { solref: [timeconst, 1.0], ..MujocoSettings::default() };
+        let run = replay(&r, &[mujoco_with(s), builtin(EngineKind::Dart)], None);
+        (peak(&run, 0, &r.finding.quantity), peak(&run, 1, &r.finding.quantity))
+    };
+    let series: Vec<(f64, (f64, f64))> = [0.02, 0.014, 0.01, 0.007].into_iter().map(|t| (t, depth(t))).collect();
+    for (t, (m, d)) in &series {
+        eprintln!("solref time constant {t} s: MuJoCo penetration {:.2} mm (DART, rigid: {:.2} mm)", m * 1e3, d * 1e3);
+    }
+    let (m0, dart) = series[0].1;
+    assert!(m0 > r.finding.bound, "the finding is gone at the default contact ({m0})");
+    // Softness, not a collision defect: the depth falls with every step of the time constant, and the rigid
+    // DART keeps the foot at the start's penetration (the window starts a few mm in).
+    assert!(series.windows(2).all(|w| w[1].1 .0 < w[0].1 .0), "{series:?}");
+    assert!(series[2].1 .0 < 0.6 * m0, "{series:?}");
+    assert!(dart < 0.5 * m0, "DART sinks as deep ({dart})");
+}
+
+#[cfg(feature = "physx")]
+mod physx {
+    use super::*;
+    use diff_physics::physx::{PhysxEngine, PhysxSettings};
+
+    fn physx(s: PhysxSettings) -> Arc<dyn EngineFactory> {
+        Arc::new(Variant {
+            name: "physx".into(),
+            build: Box::new(move |m, c| Ok(Box::new(PhysxEngine::new(m, c, &s)?) as Box<dyn Engine>)),
+        })
+    }
+
+    #[test]
+    fn physx_flight_friction_is_its_friction_offset_threshold() {
+        let r = load("gepetto-seed12-D06.json");
+        let error = |s: PhysxSettings| -> f64 {
+            let run = replay(&r, &[builtin(EngineKind::Mujoco), physx(s)], None);
+            peak(&run, 1, &r.finding.quantity)
+        };
+        let d = PhysxSettings::default();
+        let default = error(d.clone());
+        let no_clamp = error(PhysxSettings { max_link_angular_velocity: 1e7, ..d.clone() });
+        let thin = error(PhysxSettings { friction_offset_threshold: 0.001, ..d.clone() });
+        eprintln!(
+            "PhysX free-fall COM error (bound {:.2} m/s²): {default:.3} default, {no_clamp:.3} angular-velocity clamp \
+             lifted, {thin:.3} friction offset threshold 1 mm",
+            r.finding.bound
+        );
+        assert!(default > r.finding.bound);
+        // The first suspicion, the link angular-velocity clamp, is refuted: lifting it changes nothing.
+        assert!((no_clamp - default).abs() < 1e-9 * default.max(1.0), "{no_clamp} vs {default}");
+        // Friction for points within the threshold that carry no normal impulse: gone with a 1-mm threshold.
+        assert!(thin < 0.1 * r.finding.bound, "{thin}");
+        // ...while PhysX reports no contact at all in the window.
+        let model = RobotModel::h1_2().expect("model");
+        let m = harness::scenario_model(&model, &r.scenario);
+        let w = r.window.input(m.nj()).expect("window");
+        let mut engines = harness::build_engines(&[physx(d)], &m, &r.common).expect("engine");
+        harness::replay_window(&mut engines, &m, &w, r.steps, r.common.timestep, false).expect("replay");
+        assert!(engines[0].contacts().is_empty(), "PhysX reports a contact at the end of the window");
+    }
+
+    #[test]
+    fn physx_touchdown_outlier_is_its_contact_offset() {
+        let r = load("gepetto-seed13-D03.json");
+        let others = [EngineKind::Mujoco, EngineKind::Bullet, EngineKind::Dart];
+        let ratios = |offset: f64| -> Vec<f64> {
+            let mut f: Vec<_> = others.iter().map(|k| builtin(*k)).collect();
+            f.push(physx(PhysxSettings { contact_offset: offset, ..PhysxSettings::default() }));
+            let run = replay(&r, &f, Some(1));
+            (0..others.len()).map(|j| dq_ratio(&r, &run, 3, j)).collect()
+        };
+        let default = ratios(PhysxSettings::default().contact_offset);
+        let thin = ratios(2e-4);
+        eprintln!("PhysX against MuJoCo, Bullet, DART: {default:.2?} (1 cm contact offset), {thin:.2?} (0.2 mm)");
+        assert!(default.iter().all(|&x| x > 10.0), "{default:?}");
+        assert!(thin.iter().all(|&x| x < 1.0), "{thin:?}");
+    }
+}
