@@ -11,8 +11,9 @@
 //! * a flood from a second participant: copies of the controller's latest command at 5 kHz (10x) during the middle
 //!   fifth of every window (copies, so that the flood loads the bridge without changing what it applies);
 //! * subscribers joining and leaving: every 30 s a new participant reads LowState for 10 s and leaves;
-//! * a recorder (`ulab record`, both topics, the flood included) for the whole run, and short recorders of 60 s
-//!   joining and leaving three times per window;
+//! * a recorder (`ulab record`, both topics, the flood included) for the whole run, split into files of
+//!   `ULAB_SOAK_SPLIT_MINUTES` (default 10; 0 = one file), and short recorders of 60 s joining and leaving three
+//!   times per window;
 //! * every 10 s, RSS and open file descriptors of the bridge and of the long recorder.
 //!
 //! Samples lost are counted from LowState `tick` (milliseconds of simulated time, +2 per state): a missing tick
@@ -87,9 +88,10 @@ fn slope(points: &[(f64, f64)]) -> (f64, f64, f64) {
     (b, sigma / sxx.sqrt(), sigma)
 }
 
-fn spawn_recorder(domain: u32, out: &Path, seconds: f64) -> std::io::Result<Child> {
+fn spawn_recorder(domain: u32, out: &Path, seconds: f64, split_minutes: Option<f64>) -> std::io::Result<Child> {
     Command::new(env!("CARGO_BIN_EXE_ulab"))
         .args(["record", "--domain", &domain.to_string(), "--quiet", "--force", "--duration", &seconds.to_string()])
+        .args(split_minutes.map(|m| ["--split-minutes".to_owned(), m.to_string()]).into_iter().flatten())
         .arg("--out")
         .arg(out)
         .stdout(Stdio::null())
@@ -131,7 +133,14 @@ struct RecordingCheck {
     error: Option<String>,
 }
 
-fn check_recording(name: &str, started_s: f64, exit: String, path: &Path, reader: &BTreeSet<u32>) -> RecordingCheck {
+/// Checks a recording made of one or more files (a split recording's segments, in order).
+fn check_recording(
+    name: &str,
+    started_s: f64,
+    exit: String,
+    paths: &[PathBuf],
+    reader: &BTreeSet<u32>,
+) -> RecordingCheck {
     let mut r = RecordingCheck {
         name: name.to_owned(),
         started_s,
@@ -143,51 +152,56 @@ fn check_recording(name: &str, started_s: f64, exit: String, path: &Path, reader
         lost_commands: 0,
         error: None,
     };
-    let bytes = match std::fs::read(path) {
-        Ok(b) => b,
-        Err(e) => {
-            r.error = Some(e.to_string());
-            return r;
-        }
-    };
-    let messages = match recording::messages(&bytes) {
-        Ok(m) => m,
-        Err(e) => {
-            r.error = Some(e.to_string());
-            return r;
-        }
-    };
     let mut ticks = Vec::new();
     let (mut probe, mut probes) = (None, BTreeSet::new());
-    for m in messages {
-        match m {
-            Ok(m) => match recording::channel_type_name(&m.channel).as_deref().and_then(recording::kind_of) {
-                Some(MessageType::HgLowState) => {
-                    r.lowstate += 1;
-                    if let Some(t) = recording::lowstate_tick(MessageType::HgLowState, &m.data) {
-                        ticks.push(t);
-                    }
-                }
-                Some(MessageType::HgLowCmd) => {
-                    r.lowcmd += 1;
-                    if let Ok(d) = cdr::decode::<hg::LowCmd_>(&m.data) {
-                        if let Some(idx) = probe_index(d.value.motor_cmd[PROBE].tau.to_bits()) {
-                            // Unwrap the cycle: the probe nearest the last one seen (the flood's copies of an older
-                            // command may arrive after a newer one from the controller).
-                            let k = probe.map_or(idx as i64, |k: i64| {
-                                let (c, half) = (PROBE_CYCLE as i64, PROBE_CYCLE as i64 / 2);
-                                k + (idx as i64 - k.rem_euclid(c) + c + half).rem_euclid(c) - half
-                            });
-                            probe = Some(k);
-                            probes.insert(k);
-                        }
-                    }
-                }
-                _ => {}
-            },
+    if paths.is_empty() {
+        r.error = Some("no file".into());
+    }
+    'files: for path in paths {
+        let bytes = match std::fs::read(path) {
+            Ok(b) => b,
             Err(e) => {
                 r.error = Some(e.to_string());
                 break;
+            }
+        };
+        let messages = match recording::messages(&bytes) {
+            Ok(m) => m,
+            Err(e) => {
+                r.error = Some(e.to_string());
+                break;
+            }
+        };
+        for m in messages {
+            match m {
+                Ok(m) => match recording::channel_type_name(&m.channel).as_deref().and_then(recording::kind_of) {
+                    Some(MessageType::HgLowState) => {
+                        r.lowstate += 1;
+                        if let Some(t) = recording::lowstate_tick(MessageType::HgLowState, &m.data) {
+                            ticks.push(t);
+                        }
+                    }
+                    Some(MessageType::HgLowCmd) => {
+                        r.lowcmd += 1;
+                        if let Ok(d) = cdr::decode::<hg::LowCmd_>(&m.data) {
+                            if let Some(idx) = probe_index(d.value.motor_cmd[PROBE].tau.to_bits()) {
+                                // Unwrap the cycle: the probe nearest the last one seen (the flood's copies of an older
+                                // command may arrive after a newer one from the controller).
+                                let k = probe.map_or(idx as i64, |k: i64| {
+                                    let (c, half) = (PROBE_CYCLE as i64, PROBE_CYCLE as i64 / 2);
+                                    k + (idx as i64 - k.rem_euclid(c) + c + half).rem_euclid(c) - half
+                                });
+                                probe = Some(k);
+                                probes.insert(k);
+                            }
+                        }
+                    }
+                    _ => {}
+                },
+                Err(e) => {
+                    r.error = Some(e.to_string());
+                    break 'files;
+                }
             }
         }
     }
@@ -339,7 +353,9 @@ fn main() {
     let long_path = dir.join("long.mcap");
     let long_started = start.elapsed().as_secs_f64();
     // Stopped with Ctrl-C (SIGINT) after the controller stops, as a user stops it.
-    let long = spawn_recorder(domain, &long_path, total + 60.0).expect("start ulab record");
+    // Split into files of ULAB_SOAK_SPLIT_MINUTES (default 10; 0: one file), which bounds the writer's chunk index.
+    let split = Some(env_f64("ULAB_SOAK_SPLIT_MINUTES", 10.0)).filter(|m| *m > 0.0);
+    let long = spawn_recorder(domain, &long_path, total + 60.0, split).expect("start ulab record");
     let long_pid = long.id();
     let mut long = Killed(long);
     let shorts = {
@@ -357,7 +373,7 @@ fn main() {
                 k += 1.0;
                 let name = format!("short-{k:.0}");
                 let path = dir.join(format!("{name}.mcap"));
-                let exit = match spawn_recorder(domain, &path, SHORT_RECORDING_S) {
+                let exit = match spawn_recorder(domain, &path, SHORT_RECORDING_S, None) {
                     Ok(mut child) => wait_bounded(&mut child, Duration::from_secs_f64(SHORT_RECORDING_S + 30.0))
                         .map_or("hung (killed)".into(), |s| s.to_string()),
                     Err(e) => format!("did not start: {e}"),
@@ -544,16 +560,25 @@ fn main() {
     }
     println!();
 
+    // The long recording's files: OUT itself, or its segments long_000.mcap, long_001.mcap, ...
+    let long_files: Vec<PathBuf> = if split.is_none() {
+        vec![long_path.clone()]
+    } else {
+        (0..).map(|i| dir.join(format!("long_{i:03}.mcap"))).take_while(|p| p.exists()).collect()
+    };
+    println!("Long recording: {} file(s) (--split-minutes {split:?}).", long_files.len());
     println!("| recording | started | exit | LowState | LowCmd | missing ticks in file | LowState lost vs our reader | controller commands lost | error |");
     println!("|---|---:|---|---:|---:|---:|---:|---:|---|");
     let mut checks = vec![check_recording(
         "long",
         long_started,
         long_status.map_or("hung (killed)".into(), |s| s.to_string()),
-        &long_path,
+        &long_files,
         &reader_ticks,
     )];
-    checks.extend(short_runs.iter().map(|(n, t, e, p)| check_recording(n, *t, e.clone(), p, &reader_ticks)));
+    checks.extend(
+        short_runs.iter().map(|(n, t, e, p)| check_recording(n, *t, e.clone(), std::slice::from_ref(p), &reader_ticks)),
+    );
     for c in &checks {
         println!(
             "| {} | {:.0} s | {} | {} | {} | {} | {} | {} | {} |",

@@ -5,6 +5,10 @@
 //! writer's source timestamp. Ctrl-C (or --duration) ends the
 //! recording and the file is finished properly. At the end, gaps that can be detected are
 //! reported: LowState tick jumps, arrival gaps and one-second windows with a low rate.
+//!
+//! `--split-minutes` starts a new file every so often, each finished and indexed. Why: an indexed MCAP
+//! writer keeps one index entry per chunk until the file is finished (a few hundred bytes per 256-KiB
+//! chunk, ~150 KiB a minute at 500 Hz), so one endless file makes the recorder's memory grow with it.
 
 mod gaps;
 
@@ -83,6 +87,47 @@ pub struct Args {
     /// rt/lowcmd at 500 Hz.
     #[arg(long, default_value_t = recording::CHUNK_SIZE, value_parser = clap::value_parser!(u64).range(4096..=(64 << 20)))]
     pub chunk_size: u64,
+    /// Start a new file every this many minutes (fractions allowed): OUT becomes OUT_000.mcap, OUT_001.mcap, …,
+    /// each finished and indexed, so memory stays bounded however long the recording runs (one file keeps its
+    /// chunk index in memory until it is finished). Nothing is lost or duplicated at the seams.
+    #[arg(long)]
+    pub split_minutes: Option<f64>,
+}
+
+/// The files of one recording: OUT itself, or numbered segments of it with `--split-minutes`.
+struct Segments {
+    out: PathBuf,
+    split: Option<Duration>,
+    next: usize,
+    force: bool,
+}
+
+impl Segments {
+    /// The path of segment `i` (`run.mcap` → `run_000.mcap`).
+    fn path(&self, i: usize) -> PathBuf {
+        if self.split.is_none() {
+            return self.out.clone();
+        }
+        let stem = self.out.file_stem().map_or_else(|| "recording".into(), |s| s.to_string_lossy().into_owned());
+        let ext = self.out.extension().map_or_else(|| "mcap".into(), |s| s.to_string_lossy().into_owned());
+        self.out.with_file_name(format!("{stem}_{i:03}.{ext}"))
+    }
+
+    /// Creates the next file with every channel (their ids are set anew).
+    fn open(&mut self, opts: &mcap::WriteOptions, channels: &mut [Channel]) -> Result<mcap::Writer<BufWriter<File>>> {
+        let path = self.path(self.next);
+        if path.exists() && !self.force {
+            bail!("{} exists (use --force to overwrite)", path.display());
+        }
+        let file = File::create(&path).with_context(|| format!("creating {}", path.display()))?;
+        let mut writer = opts.clone().create(BufWriter::new(file)).context("starting the MCAP file")?;
+        for ch in channels.iter_mut() {
+            ch.id = recording::add_topic(&mut writer, &ch.choice.spec.name, &ch.choice.spec.type_name)
+                .with_context(|| format!("adding the channel of {}", ch.choice.spec.name))?;
+        }
+        self.next += 1;
+        Ok(writer)
+    }
 }
 
 struct Channel {
@@ -116,11 +161,12 @@ pub fn run(args: Args) -> Result<Exit> {
         }
         choices.push(c);
     }
-    if args.out.exists() && !args.force {
-        bail!("{} exists (use --force to overwrite)", args.out.display());
-    }
-
-    let file = File::create(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    let split = match args.split_minutes {
+        None => None,
+        Some(m) if m.is_finite() && m > 0.0 && m <= 1e6 => Some(Duration::from_secs_f64(m * 60.0)),
+        Some(_) => bail!("--split-minutes must be a positive number of minutes"),
+    };
+    let mut segments = Segments { out: args.out.clone(), split, next: 0, force: args.force };
     let compression = match args.compression {
         CompressionArg::None => recording::Compression::None,
         CompressionArg::Zstd => recording::Compression::Zstd,
@@ -131,13 +177,12 @@ pub fn run(args: Args) -> Result<Exit> {
         compression,
         args.chunk_size,
     );
-    let mut writer = opts.create(BufWriter::new(file)).context("starting the MCAP file")?;
-    let mut channels = Vec::new();
-    for c in choices {
-        let id = recording::add_topic(&mut writer, &c.spec.name, &c.spec.type_name)
-            .with_context(|| format!("adding the channel of {}", c.spec.name))?;
-        channels.push(Channel { choice: c, id, sequence: 0, stats: gaps::GapStats::default() });
-    }
+    let mut channels: Vec<Channel> = choices
+        .into_iter()
+        .map(|choice| Channel { choice, id: 0, sequence: 0, stats: gaps::GapStats::default() })
+        .collect();
+    let mut writer = segments.open(&opts, &mut channels)?;
+    let mut segment_started = Instant::now();
 
     let stop = Arc::new(AtomicBool::new(false));
     {
@@ -171,7 +216,7 @@ pub fn run(args: Args) -> Result<Exit> {
             channels.iter().map(|c| c.choice.spec.name.as_str()).collect::<Vec<_>>().join(", "),
             cfg.domain_id(),
             cfg.interface_name(),
-            args.out.display(),
+            segments.path(0).display(),
             match args.duration {
                 Some(d) => format!("{d} s"),
                 None => "Ctrl-C to stop".to_owned(),
@@ -198,6 +243,28 @@ pub fn run(args: Args) -> Result<Exit> {
             }
             Err(mpsc::RecvTimeoutError::Timeout) => {}
             Err(mpsc::RecvTimeoutError::Disconnected) => break,
+        }
+        // Samples wait in the queue meanwhile: the seam loses nothing.
+        if segments.split.is_some_and(|d| segment_started.elapsed() >= d) {
+            let done = segments.path(segments.next - 1);
+            let mut meta = BTreeMap::new();
+            meta.insert("segment".to_owned(), (segments.next - 1).to_string());
+            let _ = writer.write_metadata(&mcap::records::Metadata { name: "ulab.record".to_owned(), metadata: meta });
+            if let Err(e) = writer.finish() {
+                write_error = Some(anyhow::Error::from(e).context(format!("finishing {}", done.display())));
+                break;
+            }
+            match segments.open(&opts, &mut channels) {
+                Ok(w) => writer = w,
+                Err(e) => {
+                    write_error = Some(e);
+                    break;
+                }
+            }
+            segment_started = Instant::now();
+            if !args.quiet {
+                eprintln!("  finished {}, now {}", done.display(), segments.path(segments.next - 1).display());
+            }
         }
         if !args.quiet && last_status.elapsed() >= Duration::from_secs(5) {
             let dt = last_status.elapsed().as_secs_f64();
@@ -233,6 +300,9 @@ pub fn run(args: Args) -> Result<Exit> {
     meta.insert("interface".to_owned(), cfg.interface_name().to_owned());
     meta.insert("start_ns".to_owned(), started_ns.to_string());
     meta.insert("report".to_owned(), report.text.clone());
+    if segments.split.is_some() {
+        meta.insert("segment".to_owned(), (segments.next - 1).to_string());
+    }
     let _ = writer.write_metadata(&mcap::records::Metadata { name: "ulab.record".to_owned(), metadata: meta });
     writer.finish().context("finishing the MCAP file")?;
     drop(writer);
