@@ -50,6 +50,8 @@ pub struct DomainConfig {
     pub(crate) peers: Vec<String>,
     /// Optional Cyclone tracing: (verbosity, output file), e.g. ("finest", "/tmp/cdds.log").
     pub(crate) tracing: Option<(String, String)>,
+    /// Socket receive buffer to request (bytes); `None`: Cyclone's default (asks for 1 MiB).
+    pub(crate) socket_receive_buffer: Option<u64>,
 }
 
 impl Default for DomainConfig {
@@ -62,6 +64,7 @@ impl Default for DomainConfig {
             max_auto_participant_index: 32,
             peers: vec!["127.0.0.1".to_owned()],
             tracing: None,
+            socket_receive_buffer: None,
         }
     }
 }
@@ -152,6 +155,20 @@ impl DomainConfig {
         &self.peers
     }
 
+    /// Requests a socket receive buffer of `bytes` (Cyclone's `Internal/SocketReceiveBufferSize[@max]`; the
+    /// kernel caps it at `net.core.rmem_max`, and whatever it grants is accepted). Why: while a process is
+    /// descheduled its samples wait in this buffer; Cyclone's default 1 MiB holds about one second of hg
+    /// LowState at 500 Hz, and a longer stall loses samples (best effort).
+    pub fn socket_receive_buffer(mut self, bytes: u64) -> Self {
+        self.socket_receive_buffer = Some(bytes);
+        self
+    }
+
+    /// The socket receive buffer requested, if any.
+    pub fn socket_receive_buffer_bytes(&self) -> Option<u64> {
+        self.socket_receive_buffer
+    }
+
     /// Whether this configuration may reach a real robot: domain 0 or a non-loopback interface.
     pub fn may_reach_robot(&self) -> bool {
         self.domain == unitree_idl::topics::ROBOT_DOMAIN || !is_loopback_interface(&self.interface)
@@ -180,6 +197,11 @@ impl DomainConfig {
                 return Err(Error::InvalidConfig(format!("participant index {i} is above 119")));
             }
         }
+        if let Some(b) = self.socket_receive_buffer {
+            if !(64 * 1024..=1 << 30).contains(&b) {
+                return Err(Error::InvalidConfig(format!("socket receive buffer {b} bytes (64 KiB to 1 GiB)")));
+            }
+        }
         if self.max_auto_participant_index > 119 {
             return Err(Error::InvalidConfig("max_auto_participant_index above 119".to_owned()));
         }
@@ -206,6 +228,10 @@ impl DomainConfig {
             peers.push_str(&format!("<Peer address=\"{p}\"/>"));
         }
         let peers = if peers.is_empty() { String::new() } else { format!("<Peers>{peers}</Peers>") };
+        let internal = match self.socket_receive_buffer {
+            Some(b) => format!("<Internal><SocketReceiveBufferSize max=\"{b}B\"/></Internal>"),
+            None => String::new(),
+        };
         let tracing = match &self.tracing {
             Some((v, f)) => format!("<Tracing><Verbosity>{v}</Verbosity><OutputFile>{f}</OutputFile></Tracing>"),
             None => String::new(),
@@ -215,7 +241,7 @@ impl DomainConfig {
              <General><Interfaces><NetworkInterface name=\"{iface}\" priority=\"default\" multicast=\"default\"/></Interfaces></General>\
              <Discovery><ParticipantIndex>{index}</ParticipantIndex>\
              <MaxAutoParticipantIndex>{max}</MaxAutoParticipantIndex>{peers}</Discovery>\
-             {tracing}</Domain></CycloneDDS>",
+             {internal}{tracing}</Domain></CycloneDDS>",
             iface = self.interface,
             max = self.max_auto_participant_index,
         )
@@ -273,6 +299,16 @@ mod tests {
         assert!(DomainConfig::new().peers(["1.2.3.4<"]).validate().is_err());
         assert!(DomainConfig::loopback(233).validate().is_err());
         assert!(DomainConfig::new().participant_index(ParticipantIndex::Fixed(120)).validate().is_err());
+    }
+
+    #[test]
+    fn socket_buffer_is_bounded_and_in_the_xml() {
+        assert!(!DomainConfig::loopback(7).to_xml().contains("SocketReceiveBufferSize"));
+        let c = DomainConfig::loopback(7).socket_receive_buffer(8 << 20);
+        assert!(c.validate().is_ok());
+        assert!(c.to_xml().contains("<Internal><SocketReceiveBufferSize max=\"8388608B\"/></Internal>"));
+        assert!(DomainConfig::loopback(7).socket_receive_buffer(1000).validate().is_err());
+        assert!(DomainConfig::loopback(7).socket_receive_buffer(2 << 30).validate().is_err());
     }
 
     #[test]

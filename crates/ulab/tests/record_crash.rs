@@ -171,3 +171,73 @@ fn a_split_recording_loses_nothing_at_the_seams() {
     assert!(last["metadata"]["ulab.record"]["report"].is_string(), "the last file carries the report");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Records rt/lowstate from a running simulator for `seconds`, stopping the recorder (SIGSTOP) for `stall`
+/// seconds in the middle; returns the LowState missing by tick (the official reader reads the file).
+fn stalled_recording(dir: &Path, domain: &test_support::DomainLease, stall: f64, socket_buffer: u64) -> u64 {
+    let file = dir.join(format!("stalled-{socket_buffer}.mcap"));
+    let seconds = stall + 4.0;
+    let rec = Command::new(env!("CARGO_BIN_EXE_ulab"))
+        .args(["record", "--domain", &domain.arg(), "--quiet", "--topics", "rt/lowstate", "--force"])
+        .args(["--duration", &seconds.to_string(), "--socket-buffer", &socket_buffer.to_string(), "--out"])
+        .arg(&file)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("start ulab record");
+    let pid = rec.id().to_string();
+    let rec = KillOnDrop(Some(rec));
+    std::thread::sleep(Duration::from_secs(2));
+    let signal = |s: &str| Command::new("kill").args([s, &pid]).status().expect("kill").success();
+    assert!(signal("-STOP"), "SIGSTOP");
+    std::thread::sleep(Duration::from_secs_f64(stall));
+    assert!(signal("-CONT"), "SIGCONT");
+    let mut rec = rec;
+    let (status, _, err) = wait_with_timeout(rec.0.take().expect("recorder"), PATIENCE);
+    assert!(status.is_some_and(|s| s.success()), "recorder: {}", tail(&err));
+    let v = python_json("read_mcap.py", &file);
+    let ticks: Vec<u64> =
+        v["topics"]["rt/lowstate"]["ticks"].as_array().expect("ticks").iter().filter_map(Value::as_u64).collect();
+    assert!(ticks.len() > 1000, "{} LowState", ticks.len());
+    // Ticks are milliseconds of simulated time, +2 per state.
+    ticks.windows(2).map(|w| (w[1].saturating_sub(w[0]) / 2).saturating_sub(1)).sum()
+}
+
+/// A recorder descheduled for a while (a loaded machine, a debugger, a laptop's power management) finds the
+/// samples of that while in its socket's receive buffer: `--socket-buffer` (default 8 MiB, capped by the kernel's
+/// net.core.rmem_max) decides how long it can be away without losing any. Measured on loopback (BENCHMARKS.md):
+/// about 0.95 s of hg LowState at 500 Hz per MiB granted; Cyclone's default 1 MiB loses samples from a 1-s stall.
+#[test]
+fn a_stalled_recorder_loses_nothing_its_socket_buffer_can_hold() {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("ulab-record-stall");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let domain = lease_domain();
+    let sim = Command::new(env!("CARGO_BIN_EXE_ulab"))
+        .args(["sim", "--engine", "mujoco", "--domain", &domain.arg(), "--loco-api", "none", "--quiet"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("start ulab sim");
+    let _sim = KillOnDrop(Some(sim));
+    std::thread::sleep(Duration::from_secs(1));
+    // What the kernel grants of the default request, and the stall it should hold with a wide margin.
+    let rmem_max: u64 = std::fs::read_to_string("/proc/sys/net/core/rmem_max")
+        .ok()
+        .and_then(|s| s.trim().parse().ok())
+        .unwrap_or(212_992);
+    let granted = rmem_max.min(8 << 20);
+    let held_s = granted as f64 / (1u64 << 20) as f64 * 0.95;
+    let stall = (0.5 * held_s).min(1.5);
+    // Control: a 64-KiB buffer holds ~0.06 s, so the same stall loses samples: the measurement can fail.
+    let lost_small = stalled_recording(&dir, &domain, stall.max(0.5), 64 * 1024);
+    assert!(lost_small > 10, "a 64-KiB socket buffer lost only {lost_small} LowState over a {stall:.2}-s stall");
+    if held_s < 1.0 {
+        eprintln!("net.core.rmem_max is {rmem_max} bytes: too small to show the default buffer holding a stall");
+        return;
+    }
+    let lost = stalled_recording(&dir, &domain, stall, 8 << 20);
+    eprintln!("{stall:.2}-s stall: {lost} LowState lost with the default buffer, {lost_small} with 64 KiB");
+    assert_eq!(lost, 0, "the default socket buffer lost LowState over a {stall:.2}-s stall (rmem_max {rmem_max})");
+    let _ = std::fs::remove_dir_all(&dir);
+}

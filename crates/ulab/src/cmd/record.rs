@@ -92,6 +92,19 @@ pub struct Args {
     /// chunk index in memory until it is finished). Nothing is lost or duplicated at the seams.
     #[arg(long)]
     pub split_minutes: Option<f64>,
+    /// Socket receive buffer to ask the kernel for (bytes). While the recorder is descheduled, samples wait
+    /// there; Cyclone's default 1 MiB holds about one second of hg LowState at 500 Hz. The kernel grants at most
+    /// net.core.rmem_max (a warning says so when that is less).
+    #[arg(long, default_value_t = DEFAULT_SOCKET_BUFFER, value_parser = clap::value_parser!(u64).range(65536..=(1 << 30)))]
+    pub socket_buffer: u64,
+}
+
+/// `--socket-buffer` default: 8 MiB, several seconds of rt/lowstate and rt/lowcmd at 500 Hz.
+pub const DEFAULT_SOCKET_BUFFER: u64 = 8 << 20;
+
+/// The kernel's cap on a socket receive buffer (`net.core.rmem_max`), where Linux tells it.
+fn kernel_rmem_max() -> Option<u64> {
+    std::fs::read_to_string("/proc/sys/net/core/rmem_max").ok()?.trim().parse().ok()
 }
 
 /// The files of one recording: OUT itself, or numbered segments of it with `--split-minutes`.
@@ -145,7 +158,15 @@ fn now_ns() -> u64 {
 pub const DEFAULT_TOPICS: [&str; 3] = ["rt/lowcmd", "rt/lowstate", unitree_idl::topics::SPORTMODESTATE];
 
 pub fn run(args: Args) -> Result<Exit> {
-    let cfg = args.net.domain_config()?;
+    let cfg = args.net.domain_config()?.socket_receive_buffer(args.socket_buffer);
+    if let Some(cap) = kernel_rmem_max().filter(|&c| c < args.socket_buffer) {
+        eprintln!(
+            "warning: the kernel grants socket buffers of at most {cap} bytes (net.core.rmem_max), less than the \
+             {} asked for: a recorder descheduled for longer than that holds loses samples \
+             (`sysctl -w net.core.rmem_max={}` raises the cap)",
+            args.socket_buffer, args.socket_buffer
+        );
+    }
     if let Some(d) = args.duration {
         if !(d.is_finite() && d > 0.0) {
             bail!("--duration must be a positive number of seconds");
