@@ -26,6 +26,17 @@ fn python_json(script: &str, file: &Path) -> Value {
     serde_json::from_str(out.lines().last().unwrap_or("")).expect("the script prints JSON")
 }
 
+/// `ulab sim` (MuJoCo, LowState at 500 Hz) on the leased domain, killed when the guard drops.
+fn start_sim(domain: &test_support::DomainLease) -> KillOnDrop {
+    let sim = Command::new(env!("CARGO_BIN_EXE_ulab"))
+        .args(["sim", "--engine", "mujoco", "--domain", &domain.arg(), "--loco-api", "none", "--quiet"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("start ulab sim");
+    KillOnDrop(Some(sim))
+}
+
 #[test]
 fn a_killed_recording_is_readable_up_to_its_last_chunk_and_recovers() {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("ulab-record-crash");
@@ -33,13 +44,7 @@ fn a_killed_recording_is_readable_up_to_its_last_chunk_and_recovers() {
     std::fs::create_dir_all(&dir).expect("temp dir");
     let file = dir.join("killed.mcap");
     let domain = lease_domain();
-    let sim = Command::new(env!("CARGO_BIN_EXE_ulab"))
-        .args(["sim", "--engine", "mujoco", "--domain", &domain.arg(), "--loco-api", "none", "--quiet"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("start ulab sim");
-    let _sim = KillOnDrop(Some(sim));
+    let _sim = start_sim(&domain);
     let rec = Command::new(env!("CARGO_BIN_EXE_ulab"))
         .args(["record", "--domain", &domain.arg(), "--quiet", "--chunk-size", &CHUNK.to_string(), "--out"])
         .arg(&file)
@@ -111,13 +116,7 @@ fn a_split_recording_loses_nothing_at_the_seams() {
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).expect("temp dir");
     let domain = lease_domain();
-    let sim = Command::new(env!("CARGO_BIN_EXE_ulab"))
-        .args(["sim", "--engine", "mujoco", "--domain", &domain.arg(), "--loco-api", "none", "--quiet"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("start ulab sim");
-    let _sim = KillOnDrop(Some(sim));
+    let _sim = start_sim(&domain);
     let out = dir.join("run.mcap");
     // A new file every 0.9 s for 4 s: four or five files (the first may start before the simulator publishes).
     let (code, stdout, stderr) = run_ulab(
@@ -213,13 +212,7 @@ fn a_stalled_recorder_loses_nothing_its_socket_buffer_can_hold() {
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).expect("temp dir");
     let domain = lease_domain();
-    let sim = Command::new(env!("CARGO_BIN_EXE_ulab"))
-        .args(["sim", "--engine", "mujoco", "--domain", &domain.arg(), "--loco-api", "none", "--quiet"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("start ulab sim");
-    let _sim = KillOnDrop(Some(sim));
+    let _sim = start_sim(&domain);
     std::thread::sleep(Duration::from_secs(1));
     // What the kernel grants of the default request, and the stall it should hold with a wide margin.
     let rmem_max: u64 = std::fs::read_to_string("/proc/sys/net/core/rmem_max")
