@@ -14,16 +14,21 @@
 //! * a recorder (`ulab record`, both topics, the flood included) for the whole run, split into files of
 //!   `ULAB_SOAK_SPLIT_MINUTES` (default 10; 0 = one file), and short recorders of 60 s joining and leaving three
 //!   times per window;
-//! * every 10 s, RSS and open file descriptors of the bridge and of the long recorder.
+//! * every 10 s, RSS, anonymous RSS and open file descriptors of the bridge and of the long recorder.
 //!
 //! Samples lost are counted from LowState `tick` (milliseconds of simulated time, +2 per state): a missing tick
 //! between two received ones is a lost sample. A recording is also compared, tick by tick, with what this process's
 //! own reader received over the same span (a sample the reader has and the file lacks was lost by the recorder).
-//! Memory is judged by the least-squares slope of RSS after the first window, with its standard error.
+//! Memory is judged by the least-squares slope of anonymous RSS (heap, stacks: what a leak grows) after the first
+//! window, with its standard error; total RSS is shown beside it (it also counts executable pages as they are
+//! touched or reclaimed).
 
 mod common;
 
-use common::{clock_ticks, collect_stderr, cpu_seconds, loadavg, open_fds, percentile, rss_kib, wait_bounded, Killed};
+use common::{
+    clock_ticks, collect_stderr, cpu_seconds, loadavg, open_fds, percentile, rss_anon_kib, rss_kib, wait_bounded,
+    Killed,
+};
 use dds_transport::{DomainConfig, Family, Participant, TopicSpec};
 use lowlevel_codec::{cdr, crc, Encoding};
 use std::collections::BTreeSet;
@@ -104,8 +109,10 @@ fn spawn_recorder(domain: u32, out: &Path, seconds: f64, split_minutes: Option<f
 struct Reading {
     t: f64,
     sim_rss: Option<u64>,
+    sim_anon: Option<u64>,
     sim_fds: Option<usize>,
     rec_rss: Option<u64>,
+    rec_anon: Option<u64>,
     rec_fds: Option<usize>,
 }
 
@@ -396,8 +403,10 @@ fn main() {
                     readings.push(Reading {
                         t,
                         sim_rss: rss_kib(sim_pid),
+                        sim_anon: rss_anon_kib(sim_pid),
                         sim_fds: open_fds(sim_pid),
                         rec_rss: rss_kib(long_pid),
+                        rec_anon: rss_anon_kib(long_pid),
                         rec_fds: open_fds(long_pid),
                     });
                     next += MONITOR_EVERY_S;
@@ -479,7 +488,7 @@ fn main() {
         "## Soak: `ulab sim` (MuJoCo) + recorders, {minutes} min (load average before {load_before}, after {})\n",
         loadavg()
     );
-    println!("| window | LowState rate (our reader) | lost ticks (our reader) | cmd→state p50 / p99 / max | probes (unresolved) | bridge RSS / fds at end | recorder RSS / fds at end |");
+    println!("| window | LowState rate (our reader) | lost ticks (our reader) | cmd→state p50 / p99 / max | probes (unresolved) | bridge RSS (anon) / fds at end | recorder RSS (anon) / fds at end |");
     println!("|---|---:|---:|---:|---:|---:|---:|");
     for w in 0..windows {
         let (a, b) = (w as f64 * window, ((w + 1) as f64 * window).min(total));
@@ -490,12 +499,9 @@ fn main() {
         let probes = sends.iter().filter(|t| **t >= a && **t < b).count();
         ms.sort_by(f64::total_cmp);
         let last = readings.iter().rev().find(|r| r.t < b);
-        let fmt = |rss: Option<u64>, fds: Option<usize>| {
-            format!(
-                "{} MiB / {}",
-                rss.map_or("—".into(), |k| format!("{:.1}", k as f64 / 1024.0)),
-                fds.map_or("—".into(), |n| n.to_string())
-            )
+        let fmt = |rss: Option<u64>, anon: Option<u64>, fds: Option<usize>| {
+            let mib = |v: Option<u64>| v.map_or("—".into(), |k| format!("{:.1}", k as f64 / 1024.0));
+            format!("{} ({}) MiB / {}", mib(rss), mib(anon), fds.map_or("—".into(), |n| n.to_string()))
         };
         println!(
             "| {:.1}–{:.1} min | {:.1} Hz | {} | {:.2} / {:.2} / {:.1} ms | {} ({}) | {} | {} |",
@@ -508,8 +514,8 @@ fn main() {
             ms.last().copied().unwrap_or(f64::NAN),
             probes,
             probes - ms.len(),
-            last.map_or("—".into(), |r| fmt(r.sim_rss, r.sim_fds)),
-            last.map_or("—".into(), |r| fmt(r.rec_rss, r.rec_fds)),
+            last.map_or("—".into(), |r| fmt(r.sim_rss, r.sim_anon, r.sim_fds)),
+            last.map_or("—".into(), |r| fmt(r.rec_rss, r.rec_anon, r.rec_fds)),
         );
     }
     println!();
@@ -539,9 +545,12 @@ fn main() {
     };
     println!("| process | quantity | first → last (after {:.0} min) | slope per minute (± s.e.) | over the run | flat (|slope| < 2 s.e. or drift < 1 MiB / 1 fd) |", after / 60.0);
     println!("|---|---|---:|---:|---:|---|");
-    let rows: [(&str, &str, Box<dyn Fn(&Reading) -> Option<f64>>, f64); 4] = [
+    // Anonymous memory is what a leak grows; RSS also moves with pages of the executable touched or reclaimed.
+    let rows: [(&str, &str, Box<dyn Fn(&Reading) -> Option<f64>>, f64); 6] = [
+        ("bridge", "anonymous KiB", Box::new(|r| r.sim_anon.map(|v| v as f64)), 1024.0),
         ("bridge", "RSS KiB", Box::new(|r| r.sim_rss.map(|v| v as f64)), 1024.0),
         ("bridge", "open fds", Box::new(|r| r.sim_fds.map(|v| v as f64)), 1.0),
+        ("long recorder", "anonymous KiB", Box::new(|r| r.rec_anon.map(|v| v as f64)), 1024.0),
         ("long recorder", "RSS KiB", Box::new(|r| r.rec_rss.map(|v| v as f64)), 1024.0),
         ("long recorder", "open fds", Box::new(|r| r.rec_fds.map(|v| v as f64)), 1.0),
     ];

@@ -56,8 +56,19 @@ pub fn cpu_seconds(pid: u32, ticks_per_s: f64) -> Option<f64> {
 
 /// Resident set size of a process in KiB (`VmRSS` of /proc/PID/status).
 pub fn rss_kib(pid: u32) -> Option<u64> {
+    status_kib(pid, "VmRSS:")
+}
+
+/// Anonymous resident memory of a process in KiB (`RssAnon`: heap, stacks, anonymous maps). A leak grows this;
+/// `VmRSS` also counts pages of the executable and libraries as code paths first touch them, and loses them when
+/// the kernel reclaims page cache, so its slope mixes both.
+pub fn rss_anon_kib(pid: u32) -> Option<u64> {
+    status_kib(pid, "RssAnon:")
+}
+
+fn status_kib(pid: u32, field: &str) -> Option<u64> {
     let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
-    status.lines().find_map(|l| l.strip_prefix("VmRSS:")?.split_whitespace().next()?.parse().ok())
+    status.lines().find_map(|l| l.strip_prefix(field)?.split_whitespace().next()?.parse().ok())
 }
 
 /// Open file descriptors of a process (entries of /proc/PID/fd).

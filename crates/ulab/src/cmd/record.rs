@@ -94,17 +94,38 @@ pub struct Args {
     pub split_minutes: Option<f64>,
     /// Socket receive buffer to ask the kernel for (bytes). While the recorder is descheduled, samples wait
     /// there; Cyclone's default 1 MiB holds about one second of hg LowState at 500 Hz. The kernel grants at most
-    /// net.core.rmem_max (a warning says so when that is less).
-    #[arg(long, default_value_t = DEFAULT_SOCKET_BUFFER, value_parser = clap::value_parser!(u64).range(65536..=(1 << 30)))]
-    pub socket_buffer: u64,
+    /// net.core.rmem_max: a warning says so when that is less than a size given here, or, for the default of
+    /// 8 MiB, less than Cyclone's own 1 MiB (a stock kernel's 208 KiB).
+    #[arg(long, value_parser = clap::value_parser!(u64).range(65536..=(1 << 30)))]
+    pub socket_buffer: Option<u64>,
 }
 
 /// `--socket-buffer` default: 8 MiB, several seconds of rt/lowstate and rt/lowcmd at 500 Hz.
 pub const DEFAULT_SOCKET_BUFFER: u64 = 8 << 20;
 
+/// Cyclone DDS's own socket receive buffer when nobody asks for one.
+const CYCLONE_SOCKET_BUFFER: u64 = 1 << 20;
+
 /// The kernel's cap on a socket receive buffer (`net.core.rmem_max`), where Linux tells it.
 fn kernel_rmem_max() -> Option<u64> {
     std::fs::read_to_string("/proc/sys/net/core/rmem_max").ok()?.trim().parse().ok()
+}
+
+/// The warning for a kernel cap `cap` under the buffer asked for, if one is due: always when the user named a
+/// size, and for the default only when the cap leaves the recorder worse off than Cyclone's own 1 MiB (a warning
+/// on every run of a machine whose administrator chose 4 MiB would teach users to ignore it).
+fn socket_buffer_warning(asked: Option<u64>, cap: u64) -> Option<String> {
+    let (want, floor) = match asked {
+        Some(n) => (n, n),
+        None => (DEFAULT_SOCKET_BUFFER, CYCLONE_SOCKET_BUFFER),
+    };
+    (cap < floor).then(|| {
+        format!(
+            "warning: the kernel grants socket buffers of at most {cap} bytes (net.core.rmem_max), less than the \
+             {want} asked for: a recorder descheduled for longer than that holds loses samples \
+             (`sysctl -w net.core.rmem_max={want}` raises the cap)"
+        )
+    })
 }
 
 /// The files of one recording: OUT itself, or numbered segments of it with `--split-minutes`.
@@ -158,14 +179,9 @@ fn now_ns() -> u64 {
 pub const DEFAULT_TOPICS: [&str; 3] = ["rt/lowcmd", "rt/lowstate", unitree_idl::topics::SPORTMODESTATE];
 
 pub fn run(args: Args) -> Result<Exit> {
-    let cfg = args.net.domain_config()?.socket_receive_buffer(args.socket_buffer);
-    if let Some(cap) = kernel_rmem_max().filter(|&c| c < args.socket_buffer) {
-        eprintln!(
-            "warning: the kernel grants socket buffers of at most {cap} bytes (net.core.rmem_max), less than the \
-             {} asked for: a recorder descheduled for longer than that holds loses samples \
-             (`sysctl -w net.core.rmem_max={}` raises the cap)",
-            args.socket_buffer, args.socket_buffer
-        );
+    let cfg = args.net.domain_config()?.socket_receive_buffer(args.socket_buffer.unwrap_or(DEFAULT_SOCKET_BUFFER));
+    if let Some(w) = kernel_rmem_max().and_then(|cap| socket_buffer_warning(args.socket_buffer, cap)) {
+        eprintln!("{w}");
     }
     if let Some(d) = args.duration {
         if !(d.is_finite() && d > 0.0) {
@@ -370,5 +386,22 @@ impl Report {
             ch.stats.report(&ch.choice.spec.name, MAX_LISTED, &mut t);
         }
         Report { text: t }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_socket_buffer_warning_speaks_when_it_matters() {
+        // A size the user named and the kernel cuts: always said.
+        assert!(socket_buffer_warning(Some(8 << 20), 4 << 20).is_some());
+        assert!(socket_buffer_warning(Some(2 << 20), 4 << 20).is_none());
+        // The default cut to 4 MiB is still four times Cyclone's own: not worth a warning on every run.
+        assert!(socket_buffer_warning(None, 4 << 20).is_none());
+        // A stock kernel (208 KiB) leaves the recorder worse off than Cyclone's default: said, with the default.
+        let w = socket_buffer_warning(None, 212_992).expect("warning under 1 MiB");
+        assert!(w.contains("212992") && w.contains(&DEFAULT_SOCKET_BUFFER.to_string()), "{w}");
     }
 }
