@@ -13,8 +13,9 @@
 //!   suspected (lifting it changes nothing). In the step that breaks free fall PhysX reports no contact and no
 //!   vertical force acts (COM z acceleration -9.79 m/s²), yet the COM accelerates 2.7 m/s² sideways; the error
 //!   vanishes with the scene's friction offset threshold (4 cm, Isaac Lab's value) at 1 mm: friction from contact
-//!   points that carry no normal impulse. Still a candidate bug (Coulomb: no friction without normal force); a
-//!   standalone reproduction is open (a separated box sliding in PhysX 5.3 through SAPIEN gets no friction).
+//!   points that carry no normal impulse. Still a candidate bug (Coulomb: no friction without normal force);
+//!   reproduced standalone with physx-sys alone (`corpus/campaign-2026-11-25/physx-flight-friction/`, from the
+//!   scene dump below); a separated box sliding in PhysX 5.3 through SAPIEN gets no friction.
 use diff_physics::mujoco::{MujocoEngine, MujocoSettings};
 use diff_physics::{make_engine, CommonSettings, Engine, EngineError, EngineKind};
 use engine_diff::harness::{self, EngineFactory, WindowRun};
