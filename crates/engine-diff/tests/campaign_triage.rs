@@ -13,8 +13,9 @@
 //!   suspected (lifting it changes nothing). In the step that breaks free fall PhysX reports no contact and no
 //!   vertical force acts (COM z acceleration -9.79 m/s²), yet the COM accelerates 2.7 m/s² sideways; the error
 //!   vanishes with the scene's friction offset threshold (4 cm, Isaac Lab's value) at 1 mm: friction from contact
-//!   points that carry no normal impulse. Still a candidate bug (Coulomb: no friction without normal force); a
-//!   standalone reproduction is open (a separated box sliding in PhysX 5.3 through SAPIEN gets no friction).
+//!   points that carry no normal impulse. Still a candidate bug (Coulomb: no friction without normal force);
+//!   reproduced standalone with physx-sys alone (`corpus/campaign-2026-11-25/physx-flight-friction/`, from the
+//!   scene dump below); a separated box sliding in PhysX 5.3 through SAPIEN gets no friction.
 use diff_physics::mujoco::{MujocoEngine, MujocoSettings};
 use diff_physics::{make_engine, CommonSettings, Engine, EngineError, EngineKind};
 use engine_diff::harness::{self, EngineFactory, WindowRun};
@@ -239,6 +240,48 @@ mod physx {
         let mut engines = harness::build_engines(&[physx(d)], &m, &r.common).expect("engine");
         harness::replay_window(&mut engines, &m, &w, r.steps, r.common.timestep, false).expect("replay");
         assert!(engines[0].contacts().is_empty(), "PhysX reports a contact at the end of the window");
+    }
+
+    /// The standalone reproducer's scene (`corpus/campaign-2026-11-25/physx-flight-friction/scene.txt`, read by
+    /// the `physx-sys`-only program there): what the adapter hands PhysX for D06's window (world, state, the joint
+    /// forces of every step), recorded from the same replay as the test above. Fails when the committed file is
+    /// no longer what the adapter produces; `ULAB_WRITE_SCENE=1` rewrites it.
+    #[test]
+    fn physx_flight_friction_scene_dump_is_current() {
+        let r = load("gepetto-seed12-D06.json");
+        let text = Arc::new(std::sync::Mutex::new(String::new()));
+        let rec = Arc::clone(&text);
+        let factory = Arc::new(Variant {
+            name: "physx".into(),
+            build: Box::new(move |m, c| {
+                let mut e = PhysxEngine::new(m, c, &PhysxSettings::default())?;
+                e.record_scene(Arc::clone(&rec));
+                Ok(Box::new(e) as Box<dyn Engine>)
+            }),
+        }) as Arc<dyn EngineFactory>;
+        let run = replay(&r, &[factory], None);
+        let error = peak(&run, 0, &r.finding.quantity);
+        assert!(error > r.finding.bound, "the finding is gone ({error})");
+        let body = text.lock().expect("recording").clone();
+        assert_eq!(body.lines().filter(|l| l.starts_with("force ")).count(), r.steps);
+        let model = RobotModel::h1_2().expect("built-in model");
+        let names: Vec<String> = model.links.iter().enumerate().map(|(i, l)| format!("{i} {}", l.name)).collect();
+        let dump = format!(
+            "# PhysX scene dump (format: README.md here; ulab's crates/diff-physics/src/physx/dump.rs): the H1-2 of\n\
+             # corpus/campaign-2026-11-25/gepetto-seed12-D06.json, its {} steps from the window start, as ulab's\n\
+             # PhysX adapter hands them to PhysX 5.1.3 (physx-sys 0.11.5). Written by engine-diff's test\n\
+             # campaign_triage::physx::physx_flight_friction_scene_dump_is_current (ULAB_WRITE_SCENE=1).\n\
+             # links: {}\n{body}",
+            r.steps,
+            names.join(", ")
+        );
+        let path =
+            format!("{}/../../corpus/campaign-2026-11-25/physx-flight-friction/scene.txt", env!("CARGO_MANIFEST_DIR"));
+        if std::env::var("ULAB_WRITE_SCENE").is_ok_and(|v| v == "1") {
+            std::fs::write(&path, &dump).unwrap_or_else(|e| panic!("{path}: {e}"));
+        }
+        let committed = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
+        assert!(committed == dump, "{path} is stale: rewrite it with ULAB_WRITE_SCENE=1");
     }
 
     #[test]

@@ -139,6 +139,12 @@ fn to_transform(p: &Pose) -> px::PxTransform {
     let n = if n > 0.0 { n } else { 1.0 };
     px::PxTransform { q: px::PxQuat { w: q[0] / n, x: q[1] / n, y: q[2] / n, z: q[3] / n }, p: to_vec3(p.p) }
 }
+/// The f32 values PhysX receives for a pose: position, then quaternion in PhysX's order `x y z w` (renormalised
+/// as [`to_transform`] does). For scene dumps ([`super::dump`]).
+pub fn f32_pose(p: &Pose) -> [f32; 7] {
+    let t = to_transform(p);
+    [t.p.x, t.p.y, t.p.z, t.q.x, t.q.y, t.q.z, t.q.w]
+}
 fn from_transform(t: px::PxTransform) -> Pose {
     Pose { p: from_vec3(t.p), q: [f64::from(t.q.w), f64::from(t.q.x), f64::from(t.q.y), f64::from(t.q.z)] }
 }

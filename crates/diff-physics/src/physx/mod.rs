@@ -52,6 +52,7 @@
 //!   the root's current angular velocity (computeZ uses the link velocities; only joint velocities are dropped),
 //!   so it is "purely gravity" only with a non-rotating root (measured 1.6e-3 of the gravity torques at
 //!   |ω| <= 1.7 rad/s; 1.7e-7 at rest). Not used in stepping.
+mod dump;
 mod ffi;
 
 use crate::engine::{CommonSettings, Contact, Energy, Engine, EngineError, LinkPose, State};
@@ -59,6 +60,7 @@ use ffi::{Geometry, JointDesc, LinkDesc, Pose, RawState, ShapeDesc, World, World
 use nalgebra::{DMatrix, Matrix3, UnitQuaternion, Vector3};
 use robot_model::{RobotModel, Shape};
 use serde::{Deserialize, Serialize};
+use std::sync::{Arc, Mutex};
 
 /// PhysX's constraint solver.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -252,6 +254,8 @@ pub struct PhysxEngine {
     time: f64,
     /// Contact-free twins for generalized accelerations (built lazily): with the scene's gravity, and without.
     probe: Option<(World, World)>,
+    /// Scene dump being recorded ([`PhysxEngine::record_scene`]) and the steps since the last reset.
+    recording: Option<(Arc<Mutex<String>>, usize)>,
 }
 
 impl std::fmt::Debug for PhysxEngine {
@@ -336,9 +340,17 @@ impl PhysxEngine {
             root_com,
             time: 0.0,
             probe: None,
+            recording: None,
         };
         e.set_world_state(&State::standing(model))?;
         Ok(e)
+    }
+
+    /// Records what this engine hands PhysX, as text, into `into`: at every reset the text is replaced by the
+    /// world description, the time step and the state set, and every step appends its joint forces (format in
+    /// `physx/dump.rs`). For standalone reproducers that use `physx-sys` alone; costs nothing when not called.
+    pub fn record_scene(&mut self, into: Arc<Mutex<String>>) {
+        self.recording = Some((into, 0));
     }
 
     /// The settings in force.
@@ -746,7 +758,15 @@ impl Engine for PhysxEngine {
         // A fresh scene: no contact manifold, friction anchor or solver history survives.
         self.world = World::new(&self.desc).map_err(build_err)?;
         self.time = 0.0;
-        self.set_world_state(state)
+        self.set_world_state(state)?;
+        if let Some((text, _)) = &self.recording {
+            let dump = dump::scene(&self.desc, self.common.timestep) + &dump::state(&self.to_raw(state));
+            *text.lock().unwrap_or_else(|p| p.into_inner()) = dump;
+        }
+        if let Some((_, steps)) = &mut self.recording {
+            *steps = 0;
+        }
+        Ok(())
     }
 
     fn step(&mut self, tau: &[f64]) -> Result<(), EngineError> {
@@ -755,6 +775,10 @@ impl Engine for PhysxEngine {
             return Err(EngineError::Input(format!("expected {nj} finite torques, got {}", tau.len())));
         }
         let f = self.dof_forces(tau, &self.raw.dq);
+        if let Some((text, steps)) = &mut self.recording {
+            text.lock().unwrap_or_else(|p| p.into_inner()).push_str(&dump::forces(*steps, &f));
+            *steps += 1;
+        }
         self.world.set_joint_forces(&f).map_err(sim_err)?;
         self.world.step(self.common.timestep).map_err(sim_err)?;
         self.time += self.common.timestep;
