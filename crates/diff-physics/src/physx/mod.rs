@@ -1,6 +1,6 @@
 //! PhysX 5 (the engine both shipped H1-2 policies were trained in: Isaac Lab and Isaac Gym run PhysX), as a
 //! reduced-coordinate articulation (`PxArticulationReducedCoordinate`) built from `robot-model`, through the
-//! `physx-sys` crate (PhysX 5.1.3 vendored and compiled by its build script; every foreign call in [`ffi`]).
+//! `physx-sys` crate (PhysX 5.1.3 vendored and compiled by its build script; every foreign call in its `ffi` module).
 //!
 //! **Precision: PhysX computes and stores everything in f32.** The state comes back in f32 (widened exactly to
 //! f64), so every oracle tolerance for this engine is derived from f32 arithmetic ([`f32_tolerance`]), not from
