@@ -41,6 +41,9 @@ pub struct RealConfig {
     pub jitter_s: f64,
     pub duration: f64,
     pub seed: u64,
+    /// Scale of the excitation plan's amplitudes (1: the plan; below 1: gentler motion; 0: holding the standing
+    /// pose). Unused when a policy drives the plant.
+    pub excitation_scale: f64,
 }
 
 impl RealConfig {
@@ -53,6 +56,7 @@ impl RealConfig {
             jitter_s: 0.002,
             duration,
             seed,
+            excitation_scale: 1.0,
         }
     }
 }
@@ -105,7 +109,7 @@ pub fn generate_log_with(
     let q0 = model.default_q();
     let nj = model.nj();
     rig.reset(&q0, &vec![0.0; nj])?;
-    let amp = excite::amplitudes(model);
+    let amp: Vec<f64> = excite::amplitudes(model).iter().map(|a| a * cfg.excitation_scale).collect();
     let groups = joint_groups(model);
     let mut controller = match policy {
         Some(p) => {

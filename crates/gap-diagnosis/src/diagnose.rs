@@ -6,7 +6,8 @@
 //! below it, so each can be read (and tested) without those above. `options` (what is asked) and `stats` (means,
 //! bootstrap, noise floor) are the leaves; `windows` picks the windows, `replay` replays and scores them,
 //! `breakdown` says where the gap lies, `fit` fits one effect, `assess` judges each effect alone, `select` builds
-//! the best combination and `remainder` says what is left (per window, robustly, and where). One RNG is threaded through the stages in a fixed order, so a seed fixes the report.
+//! the best combination, `identify` says which effects this log could reveal at all and `remainder` says what is
+//! left (per window, robustly, and where). One RNG is threaded through the stages in a fixed order, so a seed fixes the report.
 use crate::effects::EffectKind;
 use crate::log::RobotLog;
 use crate::rig_check::{self, RigCheck};
@@ -18,6 +19,7 @@ use serde::{Deserialize, Serialize};
 mod assess;
 mod breakdown;
 mod fit;
+mod identify;
 mod options;
 mod remainder;
 mod replay;
@@ -28,6 +30,7 @@ mod windows;
 pub use assess::{EffectResult, FittedParam, MIN_WINDOWS_OFF_LIMIT, UNIT_FLOOR_FRAC};
 pub use breakdown::Share;
 pub use fit::RESOLUTION_FRAC;
+pub use identify::{Identifiability, UnitSignal};
 pub use options::{DiagnoseOptions, PlantChoice, PlantKind, FLOATING_MAX_WINDOWS};
 pub use remainder::{
     RobustGap, Unexplained, WindowFlag, WindowResidual, FAST_FRAC, SATURATED_FRAC, TRIM_FRAC, UNEXPLAINED_FACTOR,
@@ -43,7 +46,9 @@ pub use crate::noise::{TIMING_HI, TIMING_LO};
 /// `/2`: adds `outcome` and `rig_check` (the rig-assumption check, see [`crate::rig_check`]).
 /// `/3`: adds `plant` (rig or floating base) and `windows_unsettled`.
 /// `/4`: adds `windows_down` and `rig_check.foot_load_fraction`.
-pub const SCHEMA_VERSION: &str = "ulab-gap-report/5";
+/// `/5`: adds `window_residuals`, `robust` and `unexplained_residual`.
+/// `/6`: adds `identifiability`.
+pub const SCHEMA_VERSION: &str = "ulab-gap-report/6";
 
 /// What the diagnosis concluded about the log as a whole.
 #[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq)]
@@ -110,6 +115,10 @@ pub struct Report {
     /// The residual no named effect explains, against the log's own sensor-noise level, and where it lies.
     #[serde(default)]
     pub unexplained_residual: Option<Unexplained>,
+    /// For every replayed effect kind, the units on which this log could reveal an effect of a magnitude of
+    /// interest, and the motion that would reveal it elsewhere.
+    #[serde(default)]
+    pub identifiability: Vec<Identifiability>,
     pub elapsed_s: f64,
 }
 
@@ -130,8 +139,17 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
     let baseline = breakdown::Baseline::split(&ctx, &breakdown.scores, opts.bootstrap, &mut rng);
     // Which: every effect alone, then the best combination given the effects already in.
     let kinds: Vec<EffectKind> = opts.kinds.clone().unwrap_or_else(|| EffectKind::ALL.to_vec());
-    let assessment = assess::assess(&ctx, kinds, &baseline, breakdown.any_contact, &mut rng)?;
+    let assessment = assess::assess(&ctx, kinds.clone(), &baseline, breakdown.any_contact, &mut rng)?;
     let selection = select::select(&ctx, assessment, &baseline, &mut rng)?;
+    // Whether the log could show each effect at all: an abstention on an effect it cannot reveal says so.
+    let identifiability = identify::identify(&ctx, &breakdown.scores, &kinds)?;
+    let mut abstentions = selection.abstentions;
+    for (kind, why) in &mut abstentions {
+        if let Some(note) = identifiability.iter().find(|i| i.kind == *kind).and_then(identify::not_identifiable_note) {
+            why.push_str("; ");
+            why.push_str(&note);
+        }
+    }
     // What is left: per window, robustly, and where.
     let rest = remainder::remainder(&ctx, &breakdown.scores, &baseline, selection.combo_fx.as_ref())?;
     Ok(Report {
@@ -156,11 +174,12 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
         unexplained: selection.ranked.is_empty(),
         effects: selection.effects,
         ranked: selection.ranked,
-        abstentions: selection.abstentions,
+        abstentions,
         best_combination: selection.best_combination,
         window_residuals: rest.windows,
         robust: Some(rest.robust),
         unexplained_residual: Some(rest.unexplained),
+        identifiability,
         elapsed_s: t_start.elapsed().as_secs_f64(),
     })
 }
@@ -218,6 +237,7 @@ fn rig_violated(
         window_residuals: vec![],
         robust: None,
         unexplained_residual: None,
+        identifiability: vec![],
         elapsed_s: t_start.elapsed().as_secs_f64(),
     }
 }

@@ -139,6 +139,47 @@ impl EffectKind {
         }
     }
 
+    /// The size of this effect that a diagnosis should be able to see, in the fitting parameter's units (latency:
+    /// plant steps): of the order of the errors found on real actuators and models (a tenth to a fifth of a
+    /// nominal value, a centimetre, a degree, 10 ms). The identifiability stage asks whether the log would show
+    /// an effect this large ([`crate::diagnose::Identifiability`]).
+    pub fn magnitude_of_interest(self) -> f64 {
+        match self {
+            EffectKind::Armature => 1.5,
+            EffectKind::Damping => 1.0,
+            EffectKind::Friction => 1.0,
+            EffectKind::TorqueSaturation => 0.8,
+            EffectKind::Latency => 5.0,
+            EffectKind::GainScale => 0.8,
+            EffectKind::Backlash => 0.02,
+            EffectKind::EncoderOffset => 0.02,
+            EffectKind::ImuBias => 0.05,
+            EffectKind::ImuMisalignment => 0.02,
+            EffectKind::LinkMass => 1.2,
+            EffectKind::LinkCom => 0.02,
+            EffectKind::ContactFriction => 0.5,
+            EffectKind::ContactStiffness => 0.04,
+        }
+    }
+
+    /// The motion that makes this effect show in a log (what to record when it is not identifiable).
+    pub fn revealed_by(self) -> &'static str {
+        match self {
+            EffectKind::Armature => "fast joint accelerations (chirps or steps above a few hertz)",
+            EffectKind::Damping => "sustained joint velocity in both directions",
+            EffectKind::Friction => "slow motion with velocity reversals",
+            EffectKind::TorqueSaturation => "commands that drive the joint torque to its limit",
+            EffectKind::Latency => "fast command changes (steps, chirps above a few hertz)",
+            EffectKind::GainScale => "tracking errors under load (steps, holds against gravity)",
+            EffectKind::Backlash => "load reversals at low speed",
+            EffectKind::EncoderOffset => "holding several poses under different gravity loads",
+            EffectKind::ImuBias | EffectKind::ImuMisalignment => "a logged IMU at rest and turning",
+            EffectKind::LinkMass | EffectKind::LinkCom => "holding the limb at several angles and accelerating it",
+            EffectKind::ContactFriction => "foot slip on the ground (pushes, turns)",
+            EffectKind::ContactStiffness => "landings and weight shifts between the feet",
+        }
+    }
+
     /// Can be identified on the suspension rig (no foot contact).
     pub fn identifiable_suspended(self) -> bool {
         !matches!(self, EffectKind::ContactFriction | EffectKind::ContactStiffness)

@@ -135,8 +135,42 @@ pub fn markdown(r: &Report) -> String {
     for (k, why) in &r.abstentions {
         s += &format!("- {}: {}\n", k.name(), why);
     }
+    s += &identifiability_section(r);
     s += &remainder_section(r);
     s += &format!("\nDiagnosis time: {:.1} s. Plots: `by_joint.svg`, `effects.svg`.\n", r.elapsed_s);
+    s
+}
+
+/// Which effects this log could reveal, and where not.
+fn identifiability_section(r: &Report) -> String {
+    if r.identifiability.is_empty() {
+        return String::new();
+    }
+    let mut s = format!(
+        "\n## What this log can reveal (held-out windows)\n\nAn effect of the size given would move a unit's residual by \
+         at least the floor a fit must clear there ({:.0} % of the unit's baseline residual) only on the units listed \
+         as identifiable; on the others this log cannot show it, whatever the fit says.\n\n\
+         | effect | size asked | identifiable on | not identifiable on | motion that would reveal it |\n|---|---|---|---|---|\n",
+        100.0 * crate::diagnose::UNIT_FLOOR_FRAC
+    );
+    let list = |names: Vec<&str>| -> String {
+        match names.len() {
+            0 => "—".into(),
+            n if n > 8 => format!("{} and {} more", names[..8].join(", "), n - 8),
+            _ => names.join(", "),
+        }
+    };
+    for i in &r.identifiability {
+        let not: Vec<&str> = i.units.iter().filter(|u| !u.identifiable()).map(|u| u.unit.as_str()).collect();
+        s += &format!(
+            "| {} | {} | {} | {} | {} |\n",
+            i.kind.name(),
+            (i.magnitude * 1000.0).round() / 1000.0,
+            list(i.identifiable_units()),
+            list(not),
+            i.revealed_by.as_deref().unwrap_or("—")
+        );
+    }
     s
 }
 

@@ -103,6 +103,18 @@ fn simulated_log_is_a_recording_and_diagnose_finds_the_effect() {
     }
     let md = std::fs::read_to_string(out_dir.join("report.md")).unwrap_or_default();
     assert!(md.contains("damping") && md.contains("left_arm"), "{}", tail(&md));
+    assert!(md.contains("## What this log can reveal"), "{}", tail(&md));
+    // The effect the fit found must be one the log could reveal where it was found (two computations: the fit
+    // on the log's residual, the simulator's sensitivity at the magnitude of interest).
+    let damping_left_arm = r["identifiability"]
+        .as_array()
+        .and_then(|a| a.iter().find(|i| i["kind"] == "damping"))
+        .and_then(|i| i["units"].as_array()?.iter().find(|u| u["unit"] == "left_arm").cloned())
+        .unwrap_or_default();
+    assert!(
+        damping_left_arm["signal"].as_f64().unwrap_or(0.0) >= damping_left_arm["floor"].as_f64().unwrap_or(f64::MAX),
+        "damping on left_arm found but reported not identifiable: {damping_left_arm}"
+    );
 
     // The same log through `ulab log export` (CSV pair) gives the same verdict.
     let csv = d.join("csv");

@@ -76,6 +76,20 @@ pub(super) fn report_value(kind: EffectKind, v: f64) -> f64 {
     }
 }
 
+/// The masks of units that are set together: every unit at once, except joint-scope effects, which go one joint
+/// per limb at a time (the k-th joint of every group together): neighbouring joints of a chain would otherwise
+/// trade the effect between them.
+pub(super) fn unit_sets(ctx: &Ctx<'_>, kind: EffectKind) -> Vec<Vec<bool>> {
+    if kind.scope() == Scope::Joint {
+        let pos: Vec<usize> =
+            (0..ctx.nj()).map(|j| (0..j).filter(|&i| ctx.groups[i] == ctx.groups[j]).count()).collect();
+        let maxp = pos.iter().copied().max().unwrap_or(0);
+        (0..=maxp).map(|k| pos.iter().map(|&p| p == k).collect()).collect()
+    } else {
+        vec![vec![true; units_of(ctx, kind).len()]]
+    }
+}
+
 /// Fits one effect on the training windows.
 /// `base` holds effects already accepted (their units stay as they are) and `base_train` its training scores.
 pub(super) fn fit_kind(
@@ -91,16 +105,7 @@ pub(super) fn fit_kind(
     let units = units_of(ctx, kind);
     let mut fx = base.clone();
     let mut sds = vec![0.0; units.len()];
-    // Joint-scope effects are fitted on one joint per limb at a time (the k-th joint of every group together):
-    // neighbouring joints of a chain would otherwise trade the effect between them.
-    let sets: Vec<Vec<bool>> = if kind.scope() == Scope::Joint {
-        let pos: Vec<usize> =
-            (0..ctx.nj()).map(|j| (0..j).filter(|&i| ctx.groups[i] == ctx.groups[j]).count()).collect();
-        let maxp = pos.iter().copied().max().unwrap_or(0);
-        (0..=maxp).map(|k| pos.iter().map(|&p| p == k).collect()).collect()
-    } else {
-        vec![vec![true; units.len()]]
-    };
+    let sets = unit_sets(ctx, kind);
     let setter = |fx: &mut Effects, u: usize, v: f64| set_unit(kind, fx, ctx, u, v);
     for mask in sets {
         let fit = fit_units(ctx, kind, base, base_train, rng, &mask, &setter)?;

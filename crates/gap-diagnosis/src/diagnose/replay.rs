@@ -177,12 +177,9 @@ impl Ctx<'_> {
         let mut ser = vec![Vec::with_capacity(pred.len()); nj];
         for (k, p) in pred.iter().enumerate() {
             let m = &self.log.states[start + 1 + k];
-            for j in 0..nj {
-                let eq = (m.q[j] - p.q[j]) / SIGMA_Q;
-                let edq = (m.dq[j] - p.dq[j]) / SIGMA_DQ;
-                let et = (m.tau[j] - p.tau[j]) / self.sigma_tau[j];
-                s[j] += (eq * eq + edq * edq + et * et) / 3.0;
-                ser[j].push(m.q[j] - p.q[j]);
+            self.add_joint_terms(m, p, &mut s);
+            for (j, x) in ser.iter_mut().enumerate() {
+                x.push(m.q[j] - p.q[j]);
             }
         }
         let n = pred.len().max(1) as f64;
@@ -192,6 +189,70 @@ impl Ctx<'_> {
             *out = ser;
         }
         Ok(s)
+    }
+
+    /// Adds one sample's normalised squared joint residual (position, velocity, torque, averaged) to `s[j]`.
+    fn add_joint_terms(&self, m: &Measurement, p: &Measurement, s: &mut [f64]) {
+        for (j, x) in s.iter_mut().enumerate().take(self.nj()) {
+            let eq = (m.q[j] - p.q[j]) / SIGMA_Q;
+            let edq = (m.dq[j] - p.dq[j]) / SIGMA_DQ;
+            let et = (m.tau[j] - p.tau[j]) / self.sigma_tau[j];
+            *x += (eq * eq + edq * edq + et * et) / 3.0;
+        }
+    }
+
+    /// Predicted measurements of `windows` under `fx` (parallel over chunks of windows).
+    pub(super) fn predictions(&self, fx: &Effects, windows: &[usize]) -> Result<Vec<Vec<Measurement>>, GapError> {
+        let chunks = (rayon::current_num_threads() * 2).max(1);
+        let per = windows.len().div_ceil(chunks).max(1);
+        let baseline_model = fx.same_model(&self.null);
+        let model = if baseline_model { self.model.clone() } else { fx.apply_to_model(self.model) };
+        let floating = self.plant == PlantKind::Floating;
+        let parts: Vec<Result<Vec<Vec<Measurement>>, GapError>> = windows
+            .par_chunks(per)
+            .map(|ws| {
+                let pooled = if baseline_model { self.pool.lock().ok().and_then(|mut p| p.pop()) } else { None };
+                let mut rig = match pooled {
+                    Some(r) => r,
+                    None => Plant::new(self.plant, &model, &self.opts.engine, fx)?,
+                };
+                let mut out = Vec::with_capacity(ws.len());
+                for &w in ws {
+                    out.push(rig.predict(
+                        &model,
+                        self.feet.as_ref(),
+                        self.log,
+                        fx,
+                        self.starts[w],
+                        self.len,
+                        floating,
+                    )?);
+                }
+                if baseline_model {
+                    if let Ok(mut p) = self.pool.lock() {
+                        p.push(rig);
+                    }
+                }
+                Ok(out)
+            })
+            .collect();
+        let mut all = Vec::with_capacity(windows.len());
+        for p in parts {
+            all.extend(p?);
+        }
+        Ok(all)
+    }
+
+    /// The joint columns of a window's score with prediction `b` in place of the log: how far two simulations of
+    /// the same window move apart, in the gap metric's units (the IMU column is 0).
+    pub(super) fn difference_scores(&self, a: &[Measurement], b: &[Measurement]) -> Vec<f64> {
+        let mut s = vec![0.0; self.nj() + 1];
+        for (m, p) in a.iter().zip(b) {
+            self.add_joint_terms(m, p, &mut s);
+        }
+        let n = a.len().min(b.len()).max(1) as f64;
+        s.iter_mut().take(self.nj()).for_each(|x| *x /= n);
+        s
     }
 
     /// IMU residual of a window: the reading predicted from the logged joints on the rig vs the logged reading.

@@ -1,0 +1,72 @@
+//! Identifiability against physics: on a suspended robot that only holds its standing pose, viscous damping,
+//! rotor inertia (armature) and command latency act on nothing (no joint moves, no command changes), while a
+//! heavier link changes the gravity torques the joints hold. The diagnosis must say exactly that ("not
+//! identifiable from this log" for the first three, with the motion that would reveal them), and must find them
+//! and joint friction identifiable once the excitation plan moves the joints. The counterpart is the physical
+//! argument, not the code: the sensitivities come from the diagnosing simulator, the expectation from mechanics.
+//! On the holding log with 1 N·m of friction hidden in one arm, friction may not be named.
+//!
+//! Friction is left out of the holding assertion on purpose: each replay starts from the measured (noisy) joint
+//! velocities, and the friction model's stiction acts on that micro-motion, so its signal on a holding log is
+//! 0.43 / 0.54 / 0.89 of the floor on seeds 7 / 8 / 9 (damping, armature and latency stay under 0.01): not
+//! identifiable there, but too close to the floor for a test that must not depend on the seed.
+use gap_bench::{generate_log, RealConfig};
+use gap_diagnosis::plant::{joint_groups, Effects, GROUPS};
+use gap_diagnosis::{diagnose, DiagnoseOptions, EffectKind, Report};
+use robot_model::RobotModel;
+
+const KINDS: [EffectKind; 6] = [
+    EffectKind::Friction,
+    EffectKind::Damping,
+    EffectKind::Armature,
+    EffectKind::Latency,
+    EffectKind::LinkMass,
+    EffectKind::GainScale,
+];
+
+fn model() -> RobotModel {
+    robot_model::builtin("h1_2").expect("built-in model")
+}
+
+fn report(excitation_scale: f64, fx: Effects) -> Report {
+    let m = model();
+    let cfg = RealConfig { effects: fx, excitation_scale, ..RealConfig::new(&m, 5.0, 7) };
+    let log = generate_log(&m, &cfg).expect("generate");
+    let opts = DiagnoseOptions { block_s: 0.5, kinds: Some(KINDS.to_vec()), ..Default::default() };
+    diagnose(&m, &log, &opts).expect("diagnose")
+}
+
+fn identifiable_units(r: &Report, kind: EffectKind) -> Vec<String> {
+    let i = r.identifiability.iter().find(|i| i.kind == kind).unwrap_or_else(|| panic!("{} not listed", kind.name()));
+    for u in &i.units {
+        eprintln!("  {} {}: signal {:.3e}, floor {:.3e}", kind.name(), u.unit, u.signal, u.floor);
+    }
+    i.identifiable_units().into_iter().map(str::to_string).collect()
+}
+
+#[test]
+fn a_robot_holding_still_cannot_reveal_dynamic_effects_but_can_reveal_a_heavier_link() {
+    let m = model();
+    let mut fx = Effects::none(m.nj());
+    let groups = joint_groups(&m);
+    let arm = GROUPS.iter().position(|g| *g == "left_arm").expect("left_arm group");
+    (0..m.nj()).filter(|&j| groups[j] == arm).for_each(|j| EffectKind::Friction.set(&mut fx, j, 1.0));
+    let hold = report(0.0, fx);
+    for kind in [EffectKind::Damping, EffectKind::Armature, EffectKind::Latency] {
+        let units = identifiable_units(&hold, kind);
+        assert!(units.is_empty(), "{} identifiable on {units:?} while nothing moves", kind.name());
+        let (_, why) = hold.abstentions.iter().find(|(k, _)| *k == kind).expect("abstained");
+        assert!(why.contains("not identifiable from this log") && why.contains(kind.revealed_by()), "{why}");
+    }
+    assert!(!identifiable_units(&hold, EffectKind::LinkMass).is_empty(), "a 20 % heavier link changes held torques");
+    assert!(!hold.ranked.contains(&EffectKind::Friction), "friction named on a log without motion: {:?}", hold.ranked);
+
+    let moving = report(1.0, Effects::none(m.nj()));
+    for kind in [EffectKind::Friction, EffectKind::Damping, EffectKind::Armature, EffectKind::Latency] {
+        assert!(
+            !identifiable_units(&moving, kind).is_empty(),
+            "{} not identifiable under the excitation plan",
+            kind.name()
+        );
+    }
+}

@@ -1,0 +1,166 @@
+//! Identifiability: could this log show each effect at all? For every effect kind, the held-out windows are
+//! replayed with each unit at the kind's magnitude of interest ([`EffectKind::magnitude_of_interest`]) and
+//! without it; how far the two simulations move apart on a unit, in the gap metric's units, is the *signal* an
+//! effect of that size would add to the unit's residual. A fit keeps a unit only when it cuts the unit's held-out
+//! residual by [`UNIT_FLOOR_FRAC`] of it, so a signal under that floor means the log cannot reveal the effect
+//! there, whatever the fit says: the report says so, with the motion that would reveal it ([`EffectKind::revealed_by`]).
+//! Simulator sensitivities only (no log residual in the signal): an effect is unidentifiable because the log's
+//! motion does not excite it, not because the data happen to hide it.
+use super::assess::UNIT_FLOOR_FRAC;
+use super::fit::{report_value, set_unit, unit_name, unit_sets, units_of};
+use super::options::PlantKind;
+use super::replay::{Ctx, Scores};
+use super::stats::mean;
+use crate::effects::{EffectKind, Scope};
+use crate::plant::Effects;
+use crate::GapError;
+use serde::{Deserialize, Serialize};
+
+/// One unit (joint, group or the robot): the signal an effect of the magnitude of interest would add to its
+/// held-out residual, and the floor a fit must clear there.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct UnitSignal {
+    pub unit: String,
+    /// Mean over held-out windows of the unit's normalised squared difference between the simulation with the
+    /// effect and without it.
+    pub signal: f64,
+    /// [`UNIT_FLOOR_FRAC`] of the unit's mean held-out baseline residual.
+    pub floor: f64,
+}
+
+impl UnitSignal {
+    pub fn identifiable(&self) -> bool {
+        self.signal >= self.floor
+    }
+}
+
+/// One effect kind: where this log could reveal it at the magnitude of interest.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct Identifiability {
+    pub kind: EffectKind,
+    /// The magnitude asked about, in the report's units (latency in ms).
+    pub magnitude: f64,
+    /// Every unit, in the fit's order.
+    pub units: Vec<UnitSignal>,
+    /// The motion that would reveal it (said when some unit is not identifiable).
+    pub revealed_by: Option<String>,
+}
+
+impl Identifiability {
+    /// The units on which the log could reveal the effect.
+    pub fn identifiable_units(&self) -> Vec<&str> {
+        self.units.iter().filter(|u| u.identifiable()).map(|u| u.unit.as_str()).collect()
+    }
+
+    /// The largest signal-to-floor ratio over the units.
+    pub fn best_ratio(&self) -> f64 {
+        self.units.iter().map(|u| if u.floor > 0.0 { u.signal / u.floor } else { f64::INFINITY }).fold(0.0, f64::max)
+    }
+}
+
+/// Every replayed effect kind of `kinds` (IMU effects are fitted in closed form from the IMU residual and ground
+/// contact effects cannot be fitted on the rig: neither is listed). `baseline`: every window's baseline scores.
+pub(super) fn identify(
+    ctx: &Ctx<'_>,
+    baseline: &Scores,
+    kinds: &[EffectKind],
+) -> Result<Vec<Identifiability>, GapError> {
+    let windows = &ctx.test;
+    if windows.is_empty() {
+        return Ok(Vec::new());
+    }
+    let none = Effects::none(ctx.nj());
+    let without = ctx.predictions(&none, windows)?;
+    let mut out = Vec::new();
+    for &kind in kinds {
+        if kind.scope() == Scope::Imu || (ctx.plant == PlantKind::Rig && !kind.identifiable_suspended()) {
+            continue;
+        }
+        let units = units_of(ctx, kind);
+        let m = kind.magnitude_of_interest();
+        let mut signal = vec![0.0; units.len()];
+        for mask in unit_sets(ctx, kind) {
+            let mut fx = none.clone();
+            for u in (0..units.len()).filter(|&u| mask[u]) {
+                set_unit(kind, &mut fx, ctx, u, m);
+            }
+            let with = ctx.predictions(&fx, windows)?;
+            let diffs: Vec<Vec<f64>> = without.iter().zip(&with).map(|(a, b)| ctx.difference_scores(a, b)).collect();
+            for u in (0..units.len()).filter(|&u| mask[u]) {
+                signal[u] = mean(&diffs.iter().map(|d| joint_sum(ctx, &units[u], d)).collect::<Vec<_>>());
+            }
+        }
+        let unit_signals: Vec<UnitSignal> = (0..units.len())
+            .map(|u| {
+                let base: Vec<f64> =
+                    windows.iter().filter_map(|&w| baseline.get(w)).map(|s| joint_sum(ctx, &units[u], s)).collect();
+                UnitSignal { unit: unit_name(ctx, kind, u), signal: signal[u], floor: UNIT_FLOOR_FRAC * mean(&base) }
+            })
+            .collect();
+        let all = unit_signals.iter().all(UnitSignal::identifiable);
+        out.push(Identifiability {
+            kind,
+            magnitude: report_value(kind, m),
+            units: unit_signals,
+            revealed_by: (!all).then(|| kind.revealed_by().to_string()),
+        });
+    }
+    Ok(out)
+}
+
+/// A score's joint columns of one unit (the IMU column is left out: no replayed effect is judged on it here).
+fn joint_sum(ctx: &Ctx<'_>, cols: &[usize], score: &[f64]) -> f64 {
+    cols.iter().filter(|&&c| c < ctx.nj()).filter_map(|&c| score.get(c)).sum()
+}
+
+/// The abstention note's addition for an effect no unit of which could show at the magnitude of interest.
+pub(super) fn not_identifiable_note(i: &Identifiability) -> Option<String> {
+    if !i.identifiable_units().is_empty() {
+        return None;
+    }
+    Some(format!(
+        "not identifiable from this log: at {} ({}) it would move no unit's residual by the floor a fit must \
+         clear (at best {:.0} % of it); {} would reveal it",
+        fmt_magnitude(i.magnitude),
+        i.kind.parameter(),
+        100.0 * i.best_ratio(),
+        i.kind.revealed_by()
+    ))
+}
+
+fn fmt_magnitude(v: f64) -> String {
+    format!("{}", (v * 1000.0).round() / 1000.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ident(signals: &[(f64, f64)]) -> Identifiability {
+        Identifiability {
+            kind: EffectKind::Friction,
+            magnitude: 1.0,
+            units: signals
+                .iter()
+                .enumerate()
+                .map(|(i, &(signal, floor))| UnitSignal { unit: format!("u{i}"), signal, floor })
+                .collect(),
+            revealed_by: None,
+        }
+    }
+
+    #[test]
+    fn a_unit_is_identifiable_when_its_signal_reaches_the_floor() {
+        let i = ident(&[(0.5, 1.0), (2.0, 1.0), (1.0, 1.0)]);
+        assert_eq!(i.identifiable_units(), vec!["u1", "u2"]);
+        assert!((i.best_ratio() - 2.0).abs() < 1e-12);
+        assert!(not_identifiable_note(&i).is_none());
+    }
+
+    #[test]
+    fn the_note_speaks_only_when_no_unit_could_show_the_effect() {
+        let i = ident(&[(0.25, 1.0), (0.1, 1.0)]);
+        let note = not_identifiable_note(&i).expect("note");
+        assert!(note.contains("25 %") && note.contains(EffectKind::Friction.revealed_by()), "{note}");
+    }
+}
