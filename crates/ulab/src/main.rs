@@ -1,11 +1,10 @@
 //! `ulab`: one binary in front of every tool of the project.
 //!
 //! Each subcommand lives in its own module under `cmd/`; this file only dispatches.
-#![deny(unsafe_code)] // allowed only in `glibc`, the one FFI module
+#![forbid(unsafe_code)]
 
 mod cmd;
 mod exit;
-mod glibc;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;

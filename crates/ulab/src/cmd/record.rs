@@ -188,8 +188,6 @@ pub fn run(args: Args) -> Result<Exit> {
             bail!("--duration must be a positive number of seconds");
         }
     }
-    // A recording runs for hours while other participants come and go: give freed memory back.
-    crate::glibc::trim_periodically(crate::glibc::TRIM_EVERY);
     let texts: Vec<String> =
         if args.topics.is_empty() { DEFAULT_TOPICS.map(str::to_owned).to_vec() } else { args.topics.clone() };
     let mut choices: Vec<TopicChoice> = Vec::new();

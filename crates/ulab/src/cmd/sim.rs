@@ -112,8 +112,6 @@ pub fn run(args: Args) -> Result<Exit> {
         "--sport-state-rate must be 0 (off) or positive"
     );
     let cfg = args.net.domain_config()?;
-    // A bridge runs for hours while clients come and go: give the memory their discovery state used back.
-    crate::glibc::trim_periodically(crate::glibc::TRIM_EVERY);
     let model = robot_model::builtin(&args.robot).with_context(|| format!("loading robot `{}`", args.robot))?;
     let fallen = args.unsafe_defects.contains(&Defect::FallenPinned);
     anyhow::ensure!(!(fallen && args.hang), "the fallen-pinned defect and --hang exclude each other");
