@@ -124,11 +124,22 @@ impl Ctx<'_> {
 
     /// Scores of the given windows under each configuration (parallel over configurations × window chunks).
     pub(super) fn eval_many(&self, cfgs: &[Effects], windows: &[usize]) -> Result<Vec<Scores>, GapError> {
+        self.per_window(cfgs, windows, |rig, model, fx, w| self.window_scores(rig, model, fx, w, None))
+    }
+
+    /// `f` on every window under every configuration, in parallel over configurations × chunks of windows, each
+    /// chunk on one plant of its configuration's model; results per configuration in window order.
+    fn per_window<T: Send>(
+        &self,
+        cfgs: &[Effects],
+        windows: &[usize],
+        f: impl Fn(&mut Plant, &RobotModel, &Effects, usize) -> Result<T, GapError> + Sync,
+    ) -> Result<Vec<Vec<T>>, GapError> {
         let chunks = (rayon::current_num_threads() * 2).max(1);
         let per = windows.len().div_ceil(chunks).max(1);
         let jobs: Vec<(usize, &[usize])> =
             (0..cfgs.len()).flat_map(|c| windows.chunks(per).map(move |w| (c, w))).collect();
-        let results: Vec<Result<(usize, Scores), GapError>> = jobs
+        let results: Vec<Result<(usize, Vec<T>), GapError>> = jobs
             .par_iter()
             .map(|(c, ws)| {
                 let fx = &cfgs[*c];
@@ -142,7 +153,7 @@ impl Ctx<'_> {
                 };
                 let mut out = Vec::with_capacity(ws.len());
                 for &w in ws.iter() {
-                    out.push(self.window_scores(&mut rig, &model, fx, w, None)?);
+                    out.push(f(&mut rig, &model, fx, w)?);
                 }
                 if baseline_model {
                     if let Ok(mut p) = self.pool.lock() {
@@ -152,7 +163,7 @@ impl Ctx<'_> {
                 Ok((*c, out))
             })
             .collect();
-        let mut all: Vec<Scores> = vec![Vec::new(); cfgs.len()];
+        let mut all: Vec<Vec<T>> = (0..cfgs.len()).map(|_| Vec::new()).collect();
         for r in results {
             let (c, s) = r?;
             all[c].extend(s);
@@ -203,44 +214,11 @@ impl Ctx<'_> {
 
     /// Predicted measurements of `windows` under `fx` (parallel over chunks of windows).
     pub(super) fn predictions(&self, fx: &Effects, windows: &[usize]) -> Result<Vec<Vec<Measurement>>, GapError> {
-        let chunks = (rayon::current_num_threads() * 2).max(1);
-        let per = windows.len().div_ceil(chunks).max(1);
-        let baseline_model = fx.same_model(&self.null);
-        let model = if baseline_model { self.model.clone() } else { fx.apply_to_model(self.model) };
         let floating = self.plant == PlantKind::Floating;
-        let parts: Vec<Result<Vec<Vec<Measurement>>, GapError>> = windows
-            .par_chunks(per)
-            .map(|ws| {
-                let pooled = if baseline_model { self.pool.lock().ok().and_then(|mut p| p.pop()) } else { None };
-                let mut rig = match pooled {
-                    Some(r) => r,
-                    None => Plant::new(self.plant, &model, &self.opts.engine, fx)?,
-                };
-                let mut out = Vec::with_capacity(ws.len());
-                for &w in ws {
-                    out.push(rig.predict(
-                        &model,
-                        self.feet.as_ref(),
-                        self.log,
-                        fx,
-                        self.starts[w],
-                        self.len,
-                        floating,
-                    )?);
-                }
-                if baseline_model {
-                    if let Ok(mut p) = self.pool.lock() {
-                        p.push(rig);
-                    }
-                }
-                Ok(out)
-            })
-            .collect();
-        let mut all = Vec::with_capacity(windows.len());
-        for p in parts {
-            all.extend(p?);
-        }
-        Ok(all)
+        let mut per_cfg = self.per_window(std::slice::from_ref(fx), windows, |rig, model, fx, w| {
+            rig.predict(model, self.feet.as_ref(), self.log, fx, self.starts[w], self.len, floating)
+        })?;
+        Ok(per_cfg.pop().unwrap_or_default())
     }
 
     /// The joint columns of a window's score with prediction `b` in place of the log: how far two simulations of
