@@ -165,7 +165,7 @@ fn identifiability_section(r: &Report) -> String {
         s += &format!(
             "| {} | {} | {} | {} | {} |\n",
             i.kind.name(),
-            (i.magnitude * 1000.0).round() / 1000.0,
+            i.magnitude_text(),
             list(i.identifiable_units()),
             list(not),
             i.revealed_by.as_deref().unwrap_or("—")

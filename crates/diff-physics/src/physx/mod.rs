@@ -759,12 +759,12 @@ impl Engine for PhysxEngine {
         self.world = World::new(&self.desc).map_err(build_err)?;
         self.time = 0.0;
         self.set_world_state(state)?;
-        if let Some((text, _)) = &self.recording {
+        if self.recording.is_some() {
             let dump = dump::scene(&self.desc, self.common.timestep) + &dump::state(&self.to_raw(state));
-            *text.lock().unwrap_or_else(|p| p.into_inner()) = dump;
-        }
-        if let Some((_, steps)) = &mut self.recording {
-            *steps = 0;
+            if let Some((text, steps)) = &mut self.recording {
+                *text.lock().unwrap_or_else(|p| p.into_inner()) = dump;
+                *steps = 0;
+            }
         }
         Ok(())
     }

@@ -52,6 +52,11 @@ impl Identifiability {
         self.units.iter().filter(|u| u.identifiable()).map(|u| u.unit.as_str()).collect()
     }
 
+    /// The magnitude as the report prints it (three decimals, no trailing zeros).
+    pub fn magnitude_text(&self) -> String {
+        format!("{}", (self.magnitude * 1000.0).round() / 1000.0)
+    }
+
     /// The largest signal-to-floor ratio over the units.
     pub fn best_ratio(&self) -> f64 {
         self.units.iter().map(|u| if u.floor > 0.0 { u.signal / u.floor } else { f64::INFINITY }).fold(0.0, f64::max)
@@ -121,15 +126,11 @@ pub(super) fn not_identifiable_note(i: &Identifiability) -> Option<String> {
     Some(format!(
         "not identifiable from this log: at {} ({}) it would move no unit's residual by the floor a fit must \
          clear (at best {:.0} % of it); {} would reveal it",
-        fmt_magnitude(i.magnitude),
+        i.magnitude_text(),
         i.kind.parameter(),
         100.0 * i.best_ratio(),
         i.kind.revealed_by()
     ))
-}
-
-fn fmt_magnitude(v: f64) -> String {
-    format!("{}", (v * 1000.0).round() / 1000.0)
 }
 
 #[cfg(test)]
