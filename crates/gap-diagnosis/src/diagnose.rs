@@ -6,8 +6,9 @@
 //! below it, so each can be read (and tested) without those above. `options` (what is asked) and `stats` (means,
 //! bootstrap, noise floor) are the leaves; `windows` picks the windows, `replay` replays and scores them,
 //! `breakdown` says where the gap lies, `fit` fits one effect, `assess` judges each effect alone, `select` builds
-//! the best combination, `identify` says which effects this log could reveal at all and `remainder` says what is
-//! left (per window, robustly, and where). One RNG is threaded through the stages in a fixed order, so a seed fixes the report.
+//! the best combination, `confound` says which named effects the log cannot tell apart, `identify` says which
+//! effects this log could reveal at all and `remainder` says what is left (per window, robustly, and where). One
+//! RNG is threaded through the stages in a fixed order, so a seed fixes the report.
 use crate::effects::EffectKind;
 use crate::log::RobotLog;
 use crate::rig_check::{self, RigCheck};
@@ -18,6 +19,7 @@ use serde::{Deserialize, Serialize};
 
 mod assess;
 mod breakdown;
+mod confound;
 mod fit;
 mod identify;
 mod options;
@@ -27,16 +29,17 @@ mod select;
 mod stats;
 mod windows;
 
-pub use assess::{EffectResult, FittedParam, MIN_WINDOWS_OFF_LIMIT, UNIT_FLOOR_FRAC};
+pub use assess::{EffectResult, FittedParam, MIN_WINDOWS_OFF_LIMIT, SINGLE_JOINT_CANDIDATES, UNIT_FLOOR_FRAC};
 pub use breakdown::Share;
+pub use confound::{leading_set, AmbiguousSet, AMBIGUOUS_COSINE};
 pub use fit::RESOLUTION_FRAC;
 pub use identify::{Identifiability, UnitSignal};
 pub use options::{DiagnoseOptions, PlantChoice, PlantKind, FLOATING_MAX_WINDOWS};
 pub use remainder::{
-    RobustGap, Unexplained, WindowFlag, WindowResidual, FAST_FRAC, SATURATED_FRAC, TRIM_FRAC, UNEXPLAINED_FACTOR,
+    RobustGap, Unexplained, WindowFlag, WindowResidual, FAST_FRAC, SATURATED_FRAC, UNEXPLAINED_FACTOR,
 };
 pub use select::{Combination, MAX_COMBINATION, REFIT_CANDIDATES};
-pub use stats::{Estimate, EFFECT_FLOOR_FRAC};
+pub use stats::{Estimate, Judged, EFFECT_FLOOR_FRAC, TRIM_FRAC};
 pub use windows::{AT_LIMIT_RAD, COMMAND_STALE_S, TIMING_TOL_S};
 
 pub use crate::noise::{SIGMA_DQ, SIGMA_GYRO, SIGMA_Q, SIGMA_QUAT, SIGMA_TAU_FRAC};
@@ -48,7 +51,8 @@ pub use crate::noise::{TIMING_HI, TIMING_LO};
 /// `/4`: adds `windows_down` and `rig_check.foot_load_fraction`.
 /// `/5`: adds `window_residuals`, `robust` and `unexplained_residual`.
 /// `/6`: adds `identifiability`.
-pub const SCHEMA_VERSION: &str = "ulab-gap-report/6";
+/// `/7`: adds `ambiguous`.
+pub const SCHEMA_VERSION: &str = "ulab-gap-report/7";
 
 /// What the diagnosis concluded about the log as a whole.
 #[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq)]
@@ -119,6 +123,9 @@ pub struct Report {
     /// interest, and the motion that would reveal it elsewhere.
     #[serde(default)]
     pub identifiability: Vec<Identifiability>,
+    /// Named effects this log cannot tell apart (nearly collinear predicted changes), each set in rank order.
+    #[serde(default)]
+    pub ambiguous: Vec<AmbiguousSet>,
     pub elapsed_s: f64,
 }
 
@@ -140,7 +147,13 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
     // Which: every effect alone, then the best combination given the effects already in.
     let kinds: Vec<EffectKind> = opts.kinds.clone().unwrap_or_else(|| EffectKind::ALL.to_vec());
     let assessment = assess::assess(&ctx, kinds.clone(), &baseline, breakdown.any_contact, &mut rng)?;
+    let fitted: Vec<(EffectKind, crate::plant::Effects)> =
+        assessment.candidates.iter().map(|c| (c.kind, c.fx.clone())).collect();
     let selection = select::select(&ctx, assessment, &baseline, &mut rng)?;
+    // Which named effects the log cannot tell apart.
+    let named: Vec<(EffectKind, crate::plant::Effects)> =
+        selection.ranked.iter().filter_map(|k| fitted.iter().find(|(f, _)| f == k).cloned()).collect();
+    let ambiguous = confound::ambiguous_sets(&ctx, &named, &baseline.test_tot, &mut rng)?;
     // Whether the log could show each effect at all: an abstention on an effect it cannot reveal says so.
     let identifiability = identify::identify(&ctx, &breakdown.scores, &kinds)?;
     let mut abstentions = selection.abstentions;
@@ -180,6 +193,7 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
         robust: Some(rest.robust),
         unexplained_residual: Some(rest.unexplained),
         identifiability,
+        ambiguous,
         elapsed_s: t_start.elapsed().as_secs_f64(),
     })
 }
@@ -238,6 +252,7 @@ fn rig_violated(
         robust: None,
         unexplained_residual: None,
         identifiability: vec![],
+        ambiguous: vec![],
         elapsed_s: t_start.elapsed().as_secs_f64(),
     }
 }

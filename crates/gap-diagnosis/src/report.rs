@@ -97,6 +97,16 @@ pub fn markdown(r: &Report) -> String {
     } else {
         let names: Vec<&str> = r.ranked.iter().map(|k| k.name()).collect();
         s += &format!("Named effects, most explanatory first: **{}**.\n\n", names.join(", "));
+        if let Some(set) = crate::diagnose::leading_set(&r.ranked, &r.ambiguous) {
+            let n: Vec<&str> = set.effects.iter().map(|k| k.name()).collect();
+            s += &format!(
+                "**This log cannot tell apart {}**: each alone changes the prediction the same way (cosine magnitude \
+                 {:.2}), so the first of them is not a confident first effect (the motions that would separate them: \
+                 \"Effects this log cannot tell apart\").\n\n",
+                n.join(" and "),
+                set.cosine
+            );
+        }
         if let Some(c) = &r.best_combination {
             let n: Vec<&str> = c.effects.iter().map(|k| k.name()).collect();
             s += &format!(
@@ -135,6 +145,7 @@ pub fn markdown(r: &Report) -> String {
     for (k, why) in &r.abstentions {
         s += &format!("- {}: {}\n", k.name(), why);
     }
+    s += &ambiguous_section(r);
     s += &identifiability_section(r);
     s += &remainder_section(r);
     s += &format!("\nDiagnosis time: {:.1} s. Plots: `by_joint.svg`, `effects.svg`.\n", r.elapsed_s);
@@ -142,6 +153,29 @@ pub fn markdown(r: &Report) -> String {
 }
 
 /// Which effects this log could reveal, and where not.
+/// The named effects the log cannot tell apart, with the motion that would reveal each.
+fn ambiguous_section(r: &Report) -> String {
+    if r.ambiguous.is_empty() {
+        return String::new();
+    }
+    let mut s = format!(
+        "\n## Effects this log cannot tell apart\n\nEach set's effects, fitted alone, change the predicted measurements of the held-out windows in nearly the same direction (|cosine| at least {:.2}) and leave held-out gaps that the log cannot rank (their difference is under the noise floor, or its 95 % interval holds 0): their order in the ranking is not evidence for one over the other.\n\n| effects (rank order) | smallest cosine magnitude | largest gap difference (of the baseline) | motion that would reveal each |\n|---|---|---|---|\n",
+        crate::diagnose::AMBIGUOUS_COSINE
+    );
+    for set in &r.ambiguous {
+        let n: Vec<&str> = set.effects.iter().map(|k| k.name()).collect();
+        let how: Vec<String> = set.effects.iter().map(|k| format!("{}: {}", k.name(), k.revealed_by())).collect();
+        s += &format!(
+            "| {} | {:.3} | {:.1} % | {} |\n",
+            n.join(", "),
+            set.cosine,
+            100.0 * set.gap_difference,
+            how.join("; ")
+        );
+    }
+    s
+}
+
 fn identifiability_section(r: &Report) -> String {
     if r.identifiability.is_empty() {
         return String::new();

@@ -8,7 +8,7 @@ use super::fit::{
 use super::options::PlantKind;
 use super::replay::Ctx;
 use super::replay::Scores;
-use super::stats::{bootstrap_mean, bootstrap_ratio, mean, noise_floor, total, Estimate};
+use super::stats::{bootstrap_mean, judge, mean, total, Estimate};
 use crate::effects::{EffectKind, Scope};
 use crate::plant::Effects;
 use crate::GapError;
@@ -170,55 +170,64 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
         let before: Vec<f64> = base_test.iter().map(|s| cols.iter().map(|&c| s[c]).sum()).collect();
         let aft: Vec<f64> = after.iter().map(|s| cols.iter().map(|&c| s[c]).sum()).collect();
         let diffs: Vec<f64> = before.iter().zip(&aft).map(|(b, a)| b - a).collect();
-        let d = bootstrap_mean(&diffs, bootstrap, rng);
-        let unit_floor = UNIT_FLOOR_FRAC * mean(&before);
+        let group = judge_unit(ctx, kind, cols, &before, &diffs, rng);
         let value = unit_value(kind, &fx, ctx, u);
+        let resolved = |v: f64| (v - v0).abs() >= RESOLUTION_FRAC * (hi - lo);
         // The group's single-joint fit, when it explains (nearly) as much as the group fit, or it alone clears.
         if let (Some(sj), true) = (&single, cols.len() >= 2) {
             let (j, v) = (sj.joints[u], sj.values[u]);
-            if (v - v0).abs() >= RESOLUTION_FRAC * (hi - lo) {
+            if resolved(v) {
                 let sdiffs: Vec<f64> =
                     before.iter().zip(&sj.after).map(|(b, a)| b - cols.iter().map(|&c| a[c]).sum::<f64>()).collect();
-                let sd = bootstrap_mean(&sdiffs, bootstrap, rng);
-                let group_ok = d.lo > unit_floor && d.value > 0.0 && (value - v0).abs() >= RESOLUTION_FRAC * (hi - lo);
-                let single_ok = sd.lo > unit_floor && sd.value > 0.0;
-                if single_ok && (!group_ok || sd.value >= SINGLE_JOINT_FRAC * d.value) {
-                    if !off_limit(ctx, kind, cols, &before, &sdiffs) {
+                let joint = judge_unit(ctx, kind, cols, &before, &sdiffs, rng);
+                let group_cut = match group {
+                    UnitVerdict::Kept(d) if resolved(value) => Some(d),
+                    _ => None,
+                };
+                match joint {
+                    UnitVerdict::Kept(sd) if group_cut.is_none_or(|d| sd >= SINGLE_JOINT_FRAC * d) => {
+                        kind.set(&mut pruned, j, v);
+                        params.push(FittedParam {
+                            unit: ctx.model.joints[j].motor_name.clone(),
+                            value: report_value(kind, v),
+                            sd: report_value(kind, sds[u]),
+                            held_out_reduction: sd,
+                        });
+                        continue;
+                    }
+                    UnitVerdict::LimitOnly if group_cut.is_none() => {
                         limit_only.push(ctx.model.joints[j].motor_name.clone());
                         continue;
                     }
-                    kind.set(&mut pruned, j, v);
-                    params.push(FittedParam {
-                        unit: ctx.model.joints[j].motor_name.clone(),
-                        value: report_value(kind, v),
-                        sd: report_value(kind, sds[u]),
-                        held_out_reduction: sd.value,
-                    });
-                    continue;
+                    _ => {}
                 }
             }
         }
-        if d.lo > unit_floor && d.value > 0.0 && !off_limit(ctx, kind, cols, &before, &diffs) {
-            limit_only.push(unit_name(ctx, kind, u));
-            continue;
-        }
-        if d.lo > unit_floor && d.value > 0.0 && kind.scope() == Scope::Imu {
+        let d = match group {
+            UnitVerdict::Kept(d) => d,
+            UnitVerdict::LimitOnly => {
+                limit_only.push(unit_name(ctx, kind, u));
+                continue;
+            }
+            UnitVerdict::Not => continue,
+        };
+        if kind.scope() == Scope::Imu {
             kind.copy(&fx, &mut pruned);
             for (k, axis) in ["imu_x", "imu_y", "imu_z"].into_iter().enumerate() {
                 params.push(FittedParam {
                     unit: axis.into(),
                     value: kind.get(&fx, k),
                     sd: sds[0],
-                    held_out_reduction: d.value,
+                    held_out_reduction: d,
                 });
             }
-        } else if d.lo > unit_floor && d.value > 0.0 && (value - v0).abs() >= RESOLUTION_FRAC * (hi - lo) {
+        } else if resolved(value) {
             set_unit(kind, &mut pruned, ctx, u, value);
             params.push(FittedParam {
                 unit: unit_name(ctx, kind, u),
                 value: report_value(kind, value),
                 sd: report_value(kind, sds[u]),
-                held_out_reduction: d.value,
+                held_out_reduction: d,
             });
         }
     }
@@ -250,12 +259,12 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
         let a = ctx.eval_many(std::slice::from_ref(&pruned), &ctx.test)?.remove(0);
         a.iter().map(|s| total(s)).collect::<Vec<f64>>()
     };
-    let red = bootstrap_ratio(base_test_tot, &after_tot, bootstrap, rng);
+    let judged = judge(base_test_tot, &after_tot, bootstrap, rng);
+    let (red, floor) = (judged.reduction, judged.floor);
     let metric_after = bootstrap_mean(&after_tot, bootstrap, rng);
-    let floor = noise_floor(base_test_tot);
-    let named = !params.is_empty() && red.lo > floor;
+    let named = !params.is_empty() && judged.clears();
     let note = if named {
-        None
+        judged.trimmed_note()
     } else if params.is_empty() && !limit_only.is_empty() {
         Some(format!(
             "reduces the held-out residual of {} only in windows where a joint reaches its range limit (simulators \
@@ -284,20 +293,71 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
     Ok(Assessed { result, kept: pruned, totals: after_tot })
 }
 
+/// Whether a unit's held-out cuts keep it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum UnitVerdict {
+    /// Kept, with its mean held-out cut of its own residual.
+    Kept(f64),
+    /// It cuts its own residual only in windows where one of its joints reaches a range limit.
+    LimitOnly,
+    Not,
+}
+
+/// Judges a unit by `diffs`, the per-window cut of its own held-out residual `before`: kept when the cut's lower
+/// bound clears [`UNIT_FLOOR_FRAC`] of the residual over every held-out window and it also cuts away from its range
+/// limits ([`off_limit`]), or, failing that, when it clears over the windows away from its limits alone (at least
+/// [`MIN_WINDOWS_OFF_LIMIT`] of them): simulators model limits differently, and in a log from another engine a few
+/// windows at a limit can hide an effect the other windows show.
+fn judge_unit(
+    ctx: &Ctx<'_>,
+    kind: EffectKind,
+    cols: &[usize],
+    before: &[f64],
+    diffs: &[f64],
+    rng: &mut impl Rng,
+) -> UnitVerdict {
+    let bootstrap = ctx.opts.bootstrap;
+    let d = bootstrap_mean(diffs, bootstrap, rng);
+    if d.lo > UNIT_FLOOR_FRAC * mean(before) && d.value > 0.0 {
+        return if off_limit(ctx, kind, cols, before, diffs) {
+            UnitVerdict::Kept(d.value)
+        } else {
+            UnitVerdict::LimitOnly
+        };
+    }
+    let free = free_windows(ctx, kind, cols);
+    if free.len() == ctx.test.len() || free.len() < MIN_WINDOWS_OFF_LIMIT {
+        return UnitVerdict::Not;
+    }
+    let b: Vec<f64> = free.iter().map(|&i| before[i]).collect();
+    let e = bootstrap_mean(&free.iter().map(|&i| diffs[i]).collect::<Vec<f64>>(), bootstrap, rng);
+    if e.lo > UNIT_FLOOR_FRAC * mean(&b) && e.value > 0.0 {
+        UnitVerdict::Kept(e.value)
+    } else {
+        UnitVerdict::Not
+    }
+}
+
+/// The held-out windows (indices into `ctx.test`) in which none of the joints of a joint or group unit (score
+/// columns `cols`) is within [`super::AT_LIMIT_RAD`] of its range; every window for the other scopes.
+fn free_windows(ctx: &Ctx<'_>, kind: EffectKind, cols: &[usize]) -> Vec<usize> {
+    let all = 0..ctx.test.len();
+    if !matches!(kind.scope(), Scope::Joint | Scope::Group) {
+        return all.collect();
+    }
+    all.filter(|&i| {
+        let lim = ctx.at_limit.get(ctx.test[i]);
+        !cols.iter().any(|&c| lim.and_then(|l| l.get(c)).copied().unwrap_or(false))
+    })
+    .collect()
+}
+
 /// Whether a joint or group unit (score columns `cols`) also cuts its own held-out residual away from its joints'
 /// range limits: on the held-out windows where none of its joints reaches a limit (at least
 /// [`MIN_WINDOWS_OFF_LIMIT`] of them), by [`UNIT_FLOOR_FRAC`] of its residual there. Other scopes, and units never
 /// at a limit, pass. `before` and `diffs` are per held-out window.
 fn off_limit(ctx: &Ctx<'_>, kind: EffectKind, cols: &[usize], before: &[f64], diffs: &[f64]) -> bool {
-    if !matches!(kind.scope(), Scope::Joint | Scope::Group) {
-        return true;
-    }
-    let free: Vec<usize> = (0..ctx.test.len())
-        .filter(|&i| {
-            let lim = ctx.at_limit.get(ctx.test[i]);
-            !cols.iter().any(|&c| lim.and_then(|l| l.get(c)).copied().unwrap_or(false))
-        })
-        .collect();
+    let free = free_windows(ctx, kind, cols);
     if free.len() == ctx.test.len() {
         return true;
     }
@@ -309,31 +369,53 @@ fn off_limit(ctx: &Ctx<'_>, kind: EffectKind, cols: &[usize], before: &[f64], di
     mean(&d) > UNIT_FLOOR_FRAC * mean(&b)
 }
 
-/// A group-scope effect fitted on one joint per group: the group's joint with the largest training residual, at
-/// its fitted value, and the held-out scores with all of them applied.
+/// A group-scope effect fitted on one joint per group, at its fitted value, and the held-out scores with all of
+/// them applied.
 struct SingleJoints {
     joints: Vec<usize>,
     values: Vec<f64>,
     after: Scores,
 }
 
-/// Single-joint effects (issue 14): every group-scope effect is also fitted on the joint of each group that carries
-/// most of its training residual, so that a friction on one elbow is named on the elbow instead of diluted over
-/// the arm (or missed, when spreading it over the arm fits worse than nothing).
+/// How many joints of each group are tried for a single-joint effect: the ones carrying most of the group's
+/// training residual. More than one, because a link's mass or COM shows most in the joints that carry it (a
+/// heavier forearm in the shoulder), not in its own joint.
+pub const SINGLE_JOINT_CANDIDATES: usize = 3;
+
+/// Single-joint effects (issue 14): every group-scope effect is also fitted on single joints of each group (the
+/// [`SINGLE_JOINT_CANDIDATES`] carrying most of its training residual, in turn), and the one that leaves the
+/// group's training residual smallest is kept, so that a friction on one elbow is named on the elbow instead of
+/// diluted over the arm (or missed, when spreading it over the arm fits worse than nothing).
 fn single_joints(
     ctx: &Ctx<'_>,
     kind: EffectKind,
     base_train: &Scores,
     rng: &mut impl Rng,
 ) -> Result<SingleJoints, GapError> {
-    let joints: Vec<usize> = units_of(ctx, kind)
+    let res = |c: usize| base_train.iter().map(|s| s[c]).sum::<f64>();
+    let ranked: Vec<Vec<usize>> = units_of(ctx, kind)
         .iter()
         .map(|cols| {
-            let res = |c: usize| base_train.iter().map(|s| s[c]).sum::<f64>();
-            cols.iter().copied().max_by(|&a, &b| res(a).total_cmp(&res(b))).unwrap_or(0)
+            let mut js = cols.clone();
+            js.sort_by(|&a, &b| res(b).total_cmp(&res(a)));
+            js
         })
         .collect();
-    let values = fit_one_joint_per_group(ctx, kind, &joints, base_train, rng)?;
+    let mut joints: Vec<usize> = ranked.iter().map(|js| js.first().copied().unwrap_or(0)).collect();
+    let mut values = vec![kind.range().2; joints.len()];
+    let mut best = vec![f64::INFINITY; joints.len()];
+    for k in 0..SINGLE_JOINT_CANDIDATES {
+        let try_joints: Vec<usize> = ranked.iter().map(|js| js.get(k).or(js.first()).copied().unwrap_or(0)).collect();
+        if k > 0 && !ranked.iter().any(|js| js.len() > k) {
+            break;
+        }
+        let fit = fit_one_joint_per_group(ctx, kind, &try_joints, base_train, rng)?;
+        for g in 0..joints.len() {
+            if fit.scores[g] < best[g] {
+                (best[g], joints[g], values[g]) = (fit.scores[g], try_joints[g], fit.values[g]);
+            }
+        }
+    }
     let mut fx = Effects::none(ctx.nj());
     for (&j, &v) in joints.iter().zip(&values) {
         kind.set(&mut fx, j, v);

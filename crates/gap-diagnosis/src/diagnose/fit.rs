@@ -21,10 +21,12 @@ pub(super) struct Fit {
 }
 
 /// The units of one mask fitted together.
-struct UnitFit {
+pub(super) struct UnitFit {
     /// Every unit's value (units outside the mask: unused).
-    values: Vec<f64>,
-    sds: Vec<f64>,
+    pub values: Vec<f64>,
+    pub sds: Vec<f64>,
+    /// Every unit's training score (the sum of its columns over the training windows) at its value.
+    pub scores: Vec<f64>,
 }
 
 /// Columns (score indices) of each fitting unit of `kind`.
@@ -119,14 +121,15 @@ pub(super) fn fit_kind(
 
 /// A group-scope effect fitted on one joint per group (`joints[g]`, e.g. the joint carrying most of the group's
 /// residual), each scored on its whole group's residual (a joint's effect also shows in its neighbours'): the
-/// values per group, to compare with the group fit and name a single joint when it explains as much.
+/// values per group and their training scores, to compare with the group fit and name a single joint when it
+/// explains as much.
 pub(super) fn fit_one_joint_per_group(
     ctx: &Ctx<'_>,
     kind: EffectKind,
     joints: &[usize],
     base_train: &Scores,
     rng: &mut impl Rng,
-) -> Result<Vec<f64>, GapError> {
+) -> Result<UnitFit, GapError> {
     let null = Effects::none(ctx.nj());
     let mask = vec![true; units_of(ctx, kind).len()];
     let setter = |fx: &mut Effects, u: usize, v: f64| {
@@ -134,7 +137,7 @@ pub(super) fn fit_one_joint_per_group(
             kind.set(fx, j, v)
         }
     };
-    Ok(fit_units(ctx, kind, &null, base_train, rng, &mask, &setter)?.values)
+    fit_units(ctx, kind, &null, base_train, rng, &mask, &setter)
 }
 
 /// Grid search then lockstep golden-section refinement of the units in `mask` (the others stay at no effect);
@@ -189,7 +192,7 @@ fn fit_units(
         }
     }
     if kind == EffectKind::Latency {
-        return Ok(UnitFit { values: vec![best[0].0], sds: vec![0.0] });
+        return Ok(UnitFit { values: vec![best[0].0], sds: vec![0.0], scores: vec![best[0].1] });
     }
     // Golden-section refinement of every unit in lockstep within the neighbouring grid cells.
     let step = grid.windows(2).map(|w| w[1] - w[0]).fold(0.0, f64::max);
@@ -232,9 +235,10 @@ fn fit_units(
         }
     }
     let mut vals = vec![0.0; units.len()];
+    let mut scores = vec![0.0; units.len()];
     for u in 0..units.len() {
         let (xr, fr) = if f1[u] < f2[u] { (x1[u], f1[u]) } else { (x2[u], f2[u]) };
-        vals[u] = if fr < best[u].1 { xr } else { best[u].0 };
+        (vals[u], scores[u]) = if fr < best[u].1 { (xr, fr) } else { best[u] };
     }
     // Uncertainty: a parabola through (v-h, v, v+h) on bootstrap resamples of the training windows.
     let h = 0.05 * (hi - lo);
@@ -265,7 +269,7 @@ fn fit_units(
         let m = mean(&vs);
         sds[u] = (vs.iter().map(|v| (v - m).powi(2)).sum::<f64>() / vs.len() as f64).sqrt();
     }
-    Ok(UnitFit { values: vals, sds })
+    Ok(UnitFit { values: vals, sds, scores })
 }
 
 /// IMU bias or misalignment in closed form: the mean residual on the training windows (rig: the reading predicted

@@ -5,7 +5,7 @@
 //! nothing here changes which effects are named.
 use super::breakdown::{Baseline, Share};
 use super::replay::{Ctx, Scores};
-use super::stats::{mean, median, total};
+use super::stats::{mean, median, total, TRIM_FRAC};
 use crate::log::Measurement;
 use crate::noise::{SIGMA_DQ, SIGMA_Q, SIGMA_TAU_FRAC};
 use crate::plant::Effects;
@@ -17,8 +17,6 @@ use serde::{Deserialize, Serialize};
 pub const SATURATED_FRAC: f64 = 0.95;
 /// A joint faster than this fraction of its speed limit counts as a fast transient.
 pub const FAST_FRAC: f64 = 0.5;
-/// The trimmed mean drops this fraction of the held-out windows with the largest baseline residual.
-pub const TRIM_FRAC: f64 = 0.1;
 /// A remaining residual more than this many times the log's own sensor-noise level is reported as unexplained.
 pub const UNEXPLAINED_FACTOR: f64 = 2.0;
 

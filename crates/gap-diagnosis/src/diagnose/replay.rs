@@ -233,6 +233,20 @@ impl Ctx<'_> {
         s
     }
 
+    /// The change from prediction `a` to prediction `b` of one window, sample by sample and joint by joint (position,
+    /// velocity, torque), normalised as the gap metric normalises a residual; flattened.
+    pub(super) fn normalised_change(&self, a: &[Measurement], b: &[Measurement]) -> Vec<f64> {
+        let mut out = Vec::with_capacity(3 * self.nj() * a.len().min(b.len()));
+        for (m, p) in a.iter().zip(b) {
+            for j in 0..self.nj() {
+                out.push((p.q[j] - m.q[j]) / SIGMA_Q);
+                out.push((p.dq[j] - m.dq[j]) / SIGMA_DQ);
+                out.push((p.tau[j] - m.tau[j]) / self.sigma_tau[j]);
+            }
+        }
+        out
+    }
+
     /// IMU residual of a window: the reading predicted from the logged joints on the rig vs the logged reading.
     fn imu_score(&self, fx: &Effects, w: usize) -> Result<f64, GapError> {
         let start = self.starts[w];

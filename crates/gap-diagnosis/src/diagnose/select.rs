@@ -10,7 +10,7 @@ use super::assess::{sort_results, Assessment, Candidate, EffectResult, FittedPar
 use super::breakdown::Baseline;
 use super::fit::{fit_kind, report_value, set_unit, unit_name, unit_value, units_of, RESOLUTION_FRAC};
 use super::replay::{Ctx, Scores};
-use super::stats::{bootstrap_mean, bootstrap_ratio, noise_floor, total, Estimate};
+use super::stats::{bootstrap_mean, bootstrap_ratio, judge, total, Estimate};
 use crate::effects::{EffectKind, Scope};
 use crate::plant::Effects;
 use crate::GapError;
@@ -53,6 +53,8 @@ struct Conditional {
     metric_after: Estimate,
     /// Its parameters when refitted on top of the combination.
     params: Option<Vec<FittedParam>>,
+    /// Set when only the trimmed windows cleared the floor ([`super::stats::Judged::trimmed_note`]).
+    trimmed: Option<String>,
 }
 
 /// The best candidate to add at one selection step.
@@ -95,11 +97,11 @@ pub(super) fn select(
             let Some(mut trial) = best_trial(ctx, &combo, &cands, &candidates, rng)? else {
                 break;
             };
-            let gain = bootstrap_ratio(&cur, &trial.totals, bootstrap, rng);
-            let floor = noise_floor(&cur);
-            if gain.lo <= floor {
+            let judged = judge(&cur, &trial.totals, bootstrap, rng);
+            if !judged.clears() {
                 break;
             }
+            let (gain, floor) = (judged.reduction, judged.floor);
             let per_window = (cur.iter().sum::<f64>() - trial.totals.iter().sum::<f64>()) / cur.len().max(1) as f64;
             let params = trial.params.take().map(|mut ps| {
                 ps.iter_mut().for_each(|p| p.held_out_reduction = per_window);
@@ -107,7 +109,7 @@ pub(super) fn select(
             });
             let kind = cands[trial.index];
             let metric_after = bootstrap_mean(&trial.totals, bootstrap, rng);
-            added.push(Conditional { kind, gain, floor, metric_after, params });
+            added.push(Conditional { kind, gain, floor, metric_after, params, trimmed: judged.trimmed_note() });
             combo = trial.fx;
             members.push(kind);
             cur = trial.totals;
@@ -217,7 +219,11 @@ fn name_conditionals(results: &mut [EffectResult], members: &[EffectKind], added
             if let Some(p) = c.params {
                 r.params = p;
             }
-            r.note = Some(format!("named given {}: reduction of the remaining held-out residual", given.join(" + ")));
+            let trimmed = c.trimmed.map(|t| format!("; {t}")).unwrap_or_default();
+            r.note = Some(format!(
+                "named given {}: reduction of the remaining held-out residual{trimmed}",
+                given.join(" + ")
+            ));
         }
     }
 }

@@ -267,6 +267,10 @@ fn diagnose(a: DiagnoseArgs) -> Result<Exit> {
                 top.map(|p| format!("{} = {:.4} ± {:.4}", p.unit, p.value, p.sd)).unwrap_or_default()
             );
         }
+        for set in &report.ambiguous {
+            let n: Vec<&str> = set.effects.iter().map(|k| k.name()).collect();
+            println!("cannot tell apart on this log: {} (cosine magnitude {:.2})", n.join(", "), set.cosine);
+        }
         println!("report: {}", a.out.join("report.md").display());
     }
     Ok(if violated { Exit::Abstained } else { Exit::Success })

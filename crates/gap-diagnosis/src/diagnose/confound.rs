@@ -1,0 +1,126 @@
+//! Effects this log cannot tell apart (issue 14 item 6). Each named joint-space effect, alone at its fitted
+//! values, changes the predicted measurements of the held-out windows; two effects whose changes are nearly
+//! collinear (a COM shift of the forearm and an elbow encoder offset under slow motion both shift the elbow's
+//! gravity torque) and that leave held-out gaps the log cannot rank (the paired difference's 95 % interval holds 0,
+//! or the difference is under the noise floor a named effect must clear) explain the log the same way, whatever their order in the ranking. They are reported as one ambiguous set, so
+//! that the first name of such a set is not read as a confident first effect.
+use super::replay::Ctx;
+use super::stats::{bootstrap_mean, mean, noise_floor, total};
+use crate::effects::{EffectKind, Scope};
+use crate::plant::Effects;
+use crate::GapError;
+use rand::Rng;
+use serde::{Deserialize, Serialize};
+
+/// Two effects can be ambiguous when the cosine of their prediction changes (in the gap metric's normalised units)
+/// is at least this in magnitude (a change and its opposite are equally ambiguous: the fit picks the sign).
+pub const AMBIGUOUS_COSINE: f64 = 0.8;
+
+/// Named effects the log cannot tell apart.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct AmbiguousSet {
+    /// In rank order.
+    pub effects: Vec<EffectKind>,
+    /// The smallest |cosine| between the prediction changes of two members linked in the set.
+    pub cosine: f64,
+    /// The largest difference of the held-out gap between two linked members alone, relative to the baseline gap
+    /// (each such difference is under the noise floor or its interval holds 0).
+    pub gap_difference: f64,
+}
+
+impl AmbiguousSet {
+    /// Whether `a` and `b` are both in this set.
+    pub fn links(&self, a: EffectKind, b: EffectKind) -> bool {
+        self.effects.contains(&a) && self.effects.contains(&b)
+    }
+}
+
+/// The ambiguous sets among `named` (rank order, each with its fitted effect alone). IMU effects act on the IMU
+/// reading only, which no joint effect predicts, and are not compared.
+pub(super) fn ambiguous_sets(
+    ctx: &Ctx<'_>,
+    named: &[(EffectKind, Effects)],
+    baseline_tot: &[f64],
+    rng: &mut impl Rng,
+) -> Result<Vec<AmbiguousSet>, GapError> {
+    let joint: Vec<&(EffectKind, Effects)> = named.iter().filter(|(k, _)| k.scope() != Scope::Imu).collect();
+    if joint.len() < 2 || ctx.test.is_empty() {
+        return Ok(Vec::new());
+    }
+    let none = ctx.predictions(&Effects::none(ctx.nj()), &ctx.test)?;
+    let fxs: Vec<Effects> = joint.iter().map(|(_, fx)| fx.clone()).collect();
+    let totals: Vec<Vec<f64>> =
+        ctx.eval_many(&fxs, &ctx.test)?.iter().map(|sc| sc.iter().map(|w| total(w)).collect()).collect();
+    let mut changes = Vec::with_capacity(joint.len());
+    for (_, fx) in &joint {
+        let with = ctx.predictions(fx, &ctx.test)?;
+        changes.push(none.iter().zip(&with).flat_map(|(a, b)| ctx.normalised_change(a, b)).collect::<Vec<f64>>());
+    }
+    // Union of the linked pairs, in rank order.
+    let mut set_of: Vec<usize> = (0..joint.len()).collect();
+    let mut weakest: Vec<f64> = vec![1.0; joint.len()];
+    let mut widest: Vec<f64> = vec![0.0; joint.len()];
+    for a in 0..joint.len() {
+        for b in a + 1..joint.len() {
+            let c = cosine(&changes[a], &changes[b]).abs();
+            if c < AMBIGUOUS_COSINE {
+                continue;
+            }
+            let diffs: Vec<f64> = totals[a].iter().zip(&totals[b]).map(|(x, y)| x - y).collect();
+            let d = bootstrap_mean(&diffs, ctx.opts.bootstrap, rng);
+            let rel = d.value.abs() / mean(baseline_tot).max(1e-300);
+            if (d.lo > 0.0 || d.hi < 0.0) && rel >= noise_floor(baseline_tot) {
+                continue;
+            }
+            let (sa, sb) = (set_of[a], set_of[b]);
+            let root = sa.min(sb);
+            let low = weakest[sa].min(weakest[sb]).min(c);
+            let wide = widest[sa].max(widest[sb]).max(rel);
+            for s in set_of.iter_mut().filter(|s| **s == sa || **s == sb) {
+                *s = root;
+            }
+            (weakest[root], widest[root]) = (low, wide);
+        }
+    }
+    let mut sets = Vec::new();
+    for root in 0..joint.len() {
+        let members: Vec<EffectKind> = (0..joint.len()).filter(|&i| set_of[i] == root).map(|i| joint[i].0).collect();
+        if members.len() >= 2 {
+            sets.push(AmbiguousSet { effects: members, cosine: weakest[root], gap_difference: widest[root] });
+        }
+    }
+    Ok(sets)
+}
+
+/// Cosine of two vectors (0 when either is zero).
+fn cosine(a: &[f64], b: &[f64]) -> f64 {
+    let dot: f64 = a.iter().zip(b).map(|(x, y)| x * y).sum();
+    let na: f64 = a.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let nb: f64 = b.iter().map(|x| x * x).sum::<f64>().sqrt();
+    if na > 0.0 && nb > 0.0 {
+        dot / (na * nb)
+    } else {
+        0.0
+    }
+}
+
+/// Whether `kinds` (rank order) open with an ambiguous set: then the report gives the set, not its first name, as
+/// the most explanatory effect.
+pub fn leading_set<'a>(ranked: &[EffectKind], sets: &'a [AmbiguousSet]) -> Option<&'a AmbiguousSet> {
+    let first = *ranked.first()?;
+    sets.iter().find(|s| s.effects.contains(&first))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn collinear_changes_of_either_sign_are_ambiguous_orthogonal_ones_are_not() {
+        let a = [1.0, 2.0, 0.0, -1.0];
+        assert!((cosine(&a, &[2.0, 4.0, 0.0, -2.0]) - 1.0).abs() < 1e-12);
+        assert!((cosine(&a, &[-1.0, -2.0, 0.0, 1.0]) + 1.0).abs() < 1e-12);
+        assert!(cosine(&a, &[2.0, -1.0, 5.0, 0.0]).abs() < 1e-12);
+        assert_eq!(cosine(&a, &[0.0; 4]), 0.0);
+    }
+}
