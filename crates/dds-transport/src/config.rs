@@ -52,6 +52,8 @@ pub struct DomainConfig {
     pub(crate) tracing: Option<(String, String)>,
     /// Socket receive buffer to request (bytes); `None`: Cyclone's default (asks for 1 MiB).
     pub(crate) socket_receive_buffer: Option<u64>,
+    /// Size of one Cyclone receive buffer (`Sizing/ReceiveBufferSize`); `None`: Cyclone's default (1 MiB).
+    pub(crate) receive_buffer: Option<u64>,
 }
 
 impl Default for DomainConfig {
@@ -65,6 +67,7 @@ impl Default for DomainConfig {
             peers: vec!["127.0.0.1".to_owned()],
             tracing: None,
             socket_receive_buffer: None,
+            receive_buffer: None,
         }
     }
 }
@@ -164,6 +167,24 @@ impl DomainConfig {
         self
     }
 
+    /// Sets the size of one Cyclone receive buffer (`Sizing/ReceiveBufferSize`, default 1 MiB; Cyclone raises it to
+    /// `ReceiveBufferChunkSize` (128 KiB) plus a header if smaller). Why: Cyclone's receive thread writes every
+    /// incoming packet at the next free address of its current buffer (a bump allocator) and only replaces the
+    /// buffer when it is full, so a long-running process that receives little (a bridge that only sees discovery
+    /// traffic) touches a fresh page every few KiB received: its anonymous RSS creeps up by the bytes received until
+    /// a full buffer (about 1 MiB) is resident, and a new buffer may land in untouched memory again. A small buffer
+    /// bounds that creep to a few hundred KiB within minutes.
+    #[must_use]
+    pub fn receive_buffer_size(mut self, bytes: u64) -> Self {
+        self.receive_buffer = Some(bytes);
+        self
+    }
+
+    /// The Cyclone receive buffer size requested, if any.
+    pub fn receive_buffer_size_bytes(&self) -> Option<u64> {
+        self.receive_buffer
+    }
+
     /// The socket receive buffer requested, if any.
     pub fn socket_receive_buffer_bytes(&self) -> Option<u64> {
         self.socket_receive_buffer
@@ -202,6 +223,11 @@ impl DomainConfig {
                 return Err(Error::InvalidConfig(format!("socket receive buffer {b} bytes (64 KiB to 1 GiB)")));
             }
         }
+        if let Some(b) = self.receive_buffer {
+            if !(64 * 1024..=64 << 20).contains(&b) {
+                return Err(Error::InvalidConfig(format!("receive buffer {b} bytes (64 KiB to 64 MiB)")));
+            }
+        }
         if self.max_auto_participant_index > 119 {
             return Err(Error::InvalidConfig("max_auto_participant_index above 119".to_owned()));
         }
@@ -232,6 +258,10 @@ impl DomainConfig {
             Some(b) => format!("<Internal><SocketReceiveBufferSize max=\"{b}B\"/></Internal>"),
             None => String::new(),
         };
+        let sizing = match self.receive_buffer {
+            Some(b) => format!("<Sizing><ReceiveBufferSize>{b}B</ReceiveBufferSize></Sizing>"),
+            None => String::new(),
+        };
         let tracing = match &self.tracing {
             Some((v, f)) => format!("<Tracing><Verbosity>{v}</Verbosity><OutputFile>{f}</OutputFile></Tracing>"),
             None => String::new(),
@@ -241,7 +271,7 @@ impl DomainConfig {
              <General><Interfaces><NetworkInterface name=\"{iface}\" priority=\"default\" multicast=\"default\"/></Interfaces></General>\
              <Discovery><ParticipantIndex>{index}</ParticipantIndex>\
              <MaxAutoParticipantIndex>{max}</MaxAutoParticipantIndex>{peers}</Discovery>\
-             {internal}{tracing}</Domain></CycloneDDS>",
+             {internal}{sizing}{tracing}</Domain></CycloneDDS>",
             iface = self.interface,
             max = self.max_auto_participant_index,
         )
@@ -309,6 +339,15 @@ mod tests {
         assert!(c.to_xml().contains("<Internal><SocketReceiveBufferSize max=\"8388608B\"/></Internal>"));
         assert!(DomainConfig::loopback(7).socket_receive_buffer(1000).validate().is_err());
         assert!(DomainConfig::loopback(7).socket_receive_buffer(2 << 30).validate().is_err());
+    }
+
+    #[test]
+    fn receive_buffer_is_bounded_and_in_the_xml() {
+        assert!(!DomainConfig::loopback(7).to_xml().contains("ReceiveBufferSize"));
+        let c = DomainConfig::loopback(7).receive_buffer_size(256 * 1024);
+        assert!(c.validate().is_ok());
+        assert!(c.to_xml().contains("<Sizing><ReceiveBufferSize>262144B</ReceiveBufferSize></Sizing>"));
+        assert!(DomainConfig::loopback(7).receive_buffer_size(1000).validate().is_err());
     }
 
     #[test]

@@ -111,7 +111,10 @@ pub fn run(args: Args) -> Result<Exit> {
         args.sport_state_rate >= 0.0 && args.sport_state_rate.is_finite(),
         "--sport-state-rate must be 0 (off) or positive"
     );
-    let cfg = args.net.domain_config()?;
+    // A small Cyclone receive buffer: the bridge receives only discovery traffic and lowcmd, and with the default
+    // 1 MiB buffer its anonymous RSS creeps up by the bytes received (about 35 KiB/min under participant churn)
+    // until the buffer is full; 256 KiB bounds the creep within minutes.
+    let cfg = args.net.domain_config()?.receive_buffer_size(256 * 1024);
     let model = robot_model::builtin(&args.robot).with_context(|| format!("loading robot `{}`", args.robot))?;
     let fallen = args.unsafe_defects.contains(&Defect::FallenPinned);
     anyhow::ensure!(!(fallen && args.hang), "the fallen-pinned defect and --hang exclude each other");
