@@ -5,7 +5,7 @@
 //! nothing here changes which effects are named.
 use super::breakdown::{Baseline, Share};
 use super::replay::{Ctx, Scores};
-use super::stats::{mean, median, total, TRIM_FRAC};
+use super::stats::{mean, median, total, trim_order};
 use crate::log::Measurement;
 use crate::noise::{SIGMA_DQ, SIGMA_Q, SIGMA_TAU_FRAC};
 use crate::plant::Effects;
@@ -151,9 +151,7 @@ pub(super) fn remainder(
     let before: Vec<f64> = held.iter().map(|w| w.baseline).collect();
     let after: Vec<f64> = held.iter().map(|w| w.after).collect();
     // Trim the windows with the largest baseline residual.
-    let mut order: Vec<usize> = (0..held.len()).collect();
-    order.sort_by(|&a, &b| before[b].total_cmp(&before[a]));
-    let n_trim = ((held.len() as f64) * TRIM_FRAC).floor() as usize;
+    let (order, n_trim) = trim_order(&before);
     let kept = &order[n_trim.min(order.len())..];
     let tmean =
         |x: &[f64]| if kept.is_empty() { 0.0 } else { kept.iter().map(|&i| x[i]).sum::<f64>() / kept.len() as f64 };

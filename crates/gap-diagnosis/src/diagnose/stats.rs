@@ -162,12 +162,19 @@ pub(super) fn judge(before: &[f64], after: &[f64], b: usize, rng: &mut impl Rng)
     judged
 }
 
+/// The windows by decreasing `before` and how many of the first the trimmed statistics drop ([`TRIM_FRAC`]): the
+/// one rule for the trimmed naming test here and the trimmed mean of "What is left".
+pub(super) fn trim_order(before: &[f64]) -> (Vec<usize>, usize) {
+    let mut order: Vec<usize> = (0..before.len()).collect();
+    order.sort_by(|&a, &b| before[b].total_cmp(&before[a]));
+    let n_trim = (before.len() as f64 * TRIM_FRAC).floor() as usize;
+    (order, n_trim)
+}
+
 /// `before` and `after` without the [`TRIM_FRAC`] of windows with the largest `before` (window order kept).
 fn trimmed(before: &[f64], after: &[f64]) -> (Vec<f64>, Vec<f64>) {
     let n = before.len().min(after.len());
-    let n_trim = (n as f64 * TRIM_FRAC).floor() as usize;
-    let mut order: Vec<usize> = (0..n).collect();
-    order.sort_by(|&a, &b| before[b].total_cmp(&before[a]));
+    let (order, n_trim) = trim_order(&before[..n]);
     let mut drop = vec![false; n];
     order.iter().take(n_trim).for_each(|&i| drop[i] = true);
     (0..n).filter(|&i| !drop[i]).map(|i| (before[i], after[i])).unzip()
