@@ -10,6 +10,7 @@
 //! the logs of the diagnosis's end-to-end tests (`tests/`).
 #![forbid(unsafe_code)]
 
+pub mod out_of_library;
 pub mod reference;
 
 use gap_diagnosis::diagnose::{diagnose, AmbiguousSet, DiagnoseOptions, PlantKind, Report};
@@ -25,6 +26,7 @@ use robot_model::RobotModel;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
+pub use out_of_library::{OutOfLibrary, OutOfLibraryLabel};
 pub use reference::{FloatingLog, FloatingRealConfig, SensorNoise};
 
 /// The reference ("real") plant.
@@ -44,6 +46,20 @@ pub struct RealConfig {
     /// Scale of the excitation plan's amplitudes (1: the plan; below 1: gentler motion; 0: holding the standing
     /// pose). Unused when a policy drives the plant.
     pub excitation_scale: f64,
+    /// The motion of the joints no policy drives: the excitation plan or a gentle chirp.
+    pub motion: Motion,
+    /// An effect outside the diagnosis's library, hidden in the plant as a torque the actuator does not know of.
+    pub out_of_library: Option<OutOfLibrary>,
+}
+
+/// The scripted motion of a trial (of every joint, or of the joints a policy does not drive).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Motion {
+    /// The excitation plan ([`excite::command_at`]): chirps to 3 Hz and steps.
+    #[default]
+    Plan,
+    /// A gentle chirp ([`excite::gentle_command_at`]): slow sweeps at a third of the plan's amplitude.
+    GentleChirp,
 }
 
 impl RealConfig {
@@ -57,6 +73,8 @@ impl RealConfig {
             duration,
             seed,
             excitation_scale: 1.0,
+            motion: Motion::Plan,
+            out_of_library: None,
         }
     }
 }
@@ -77,6 +95,8 @@ mod rand_distr_free {
 pub enum InputKind {
     /// The excitation plan ([`gap_diagnosis::excite`]) on every joint.
     Excitation,
+    /// A gentle chirp ([`Motion::GentleChirp`]) on every joint: what a user records anyway.
+    GentleChirp,
     /// A policy rollout on the policy's joints (the legs) with a velocity command drawn per trial; the other
     /// joints (torso, arms, which the policies only hold) follow the excitation plan's targets for them.
     Policy,
@@ -144,10 +164,20 @@ pub fn generate_log_with(
     let mut truth: Vec<([f64; 4], nalgebra::Vector3<f64>, [f64; 3])> = Vec::with_capacity(steps);
     for i in 0..steps {
         let t = i as f64 * DT;
+        let disturbance = match &cfg.out_of_library {
+            Some(o) => {
+                let (q, dq) = rig.joints();
+                o.torque(model, &q, &dq, &tau, rig.torque_limits())
+            }
+            None => Vec::new(),
+        };
         // Commands whose time has come, computed from the latest measurement (what the controller sees).
         while next_cmd < times.len() && times[next_cmd] <= t + 1e-12 {
             let tc = times[next_cmd];
-            let mut cmd = excite::command_at(model, &amp, &groups, cfg.duration, tc);
+            let mut cmd = match cfg.motion {
+                Motion::Plan => excite::command_at(model, &amp, &groups, cfg.duration, tc),
+                Motion::GentleChirp => excite::gentle_command_at(model, &amp, &groups, cfg.duration, tc),
+            };
             if let Some((c, vel)) = controller.as_mut() {
                 let (q, dq, quat, gyro) = match log.states.last() {
                     Some(m) => (m.q.clone(), m.dq.clone(), m.quat, m.gyro),
@@ -171,11 +201,11 @@ pub fn generate_log_with(
             // Before the first command reaches the motors: hold with the first command's gains at the start pose.
             let mut c = log.commands[0].clone();
             c.q = q0.clone();
-            tau.copy_from_slice(rig.step(&c, fx)?);
+            tau.copy_from_slice(rig.step_disturbed(&c, fx, &disturbance)?);
             continue;
         };
         let cmd = log.commands[ci].clone();
-        tau.copy_from_slice(rig.step(&cmd, fx)?);
+        tau.copy_from_slice(rig.step_disturbed(&cmd, fx, &disturbance)?);
         let (q, dq) = rig.joints();
         let (quat, gyro) = imu_reading(model, &q, &dq, fx)?;
         let nq =
@@ -340,6 +370,9 @@ pub fn injectable() -> Vec<EffectKind> {
 pub struct Labels {
     pub trial: usize,
     pub injected: Vec<Injected>,
+    /// An effect outside the library ([`OutOfLibrary`]; its trials hide no library effect).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub out_of_library: Vec<OutOfLibraryLabel>,
 }
 
 /// Sealed labels: a salted SHA-256 of the labels' JSON, published before the diagnosis runs.
@@ -380,6 +413,13 @@ pub struct TrialScore {
     #[serde(default)]
     pub policy: Option<String>,
     pub injected: Vec<Injected>,
+    /// The hidden effect of an out-of-library trial (scored as its own class: any named effect is a confident
+    /// attribution, as on a control).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub out_of_library: Option<OutOfLibraryLabel>,
+    /// The report found a remainder beyond what sensor noise explains ("part of the gap is unexplained").
+    #[serde(default)]
+    pub remainder_unexplained: bool,
     pub ranked: Vec<EffectKind>,
     /// Top-ranked unit of each injected kind, when that kind was named.
     pub attributed_units: Vec<Option<String>>,
@@ -451,6 +491,8 @@ pub fn score(labels: &Labels, report: &Report) -> TrialScore {
         input: InputKind::Excitation,
         policy: None,
         injected: inj.clone(),
+        out_of_library: labels.out_of_library.first().cloned(),
+        remainder_unexplained: report.unexplained_residual.as_ref().is_some_and(|u| u.significant),
         attributed_units,
         top1: !kinds.is_empty() && ranked.first().is_some_and(|k| kinds.contains(k)),
         top3: !kinds.is_empty() && ranked.iter().take(3).any(|k| kinds.contains(k)),
@@ -499,6 +541,11 @@ pub struct BenchOptions {
     /// The reference ("real") plant's engine on the rig (default MuJoCo RK4). Another engine than MuJoCo makes the
     /// logs independent of the diagnosing simulator (see [`RealConfig::engine`]).
     pub reference: EngineChoice,
+    /// The scripted trials' motion (and that of the joints a policy does not drive): the plan or a gentle chirp.
+    pub motion: Motion,
+    /// Out-of-library trials run after the `trials` regular ones (trial indices `trials..`): each hides one
+    /// effect outside the library ([`OutOfLibrary`], ripple and load friction in turn) under the scripted motion.
+    pub out_of_library: usize,
 }
 
 impl BenchOptions {
@@ -511,6 +558,8 @@ impl BenchOptions {
             diagnose: DiagnoseOptions { seed, ..DiagnoseOptions::default() },
             policies: Vec::new(),
             reference: EngineChoice::mujoco("RK4"),
+            motion: Motion::Plan,
+            out_of_library: 0,
         }
     }
 }
@@ -571,7 +620,16 @@ pub fn draw_trial(model: &RobotModel, i: usize, seed: u64) -> (Effects, Labels) 
     let mut fx = Effects::none(model.nj());
     let chosen = trial_kinds(i, &injectable(), &mut rng);
     let injected = chosen.into_iter().map(|k| inject(model, k, &mut fx, &mut rng)).collect();
-    (fx, Labels { trial: i, injected })
+    (fx, Labels { trial: i, injected, out_of_library: Vec::new() })
+}
+
+/// The hidden out-of-library effect of trial `i` (no library effect): see [`BenchOptions::out_of_library`].
+pub fn draw_out_of_library_trial(model: &RobotModel, i: usize, seed: u64) -> (OutOfLibrary, Labels) {
+    let mut rng =
+        rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x0001_0b0f_11b7_a77e ^ (i as u64).wrapping_mul(0x9e37));
+    let o = OutOfLibrary::draw(model, i, &mut rng);
+    let label = o.label(model);
+    (o, Labels { trial: i, injected: Vec::new(), out_of_library: vec![label] })
 }
 
 /// The salt that seals the labels of trial `i`.
@@ -589,21 +647,33 @@ pub fn run_trial(
     opts: &BenchOptions,
     on_log: &mut dyn FnMut(usize, &RobotLog) -> Result<RobotLog, GapError>,
 ) -> Result<(Seal, TrialScore, Report), GapError> {
-    let (fx, labels) = draw_trial(model, i, opts.seed);
+    let ool = i >= opts.trials;
+    let (fx, labels, out_of_library) = if ool {
+        let (o, labels) = draw_out_of_library_trial(model, i, opts.seed);
+        (Effects::none(model.nj()), labels, Some(o))
+    } else {
+        let (fx, labels) = draw_trial(model, i, opts.seed);
+        (fx, labels, None)
+    };
     let (sealed, text) = seal(&labels, &trial_salt(opts.seed, i))?;
     drop(labels);
     let cfg = RealConfig {
         effects: fx,
         seed: opts.seed.wrapping_mul(31).wrapping_add(i as u64),
         engine: opts.reference.clone(),
+        motion: opts.motion,
+        out_of_library,
         ..RealConfig::new(model, opts.duration, 0)
     };
-    let input = trial_policy(i, opts);
+    let input = if ool { None } else { trial_policy(i, opts) };
     let log = generate_log_with(model, &cfg, input.as_ref())?;
     let log = on_log(i, &log)?;
     let report = diagnose(model, &log, &opts.diagnose)?;
     let labels = open(&sealed, &text)?;
     let mut s = score(&labels, &report);
+    if opts.motion == Motion::GentleChirp {
+        s.input = InputKind::GentleChirp;
+    }
     if let Some(p) = &input {
         s.input = InputKind::Policy;
         s.policy =
@@ -637,6 +707,14 @@ pub struct BenchSummary {
     pub abstention_controls: f64,
     pub mean_held_out_reduction: f64,
     pub mean_diagnose_s: f64,
+    /// Out-of-library trials, those in which some library effect was named (a confident attribution: target 0),
+    /// and those whose report found part of the gap unexplained.
+    #[serde(default)]
+    pub out_of_library: usize,
+    #[serde(default)]
+    pub out_of_library_named: usize,
+    #[serde(default)]
+    pub out_of_library_unexplained: usize,
 }
 
 pub fn summarize(scores: &[TrialScore]) -> BenchSummary {
@@ -649,7 +727,9 @@ pub fn summarize(scores: &[TrialScore]) -> BenchSummary {
     };
     let singles: Vec<&TrialScore> = scores.iter().filter(|s| s.injected.len() == 1).collect();
     let pairs: Vec<&TrialScore> = scores.iter().filter(|s| s.injected.len() == 2).collect();
-    let controls: Vec<&TrialScore> = scores.iter().filter(|s| s.injected.is_empty()).collect();
+    let controls: Vec<&TrialScore> =
+        scores.iter().filter(|s| s.injected.is_empty() && s.out_of_library.is_none()).collect();
+    let ool: Vec<&TrialScore> = scores.iter().filter(|s| s.out_of_library.is_some()).collect();
     let effects: Vec<&TrialScore> = scores.iter().filter(|s| !s.injected.is_empty()).collect();
     let mut pe: Vec<f64> = scores.iter().flat_map(|s| s.param_errors.clone()).collect();
     pe.sort_by(f64::total_cmp);
@@ -682,6 +762,9 @@ pub fn summarize(scores: &[TrialScore]) -> BenchSummary {
         } else {
             scores.iter().map(|s| s.diagnose_s).sum::<f64>() / scores.len() as f64
         },
+        out_of_library: ool.len(),
+        out_of_library_named: ool.iter().filter(|s| !s.ranked.is_empty()).count(),
+        out_of_library_unexplained: ool.iter().filter(|s| s.remainder_unexplained).count(),
     }
 }
 
@@ -694,20 +777,31 @@ fn in_leading_set(s: &TrialScore, kind: EffectKind) -> bool {
     }
 }
 
-/// The results table split by input kind (all / excitation / policy), when both kinds ran.
+/// The results table split by input kind (all, then one column per kind that ran: excitation plan, gentle
+/// chirp, policy rollout), when more than one kind ran.
 pub fn table_by_input(scores: &[TrialScore]) -> String {
     let all = summarize(scores);
-    let of = |k: InputKind| -> Vec<TrialScore> { scores.iter().filter(|s| s.input == k).cloned().collect() };
-    let (e, p) = (of(InputKind::Excitation), of(InputKind::Policy));
-    if p.is_empty() || e.is_empty() {
+    let kinds: Vec<(InputKind, &str)> = [
+        (InputKind::Excitation, "excitation plan"),
+        (InputKind::GentleChirp, "gentle chirp"),
+        (InputKind::Policy, "policy rollout"),
+    ]
+    .into_iter()
+    .filter(|(k, _)| scores.iter().any(|s| s.input == *k))
+    .collect();
+    if kinds.len() < 2 {
         return table(&all);
     }
-    let rows = table_rows(&all);
-    let re = table_rows(&summarize(&e));
-    let rp = table_rows(&summarize(&p));
-    let mut t = String::from("| metric | all | excitation plan | policy rollout | target |\n|---|---|---|---|---|\n");
-    for ((a, b), c) in rows.iter().zip(&re).zip(&rp) {
-        t += &format!("| {} | {} | {} | {} | {} |\n", a.0, a.1, b.1, c.1, a.2);
+    let columns: Vec<Vec<(String, String, String)>> = kinds
+        .iter()
+        .map(|(k, _)| table_rows(&summarize(&scores.iter().filter(|s| s.input == *k).cloned().collect::<Vec<_>>())))
+        .collect();
+    let names: Vec<&str> = kinds.iter().map(|(_, n)| *n).collect();
+    let mut t =
+        format!("| metric | all | {} | target |\n|---|---|{}---|\n", names.join(" | "), "---|".repeat(kinds.len()));
+    for (i, a) in table_rows(&all).iter().enumerate() {
+        let vals: Vec<&str> = columns.iter().map(|c| c.get(i).map_or("", |r| r.1.as_str())).collect();
+        t += &format!("| {} | {} | {} | {} |\n", a.0, a.1, vals.join(" | "), a.2);
     }
     t
 }
@@ -725,10 +819,19 @@ pub fn table(s: &BenchSummary) -> String {
 fn table_rows(s: &BenchSummary) -> Vec<(String, String, String)> {
     let pct = |x: f64| if x.is_nan() { "n/a".to_string() } else { format!("{:.0} %", 100.0 * x) };
     let row = |m: &str, v: String, t: &str| (m.to_string(), v, t.to_string());
+    let of_ool =
+        |k: usize| if s.out_of_library == 0 { "—".to_string() } else { format!("{k} of {}", s.out_of_library) };
     vec![
         row(
             "trials (single / pair / control)",
-            format!("{} ({} / {} / {})", s.trials, s.singles, s.pairs, s.controls),
+            if s.out_of_library == 0 {
+                format!("{} ({} / {} / {})", s.trials, s.singles, s.pairs, s.controls)
+            } else {
+                format!(
+                    "{} ({} / {} / {} + {} out-of-library)",
+                    s.trials, s.singles, s.pairs, s.controls, s.out_of_library
+                )
+            },
             "",
         ),
         row("top-1 effect, single effects", pct(s.top1_single), "≥ 90 %"),
@@ -750,6 +853,12 @@ fn table_rows(s: &BenchSummary) -> Vec<(String, String, String)> {
             "",
         ),
         row("mean held-out gap reduction (best combination)", pct(s.mean_held_out_reduction), ""),
+        row(
+            "out-of-library trials (torque ripple, load-dependent friction): a library effect named",
+            of_ool(s.out_of_library_named),
+            "0",
+        ),
+        row("out-of-library trials: part of the gap reported unexplained", of_ool(s.out_of_library_unexplained), ""),
         row("mean diagnosis time per log", format!("{:.1} s", s.mean_diagnose_s), ""),
     ]
 }
@@ -820,7 +929,7 @@ pub fn draw_floating_trial(model: &RobotModel, i: usize, seed: u64, attempt: usi
     let chosen = trial_kinds(i, &injectable_floating(), &mut kind_rng);
     let mut fx = Effects::none(model.nj());
     let injected = chosen.into_iter().map(|k| inject_floating(model, k, &mut fx, &mut rng)).collect();
-    (fx, Labels { trial: i, injected })
+    (fx, Labels { trial: i, injected, out_of_library: Vec::new() })
 }
 
 /// The walking policy of floating trial `i`: policies alternate trial by trial; the velocity command is drawn per
@@ -965,10 +1074,69 @@ mod misattribution_tests {
         // Controls are scored by their own row.
         assert_eq!(misattributed(&[], &[Friction], &[]), 0);
         // Armature above the injected damping, but the report says it cannot tell them apart: not confident.
-        let set = AmbiguousSet { effects: vec![Armature, Damping], cosine: 0.95, gap_difference: 0.01 };
+        let set =
+            AmbiguousSet { effects: vec![Armature, Damping], cosine: 0.95, gap_difference: 0.01, at_bound: vec![] };
         assert_eq!(misattributed(&[Damping], &[Armature, Damping], std::slice::from_ref(&set)), 0);
         // A set that does not hold the injected effect does not excuse it.
-        let other = AmbiguousSet { effects: vec![Armature, Friction], cosine: 0.95, gap_difference: 0.01 };
+        let other =
+            AmbiguousSet { effects: vec![Armature, Friction], cosine: 0.95, gap_difference: 0.01, at_bound: vec![] };
         assert_eq!(misattributed(&[Damping], &[Armature, Friction, Damping], &[other]), 2);
+    }
+
+    fn trial(
+        input: super::InputKind,
+        injected: &[gap_diagnosis::EffectKind],
+        ranked: &[gap_diagnosis::EffectKind],
+        ool: bool,
+    ) -> super::TrialScore {
+        let kinds = injected.to_vec();
+        super::TrialScore {
+            trial: 0,
+            input,
+            policy: None,
+            injected: kinds.iter().map(|&kind| super::Injected { kind, unit: "robot".into(), value: 1.0 }).collect(),
+            out_of_library: ool.then(|| super::OutOfLibraryLabel {
+                kind: "torque_ripple".into(),
+                unit: "left_knee".into(),
+                value: 0.05,
+            }),
+            remainder_unexplained: ool,
+            ranked: ranked.to_vec(),
+            attributed_units: vec![],
+            top1: !kinds.is_empty() && ranked.first().is_some_and(|k| kinds.contains(k)),
+            top3: false,
+            all_found: false,
+            joints_correct: 0,
+            joints_total: 0,
+            param_errors: vec![],
+            false_confident: if kinds.is_empty() { ranked.len() } else { 0 },
+            misattributed: 0,
+            ambiguous: vec![],
+            abstained: ranked.is_empty(),
+            held_out_reduction: 0.0,
+            diagnose_s: 1.0,
+            plant: None,
+            redraws: None,
+        }
+    }
+
+    #[test]
+    fn out_of_library_trials_are_their_own_class_and_each_input_kind_its_own_column() {
+        use super::InputKind::{Excitation, GentleChirp, Policy};
+        let scores = vec![
+            trial(Excitation, &[Damping], &[Damping], false),
+            trial(GentleChirp, &[Damping], &[Friction], false),
+            trial(Policy, &[], &[], false),
+            trial(Excitation, &[], &[Friction], true),
+            trial(Excitation, &[], &[], true),
+        ];
+        let s = super::summarize(&scores);
+        // The out-of-library trials are neither controls nor effect trials of the single-effect rows.
+        assert_eq!((s.singles, s.controls, s.false_confident_controls), (2, 1, 0));
+        assert_eq!((s.out_of_library, s.out_of_library_named, s.out_of_library_unexplained), (2, 1, 2));
+        let t = super::table_by_input(&scores);
+        assert!(t.starts_with("| metric | all | excitation plan | gentle chirp | policy rollout | target |"), "{t}");
+        assert!(t.contains("| top-1 effect, single effects | 50 % | 100 % | 0 % | n/a | ≥ 90 % |"), "{t}");
+        assert!(t.contains("a library effect named | 1 of 2 | 1 of 2 | — | — | 0 |"), "{t}");
     }
 }

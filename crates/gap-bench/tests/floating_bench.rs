@@ -114,10 +114,10 @@ fn leg_damping_trial_is_sealed_diagnosed_on_the_floating_plant_and_scored_top1()
             (0..m.nj()).filter(|&j| groups[j] <= 1).for_each(|j| fx.gain_scale[j] = 0.0);
             let limp =
                 (0..2).map(|g| Injected { kind: EffectKind::GainScale, unit: GROUPS[g].into(), value: 0.0 }).collect();
-            return (fx, Labels { trial: 0, injected: limp });
+            return (fx, Labels { trial: 0, injected: limp, out_of_library: vec![] });
         }
         (0..m.nj()).filter(|&j| groups[j] == 0).for_each(|j| fx.damping[j] = 3.0);
-        (fx, Labels { trial: 0, injected: injected.clone() })
+        (fx, Labels { trial: 0, injected: injected.clone(), out_of_library: vec![] })
     };
     // The seal handed over with the log, i.e. before the diagnosis runs.
     let mut sealed_before: Vec<Seal> = Vec::new();
@@ -137,7 +137,9 @@ fn leg_damping_trial_is_sealed_diagnosed_on_the_floating_plant_and_scored_top1()
     assert_eq!(attempts, vec![0, 1], "one redraw after the fall");
     assert_eq!(sealed_before.len(), 1, "on_log runs once, before the diagnosis");
     assert_eq!(sealed_before[0].sha256, sealed.sha256);
-    let (expected, text) = seal(&Labels { trial: 0, injected: injected.clone() }, &trial_salt(1, 0)).expect("seal");
+    let (expected, text) =
+        seal(&Labels { trial: 0, injected: injected.clone(), out_of_library: vec![] }, &trial_salt(1, 0))
+            .expect("seal");
     assert_eq!(expected.sha256, sealed.sha256, "the seal is of the injected labels with the trial's salt");
     assert_eq!(open(&sealed, &text).expect("opens").injected, injected);
 

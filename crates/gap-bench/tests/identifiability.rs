@@ -70,3 +70,35 @@ fn a_robot_holding_still_cannot_reveal_dynamic_effects_but_can_reveal_a_heavier_
         );
     }
 }
+
+/// A gentle chirp (a third of the plan's amplitude, sweeps to 1 Hz, no steps) asks a joint for about a thirtieth
+/// of the plan's accelerations and far less torque: rotor inertia must lose most of its signal, and a torque limit
+/// at 80 % of nominal, which such motion never reaches, must be reported not identifiable, with the motion that
+/// would reveal it. The counterpart is mechanics (inertial torque scales with amplitude times frequency squared),
+/// not the code.
+#[test]
+fn a_gentle_chirp_hides_inertia_and_torque_limits_that_the_plan_reveals() {
+    let m = model();
+    let run = |motion: gap_bench::Motion| {
+        let cfg = RealConfig { motion, ..RealConfig::new(&m, 5.0, 7) };
+        let log = generate_log(&m, &cfg).expect("generate");
+        let kinds = vec![EffectKind::Armature, EffectKind::TorqueSaturation];
+        let opts = DiagnoseOptions { block_s: 0.5, kinds: Some(kinds), ..Default::default() };
+        diagnose(&m, &log, &opts).expect("diagnose")
+    };
+    let plan = run(gap_bench::Motion::Plan);
+    let gentle = run(gap_bench::Motion::GentleChirp);
+    let ratio = |r: &Report, kind: EffectKind| {
+        r.identifiability.iter().find(|i| i.kind == kind).map(|i| i.best_ratio()).expect("listed")
+    };
+    let (a_plan, a_gentle) = (ratio(&plan, EffectKind::Armature), ratio(&gentle, EffectKind::Armature));
+    eprintln!("armature signal/floor: plan {a_plan:.3}, gentle chirp {a_gentle:.3}");
+    assert!(a_plan >= 1.0, "armature not identifiable under the plan ({a_plan:.3})");
+    assert!(a_gentle < 0.25 * a_plan, "a gentle chirp keeps {a_gentle:.3} of armature's signal (plan {a_plan:.3})");
+    assert!(
+        identifiable_units(&gentle, EffectKind::TorqueSaturation).is_empty(),
+        "a torque limit at 80 % is identifiable under a gentle chirp"
+    );
+    let (_, why) = gentle.abstentions.iter().find(|(k, _)| *k == EffectKind::TorqueSaturation).expect("abstained");
+    assert!(why.contains("not identifiable from this log"), "{why}");
+}

@@ -7,7 +7,8 @@
 //! bootstrap, noise floor) are the leaves; `windows` picks the windows, `replay` replays and scores them,
 //! `breakdown` says where the gap lies, `fit` fits one effect, `assess` judges each effect alone, `select` builds
 //! the best combination, `confound` says which named effects the log cannot tell apart, `identify` says which
-//! effects this log could reveal at all and `remainder` says what is left (per window, robustly, and where). One
+//! effects this log could reveal at all, `numerics` how much of the gap the integrator choice alone could make,
+//! and `remainder` says what is left (per window, robustly, and where). One
 //! RNG is threaded through the stages in a fixed order, so a seed fixes the report.
 use crate::effects::EffectKind;
 use crate::log::RobotLog;
@@ -22,6 +23,7 @@ mod breakdown;
 mod confound;
 mod fit;
 mod identify;
+mod numerics;
 mod options;
 mod remainder;
 mod replay;
@@ -34,6 +36,7 @@ pub use breakdown::Share;
 pub use confound::{leading_set, AmbiguousSet, AMBIGUOUS_COSINE};
 pub use fit::RESOLUTION_FRAC;
 pub use identify::{Identifiability, UnitSignal};
+pub use numerics::{IntegratorVariant, Numerics, INTEGRATORS};
 pub use options::{DiagnoseOptions, PlantChoice, PlantKind, FLOATING_MAX_WINDOWS};
 pub use remainder::{
     RobustGap, Unexplained, WindowFlag, WindowResidual, FAST_FRAC, SATURATED_FRAC, UNEXPLAINED_FACTOR,
@@ -52,7 +55,9 @@ pub use crate::noise::{TIMING_HI, TIMING_LO};
 /// `/5`: adds `window_residuals`, `robust` and `unexplained_residual`.
 /// `/6`: adds `identifiability`.
 /// `/7`: adds `ambiguous`.
-pub const SCHEMA_VERSION: &str = "ulab-gap-report/7";
+/// `/8`: adds `ambiguous[].at_bound` (members fitted at the edge of their search range, ranked after the others)
+/// and `numerics` (the prediction and held-out gap under MuJoCo's other integrators).
+pub const SCHEMA_VERSION: &str = "ulab-gap-report/8";
 
 /// What the diagnosis concluded about the log as a whole.
 #[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq)]
@@ -126,6 +131,9 @@ pub struct Report {
     /// Named effects this log cannot tell apart (nearly collinear predicted changes), each set in rank order.
     #[serde(default)]
     pub ambiguous: Vec<AmbiguousSet>,
+    /// What MuJoCo's other integrators do to the prediction and the held-out gap (a baseline mismatch of numerics).
+    #[serde(default)]
+    pub numerics: Option<Numerics>,
     pub elapsed_s: f64,
 }
 
@@ -153,7 +161,9 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
     // Which named effects the log cannot tell apart.
     let named: Vec<(EffectKind, crate::plant::Effects)> =
         selection.ranked.iter().filter_map(|k| fitted.iter().find(|(f, _)| f == k).cloned()).collect();
-    let ambiguous = confound::ambiguous_sets(&ctx, &named, &baseline.test_tot, &mut rng)?;
+    let mut ambiguous = confound::ambiguous_sets(&ctx, &named, &baseline.test_tot, &mut rng)?;
+    let mut ranked = selection.ranked;
+    confound::prefer_inside_range(&mut ranked, &mut ambiguous, &selection.effects);
     // Whether the log could show each effect at all: an abstention on an effect it cannot reveal says so.
     let identifiability = identify::identify(&ctx, &breakdown.scores, &kinds)?;
     let mut abstentions = selection.abstentions;
@@ -163,6 +173,8 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
             why.push_str(&note);
         }
     }
+    // How much of the gap the simulator's own numerics could make.
+    let numerics = numerics::numerics(&ctx, &baseline.test_tot, &mut rng)?;
     // What is left: per window, robustly, and where.
     let rest = remainder::remainder(&ctx, &breakdown.scores, &baseline, selection.combo_fx.as_ref())?;
     Ok(Report {
@@ -184,9 +196,9 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
         by_group: breakdown.by_group,
         by_phase: breakdown.by_phase,
         by_band: breakdown.by_band,
-        unexplained: selection.ranked.is_empty(),
+        unexplained: ranked.is_empty(),
         effects: selection.effects,
-        ranked: selection.ranked,
+        ranked,
         abstentions,
         best_combination: selection.best_combination,
         window_residuals: rest.windows,
@@ -194,6 +206,7 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
         unexplained_residual: Some(rest.unexplained),
         identifiability,
         ambiguous,
+        numerics,
         elapsed_s: t_start.elapsed().as_secs_f64(),
     })
 }
@@ -253,6 +266,7 @@ fn rig_violated(
         unexplained_residual: None,
         identifiability: vec![],
         ambiguous: vec![],
+        numerics: None,
         elapsed_s: t_start.elapsed().as_secs_f64(),
     }
 }

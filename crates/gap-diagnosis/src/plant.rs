@@ -279,10 +279,23 @@ impl<E: Engine + ?Sized> Rig<E> {
     /// One physics step: the effect layer turns `cmd` into joint torques; returns the motor torque (what
     /// `tau_est` reports).
     pub fn step(&mut self, cmd: &Command, fx: &Effects) -> Result<&[f64], GapError> {
+        self.step_disturbed(cmd, fx, &[])
+    }
+
+    /// [`Rig::step`] with `disturbance` (N·m per joint; missing joints: none) added to the joint torques but not to
+    /// the motor torque: a torque the actuator does not know of (a benchmark's effect outside the library).
+    pub fn step_disturbed(&mut self, cmd: &Command, fx: &Effects, disturbance: &[f64]) -> Result<&[f64], GapError> {
         let s = self.engine.state();
-        let joint_tau = actuator_torques(cmd, fx, &s.q, &s.dq, &self.torque_limit, &self.speed_limit, &mut self.tau);
+        let mut joint_tau =
+            actuator_torques(cmd, fx, &s.q, &s.dq, &self.torque_limit, &self.speed_limit, &mut self.tau);
+        joint_tau.iter_mut().zip(disturbance).for_each(|(t, d)| *t += d);
         self.engine.step(&joint_tau).map_err(GapError::from)?;
         Ok(&self.tau)
+    }
+
+    /// The torque limit of every joint (N·m).
+    pub fn torque_limits(&self) -> &[f64] {
+        &self.torque_limit
     }
 }
 

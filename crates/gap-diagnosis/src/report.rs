@@ -106,6 +106,17 @@ pub fn markdown(r: &Report) -> String {
                 n.join(" and "),
                 set.cosine
             );
+            if !set.at_bound.is_empty() {
+                let b: Vec<&str> = set.at_bound.iter().map(|k| k.name()).collect();
+                s += &format!(
+                    "Within the set, {} come{} last: {} fit sits at the edge of its search range, as an effect's                      does when it stands in for another.
+
+",
+                    b.join(" and "),
+                    if b.len() == 1 { "s" } else { "" },
+                    if b.len() == 1 { "its" } else { "each one's" }
+                );
+            }
         }
         if let Some(c) = &r.best_combination {
             let n: Vec<&str> = c.effects.iter().map(|k| k.name()).collect();
@@ -147,35 +158,88 @@ pub fn markdown(r: &Report) -> String {
     }
     s += &ambiguous_section(r);
     s += &identifiability_section(r);
+    s += &numerics_section(r);
     s += &remainder_section(r);
     s += &format!("\nDiagnosis time: {:.1} s. Plots: `by_joint.svg`, `effects.svg`.\n", r.elapsed_s);
     s
 }
 
-/// Which effects this log could reveal, and where not.
 /// The named effects the log cannot tell apart, with the motion that would reveal each.
 fn ambiguous_section(r: &Report) -> String {
     if r.ambiguous.is_empty() {
         return String::new();
     }
     let mut s = format!(
-        "\n## Effects this log cannot tell apart\n\nEach set's effects, fitted alone, change the predicted measurements of the held-out windows in nearly the same direction (|cosine| at least {:.2}) and leave held-out gaps that the log cannot rank (their difference is under the noise floor, or its 95 % interval holds 0): their order in the ranking is not evidence for one over the other.\n\n| effects (rank order) | smallest cosine magnitude | largest gap difference (of the baseline) | motion that would reveal each |\n|---|---|---|---|\n",
+        "\n## Effects this log cannot tell apart\n\nEach set's effects, fitted alone, change the predicted measurements of the held-out windows in nearly the same direction (|cosine| at least {:.2}) and leave held-out gaps that the log cannot rank (their difference is under the noise floor, or its 95 % interval holds 0): their order in the ranking is not evidence for one over the other, except that a member fitted at the edge of its search range is ranked after the others.\n\n| effects (rank order) | smallest cosine magnitude | largest gap difference (of the baseline) | fitted at the edge of its range | motion that would reveal each |\n|---|---|---|---|---|\n",
         crate::diagnose::AMBIGUOUS_COSINE
     );
     for set in &r.ambiguous {
         let n: Vec<&str> = set.effects.iter().map(|k| k.name()).collect();
         let how: Vec<String> = set.effects.iter().map(|k| format!("{}: {}", k.name(), k.revealed_by())).collect();
+        let edge: Vec<&str> = set.at_bound.iter().map(|k| k.name()).collect();
         s += &format!(
-            "| {} | {:.3} | {:.1} % | {} |\n",
+            "| {} | {:.3} | {:.1} % | {} | {} |\n",
             n.join(", "),
             set.cosine,
             100.0 * set.gap_difference,
+            if edge.is_empty() { "—".to_string() } else { edge.join(", ") },
             how.join("; ")
         );
     }
     s
 }
 
+/// What the diagnosing simulator's integrator choice alone does (a baseline mismatch of numerics).
+fn numerics_section(r: &Report) -> String {
+    let Some(n) = &r.numerics else { return String::new() };
+    let mut s = format!(
+        "\n## The simulator's own numerics (held-out windows)\n\nThe held-out windows replayed without effects by \
+         MuJoCo's other integrators (timestep 2 ms and PD every step kept):\n\n| integrator | held-out gap | \
+         reduction against `{}` [95 % CI] | prediction shift (gap metric) |\n|---|---|---|---|\n",
+        n.engine
+    );
+    for v in &n.variants {
+        s += &format!("| {} | {:.3} | {} | {:.3} |\n", v.engine, v.held_out_gap, est(&v.reduction), v.prediction_shift);
+    }
+    s += "\n";
+    match n.better_variant() {
+        Some(v) => {
+            s += &format!(
+                "**Part of the baseline gap is numerics**: with {} the held-out gap is {:.0} % smaller without any \
+                 effect, beyond the noise floor ({:.0} %, by the lower bound of its interval): the log comes from a \
+                 plant that integrates differently. The effects above are judged against `{}`.",
+                v.engine,
+                100.0 * v.reduction.value,
+                100.0 * n.noise_floor,
+                n.engine
+            )
+        }
+        None => {
+            s += &format!(
+            "No other integrator fits the log better beyond the noise floor ({:.0} %): the gap is not an integrator \
+                 mismatch.",
+            100.0 * n.noise_floor
+        )
+        }
+    }
+    s += &format!(
+        " The integrator choice alone moves the prediction by up to {:.3} ({:.1} % of the baseline gap)",
+        n.largest_shift(),
+        100.0 * n.shift_share_of_baseline
+    );
+    match &r.unexplained_residual {
+        Some(u) if n.largest_shift() > 0.0 => {
+            s += &format!(
+                "; what remains after the named effects is {:.1} times that.\n",
+                u.metric_after / n.largest_shift()
+            )
+        }
+        _ => s += ".\n",
+    }
+    s
+}
+
+/// Which effects this log could reveal, and where not.
 fn identifiability_section(r: &Report) -> String {
     if r.identifiability.is_empty() {
         return String::new();

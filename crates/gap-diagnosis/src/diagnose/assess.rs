@@ -3,7 +3,8 @@
 //! is also the candidate list of the forward selection ([`super::select`]).
 use super::breakdown::Baseline;
 use super::fit::{
-    fit_kind, fit_one_joint_per_group, report_value, set_unit, unit_name, unit_value, units_of, RESOLUTION_FRAC,
+    fit_kind, fit_one_joint_per_group, report_value, set_unit, unit_name, unit_sets, unit_value, units_of,
+    RESOLUTION_FRAC,
 };
 use super::options::PlantKind;
 use super::replay::Ctx;
@@ -57,6 +58,24 @@ pub struct EffectResult {
     pub params: Vec<FittedParam>,
     /// Why it was not fitted or not named, or, when named given other effects, which.
     pub note: Option<String>,
+}
+
+/// A fitted value within this fraction of its search range from a bound (other than the no-effect value) sits at
+/// the edge of the range: about one final bracket of the fit's refinement.
+pub const AT_BOUND_FRAC: f64 = 0.05;
+
+impl EffectResult {
+    /// Whether some kept unit's value sits at the edge of the effect's search range, away from the no-effect
+    /// value: the fit asked for more than the library allows, as an effect does when it stands in for another.
+    pub fn at_search_bound(&self) -> bool {
+        let (lo, hi, v0) = self.kind.range();
+        let (lo, hi, v0) = (report_value(self.kind, lo), report_value(self.kind, hi), report_value(self.kind, v0));
+        let edge = AT_BOUND_FRAC * (hi - lo);
+        self.params.iter().any(|p| {
+            ((p.value - lo).abs() <= edge && (v0 - lo).abs() > edge)
+                || ((hi - p.value).abs() <= edge && (hi - v0).abs() > edge)
+        })
+    }
 }
 
 /// A fitted effect that cut some unit's own held-out residual: a candidate of the forward selection.
@@ -157,9 +176,26 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
     let (base_test, base_test_tot) = (&baseline.test, &baseline.test_tot);
     let fit = fit_kind(ctx, kind, &null, &baseline.train, rng)?;
     let (fx, sds) = (fit.fx, fit.sds);
-    // Held-out: per-unit reductions decide which units are kept.
-    let after = ctx.eval_many(std::slice::from_ref(&fx), &ctx.test)?.remove(0);
+    // Held-out: per-unit reductions decide which units are kept, each unit judged with the units fitted together
+    // with it (joint scope: the same-position joints of the other limbs), as it was fitted: a neighbour's spurious
+    // value (an offset fitted on the shoulder against a model mismatch) would otherwise hide an elbow's true one.
     let units = units_of(ctx, kind);
+    let sets = unit_sets(ctx, kind);
+    let per_set: Vec<Effects> = sets
+        .iter()
+        .map(|mask| {
+            let mut f = null.clone();
+            for u in (0..units.len()).filter(|&u| mask[u]) {
+                set_unit(kind, &mut f, ctx, u, unit_value(kind, &fx, ctx, u));
+            }
+            f
+        })
+        .collect();
+    let after_sets = if sets.len() == 1 {
+        ctx.eval_many(std::slice::from_ref(&fx), &ctx.test)?
+    } else {
+        ctx.eval_many(&per_set, &ctx.test)?
+    };
     let mut pruned = null.clone();
     let mut params = Vec::new();
     let mut limit_only = Vec::new();
@@ -167,6 +203,7 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
         if kind.scope() == Scope::Group { Some(single_joints(ctx, kind, &baseline.train, rng)?) } else { None };
     let (lo, hi, v0) = kind.range();
     for (u, cols) in units.iter().enumerate() {
+        let Some(after) = sets.iter().position(|m| m[u]).and_then(|k| after_sets.get(k)) else { continue };
         let before: Vec<f64> = base_test.iter().map(|s| cols.iter().map(|&c| s[c]).sum()).collect();
         let aft: Vec<f64> = after.iter().map(|s| cols.iter().map(|&c| s[c]).sum()).collect();
         let diffs: Vec<f64> = before.iter().zip(&aft).map(|(b, a)| b - a).collect();

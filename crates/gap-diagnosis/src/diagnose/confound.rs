@@ -4,6 +4,7 @@
 //! gravity torque) and that leave held-out gaps the log cannot rank (the paired difference's 95 % interval holds 0,
 //! or the difference is under the noise floor a named effect must clear) explain the log the same way, whatever their order in the ranking. They are reported as one ambiguous set, so
 //! that the first name of such a set is not read as a confident first effect.
+use super::assess::EffectResult;
 use super::replay::Ctx;
 use super::stats::{bootstrap_mean, mean, noise_floor, total};
 use crate::effects::{EffectKind, Scope};
@@ -26,6 +27,10 @@ pub struct AmbiguousSet {
     /// The largest difference of the held-out gap between two linked members alone, relative to the baseline gap
     /// (each such difference is under the noise floor or its interval holds 0).
     pub gap_difference: f64,
+    /// Members whose fit sits at the edge of its search range ([`EffectResult::at_search_bound`]); they are
+    /// ranked after the other members.
+    #[serde(default)]
+    pub at_bound: Vec<EffectKind>,
 }
 
 impl AmbiguousSet {
@@ -86,10 +91,34 @@ pub(super) fn ambiguous_sets(
     for root in 0..joint.len() {
         let members: Vec<EffectKind> = (0..joint.len()).filter(|&i| set_of[i] == root).map(|i| joint[i].0).collect();
         if members.len() >= 2 {
-            sets.push(AmbiguousSet { effects: members, cosine: weakest[root], gap_difference: widest[root] });
+            sets.push(AmbiguousSet {
+                effects: members,
+                cosine: weakest[root],
+                gap_difference: widest[root],
+                at_bound: Vec::new(),
+            });
         }
     }
     Ok(sets)
+}
+
+/// Within each ambiguous set, members whose fit sits at the edge of its search range go after the others (in
+/// the set and in `ranked`, which keeps the positions the set holds): the log cannot rank the members by how much
+/// they explain, but an effect whose fit asks for more than the library allows (an elbow encoder offset at its
+/// 0.1 rad limit standing in for a forearm COM shift) is the less plausible reading. The order is otherwise kept.
+pub(super) fn prefer_inside_range(ranked: &mut [EffectKind], sets: &mut [AmbiguousSet], effects: &[EffectResult]) {
+    let at_bound = |k: EffectKind| effects.iter().any(|e| e.kind == k && e.named && e.at_search_bound());
+    for set in sets.iter_mut() {
+        set.at_bound = set.effects.iter().copied().filter(|&k| at_bound(k)).collect();
+        if set.at_bound.is_empty() {
+            continue;
+        }
+        set.effects.sort_by_key(|&k| at_bound(k));
+        let slots: Vec<usize> = (0..ranked.len()).filter(|&i| set.effects.contains(&ranked[i])).collect();
+        for (&slot, &k) in slots.iter().zip(&set.effects) {
+            ranked[slot] = k;
+        }
+    }
 }
 
 /// Cosine of two vectors (0 when either is zero).
@@ -114,6 +143,49 @@ pub fn leading_set<'a>(ranked: &[EffectKind], sets: &'a [AmbiguousSet]) -> Optio
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn named(kind: EffectKind, value: f64) -> EffectResult {
+        let zero = super::super::stats::Estimate { value: 0.0, lo: 0.0, hi: 0.0 };
+        EffectResult {
+            kind,
+            parameter: String::new(),
+            scope: kind.scope(),
+            named: true,
+            reduction: zero,
+            metric_after: zero,
+            noise_floor: 0.0,
+            params: vec![super::super::assess::FittedParam {
+                unit: "right_elbow".into(),
+                value,
+                sd: 0.0,
+                held_out_reduction: 0.0,
+            }],
+            note: None,
+        }
+    }
+
+    #[test]
+    fn a_member_fitted_at_its_range_edge_goes_after_the_others_of_its_set_only() {
+        use EffectKind::{EncoderOffset, Friction, LinkCom};
+        // Encoder offset range ±0.1 rad: 0.097 is at the edge; link COM range ±0.08 m: 0.06 is inside.
+        let effects = [named(EncoderOffset, 0.097), named(LinkCom, 0.06), named(Friction, 3.95)];
+        assert!(effects[0].at_search_bound() && !effects[1].at_search_bound() && effects[2].at_search_bound());
+        let set = |e: Vec<EffectKind>| AmbiguousSet { effects: e, cosine: 0.9, gap_difference: 0.0, at_bound: vec![] };
+        let mut ranked = vec![EncoderOffset, Friction, LinkCom];
+        let mut sets = vec![set(vec![EncoderOffset, LinkCom])];
+        prefer_inside_range(&mut ranked, &mut sets, &effects);
+        // Friction (at its edge too, but in no set) keeps its place.
+        assert_eq!(ranked, vec![LinkCom, Friction, EncoderOffset]);
+        assert_eq!(sets[0].effects, vec![LinkCom, EncoderOffset]);
+        assert_eq!(sets[0].at_bound, vec![EncoderOffset]);
+        // Inside the range (or at the no-effect end of it): nothing moves.
+        let inside = [named(EncoderOffset, -0.05), named(LinkCom, 0.06)];
+        let mut ranked = vec![EncoderOffset, LinkCom];
+        let mut sets = vec![set(vec![EncoderOffset, LinkCom])];
+        prefer_inside_range(&mut ranked, &mut sets, &inside);
+        assert_eq!(ranked, vec![EncoderOffset, LinkCom]);
+        assert!(sets[0].at_bound.is_empty());
+    }
 
     #[test]
     fn collinear_changes_of_either_sign_are_ambiguous_orthogonal_ones_are_not() {

@@ -117,6 +117,32 @@ impl<'a> Ctx<'a> {
     }
 }
 
+impl<'a> Ctx<'a> {
+    /// The same windows replayed under other options (another integrator: [`super::numerics`]), with its own pool.
+    pub(super) fn with_options<'b>(&self, opts: &'b DiagnoseOptions) -> Ctx<'b>
+    where
+        'a: 'b,
+    {
+        Ctx {
+            model: self.model,
+            log: self.log,
+            opts,
+            plant: self.plant,
+            feet: self.feet.clone(),
+            dt_state: self.dt_state,
+            starts: self.starts.clone(),
+            len: self.len,
+            train: self.train.clone(),
+            test: self.test.clone(),
+            groups: self.groups.clone(),
+            at_limit: self.at_limit.clone(),
+            sigma_tau: self.sigma_tau.clone(),
+            null: self.null.clone(),
+            pool: std::sync::Mutex::new(Vec::new()),
+        }
+    }
+}
+
 impl Ctx<'_> {
     pub(super) fn nj(&self) -> usize {
         self.model.nj()

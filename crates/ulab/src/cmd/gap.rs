@@ -8,7 +8,7 @@
 //!   reference plant (demo and test logs)
 //! - `ulab gap bench [--trials N] [--seed S] [--duration S] [--out DIR] [--policy SPEC.toml]... [--floating]`
 use anyhow::{bail, Context, Result};
-use gap_bench::{self as bench, BenchOptions, RealConfig};
+use gap_bench::{self as bench, BenchOptions, Motion, RealConfig};
 use gap_diagnosis::diagnose::PlantChoice;
 use gap_diagnosis::plant::{joint_groups, EngineChoice, GROUPS};
 use gap_diagnosis::{effects::Scope, DiagnoseOptions, EffectKind, Outcome, RobotLog};
@@ -154,6 +154,15 @@ struct BenchArgs {
     /// damping and Coulomb friction effects are then applied through the engine's own joint parameters).
     #[arg(long, default_value = "mujoco-rk4")]
     reference_engine: String,
+    /// Drive the scripted trials (and the joints a policy does not drive) with a gentle chirp (slow sweeps at a
+    /// third of the plan's amplitude, no steps: what a user records anyway) instead of the excitation plan.
+    #[arg(long)]
+    gentle_chirp: bool,
+    /// Out-of-library trials after the regular ones: each hides an effect the diagnosis cannot fit (torque ripple
+    /// periodic in the joint angle, friction proportional to the transmitted torque, in turn); scored as their own
+    /// class (any named effect is a confident attribution).
+    #[arg(long, default_value_t = 0)]
+    out_of_library: usize,
 }
 
 pub fn run(args: Args) -> Result<Exit> {
@@ -269,7 +278,17 @@ fn diagnose(a: DiagnoseArgs) -> Result<Exit> {
         }
         for set in &report.ambiguous {
             let n: Vec<&str> = set.effects.iter().map(|k| k.name()).collect();
-            println!("cannot tell apart on this log: {} (cosine magnitude {:.2})", n.join(", "), set.cosine);
+            let edge: Vec<&str> = set.at_bound.iter().map(|k| k.name()).collect();
+            println!(
+                "cannot tell apart on this log: {} (cosine magnitude {:.2}){}",
+                n.join(", "),
+                set.cosine,
+                if edge.is_empty() {
+                    String::new()
+                } else {
+                    format!("; fitted at the edge of its range, ranked last: {}", edge.join(", "))
+                }
+            );
         }
         println!("report: {}", a.out.join("report.md").display());
     }
@@ -361,8 +380,8 @@ fn simulate(a: SimulateArgs) -> Result<Exit> {
 
 fn bench_cmd(a: BenchArgs) -> Result<Exit> {
     let model = load(&a.robot)?;
-    if a.trials == 0 {
-        bail!("--trials must be at least 1");
+    if a.trials + a.out_of_library == 0 {
+        bail!("--trials (or --out-of-library) must be at least 1");
     }
     if !(a.duration.is_finite() && a.duration >= 4.0 && a.duration <= 600.0) {
         bail!("--duration must be in [4, 600] s");
@@ -393,11 +412,24 @@ fn bench_cmd(a: BenchArgs) -> Result<Exit> {
     if a.floating && !reference.is_mujoco() {
         bail!("--floating: the walking reference plant is MuJoCo only (its contact effects are MuJoCo's); --reference-engine works on the rig");
     }
-    let opts = BenchOptions { policies, reference, ..BenchOptions::new(a.trials, a.seed, a.duration) };
+    if a.floating && a.gentle_chirp {
+        bail!("--gentle-chirp: the floating-base benchmark is driven by policies only");
+    }
+    let motion = if a.gentle_chirp { Motion::GentleChirp } else { Motion::Plan };
+    if a.floating && a.out_of_library > 0 {
+        bail!("--out-of-library: the out-of-library trials run on the rig");
+    }
+    let opts = BenchOptions {
+        policies,
+        reference,
+        motion,
+        out_of_library: a.out_of_library,
+        ..BenchOptions::new(a.trials, a.seed, a.duration)
+    };
     let mut scores = Vec::new();
     let mut seals = Vec::new();
     let started = std::time::Instant::now();
-    for i in 0..a.trials {
+    for i in 0..a.trials + a.out_of_library {
         // Each generated log goes to disk as MCAP and is read back: the diagnosis sees exactly what a recording gives.
         let mut via_mcap = |i: usize, log: &RobotLog| -> Result<RobotLog, gap_diagnosis::GapError> {
             let p = dir.join(format!("trial_{i:03}.mcap"));
@@ -424,11 +456,20 @@ fn bench_cmd(a: BenchArgs) -> Result<Exit> {
             .context("writing a trial report")?;
         eprintln!(
             "trial {i} ({}): injected [{}] -> ranked [{}] ({:.1} s{})",
-            score.policy.as_deref().unwrap_or("excitation plan"),
+            score.policy.as_deref().unwrap_or(match opts.motion {
+                Motion::Plan => "excitation plan",
+                Motion::GentleChirp => "gentle chirp",
+            }),
             score
                 .injected
                 .iter()
                 .map(|x| format!("{}@{}={:.3}", x.kind.name(), x.unit, x.value))
+                .chain(
+                    score
+                        .out_of_library
+                        .iter()
+                        .map(|o| format!("{} (outside the library)@{}={:.3}", o.kind, o.unit, o.value))
+                )
                 .collect::<Vec<_>>()
                 .join(", "),
             score.ranked.iter().map(|k| k.name()).collect::<Vec<_>>().join(", "),
@@ -476,11 +517,13 @@ fn bench_cmd(a: BenchArgs) -> Result<Exit> {
         let reference =
             if a.floating { String::new() } else { format!(" --reference-engine {}", opts.reference.name()) };
         println!(
-            "ulab gap bench{flag}{reference} --trials {} --seed {} --duration {}{} ({} s {what}; {:.0} s total)\n",
+            "ulab gap bench{flag}{reference} --trials {} --seed {} --duration {}{}{}{} ({} s {what}; {:.0} s total)\n",
             a.trials,
             a.seed,
             a.duration,
             a.policy.iter().map(|p| format!(" --policy {}", p.display())).collect::<String>(),
+            if a.gentle_chirp { " --gentle-chirp" } else { "" },
+            if a.out_of_library > 0 { format!(" --out-of-library {}", a.out_of_library) } else { String::new() },
             a.duration,
             started.elapsed().as_secs_f64()
         );
