@@ -23,11 +23,8 @@ pub fn amplitudes(model: &RobotModel) -> Vec<f64> {
 
 /// The plan's target at time `t` (s) for a plan of `duration` s: joint targets in model order.
 pub fn target(model: &RobotModel, amp: &[f64], groups: &[usize], duration: f64, t: f64) -> Vec<f64> {
-    let ng = GROUPS.len();
-    // Segments: one per group, then one with every group; each segment = chirp (60 %) then steps (40 %).
-    let seg = duration / (ng + 1) as f64;
-    let k = ((t / seg).floor() as usize).min(ng);
-    let tl = t - k as f64 * seg;
+    // Each segment = chirp (60 %) then steps (40 %).
+    let (k, tl, seg) = segment(duration, t);
     let chirp_len = 0.6 * seg;
     let x = if tl < chirp_len {
         // Linear chirp 0.3 -> 3 Hz, amplitude ramped in over 0.3 s.
@@ -45,6 +42,22 @@ pub fn target(model: &RobotModel, amp: &[f64], groups: &[usize], duration: f64, 
             -0.8
         }
     };
+    pose(model, amp, groups, k, 1.0, x)
+}
+
+/// The segment at time `t` of a plan of `duration` s (one per group, then one with every group): its index, the
+/// time into it and its length.
+fn segment(duration: f64, t: f64) -> (usize, f64, f64) {
+    let ng = GROUPS.len();
+    let seg = duration / (ng + 1) as f64;
+    let k = ((t / seg).floor() as usize).min(ng);
+    (k, t - k as f64 * seg, seg)
+}
+
+/// Joint targets of segment `k` at waveform value `x`: the segment's joints (every joint in the last one) move by
+/// `scale · amp · x` from the standing pose, alternating sign along the model, within the limits' margin.
+fn pose(model: &RobotModel, amp: &[f64], groups: &[usize], k: usize, scale: f64, x: f64) -> Vec<f64> {
+    let ng = GROUPS.len();
     model
         .joints
         .iter()
@@ -52,7 +65,7 @@ pub fn target(model: &RobotModel, amp: &[f64], groups: &[usize], duration: f64, 
         .map(|(j, joint)| {
             let active = k == ng || groups[j] == k;
             let sign = if j % 2 == 0 { 1.0 } else { -1.0 };
-            let q = joint.default_q + if active { sign * amp[j] * x } else { 0.0 };
+            let q = joint.default_q + if active { sign * scale * amp[j] * x } else { 0.0 };
             q.clamp(joint.lower + LIMIT_MARGIN, joint.upper - LIMIT_MARGIN)
         })
         .collect()
@@ -68,24 +81,10 @@ pub const GENTLE_HZ: (f64, f64) = (0.1, 1.0);
 /// [`GENTLE_HZ`] that fills each segment. It excites little inertia or torque limit: the benchmark's third input
 /// kind, on which such effects should be found not identifiable rather than named.
 pub fn gentle_target(model: &RobotModel, amp: &[f64], groups: &[usize], duration: f64, t: f64) -> Vec<f64> {
-    let ng = GROUPS.len();
-    let seg = duration / (ng + 1) as f64;
-    let k = ((t / seg).floor() as usize).min(ng);
-    let tl = t - k as f64 * seg;
+    let (k, tl, seg) = segment(duration, t);
     let (f0, f1) = GENTLE_HZ;
     let phase = 2.0 * std::f64::consts::PI * (f0 * tl + 0.5 * (f1 - f0) / seg * tl * tl);
-    let x = (tl / 0.5).min(1.0) * phase.sin();
-    model
-        .joints
-        .iter()
-        .enumerate()
-        .map(|(j, joint)| {
-            let active = k == ng || groups[j] == k;
-            let sign = if j % 2 == 0 { 1.0 } else { -1.0 };
-            let q = joint.default_q + if active { sign * GENTLE_AMPLITUDE * amp[j] * x } else { 0.0 };
-            q.clamp(joint.lower + LIMIT_MARGIN, joint.upper - LIMIT_MARGIN)
-        })
-        .collect()
+    pose(model, amp, groups, k, GENTLE_AMPLITUDE, (tl / 0.5).min(1.0) * phase.sin())
 }
 
 /// The plan as commands at `rate_hz` over `duration` s, gains from the model (the first second ramps from the
