@@ -55,7 +55,7 @@ pub use crate::noise::{TIMING_HI, TIMING_LO};
 /// `/5`: adds `window_residuals`, `robust` and `unexplained_residual`.
 /// `/6`: adds `identifiability`.
 /// `/7`: adds `ambiguous`.
-/// `/8`: adds `ambiguous[].at_bound` (members fitted at the edge of their search range, ranked after the others)
+/// `/8`: adds `ambiguous[].at_bound` (members fitted at the edge of their search range)
 /// and `numerics` (the prediction and held-out gap under MuJoCo's other integrators).
 pub const SCHEMA_VERSION: &str = "ulab-gap-report/8";
 
@@ -162,8 +162,8 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
     let named: Vec<(EffectKind, crate::plant::Effects)> =
         selection.ranked.iter().filter_map(|k| fitted.iter().find(|(f, _)| f == k).cloned()).collect();
     let mut ambiguous = confound::ambiguous_sets(&ctx, &named, &baseline.test_tot, &mut rng)?;
-    let mut ranked = selection.ranked;
-    confound::prefer_inside_range(&mut ranked, &mut ambiguous, &selection.effects);
+    confound::mark_range_edges(&mut ambiguous, &selection.effects);
+    let ranked = selection.ranked;
     // Whether the log could show each effect at all: an abstention on an effect it cannot reveal says so.
     let identifiability = identify::identify(&ctx, &breakdown.scores, &kinds)?;
     let mut abstentions = selection.abstentions;

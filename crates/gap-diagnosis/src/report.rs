@@ -109,12 +109,9 @@ pub fn markdown(r: &Report) -> String {
             if !set.at_bound.is_empty() {
                 let b: Vec<&str> = set.at_bound.iter().map(|k| k.name()).collect();
                 s += &format!(
-                    "Within the set, {} come{} last: {} fit sits at the edge of its search range, as an effect's                      does when it stands in for another.
-
-",
-                    b.join(" and "),
-                    if b.len() == 1 { "s" } else { "" },
-                    if b.len() == 1 { "its" } else { "each one's" }
+                    "Fitted at the edge of its search range: {} (the optimum may lie beyond what the library allows, \
+                     as when an effect stands in for another; a true effect near the edge fits there too).\n\n",
+                    b.join(", ")
                 );
             }
         }
@@ -170,7 +167,7 @@ fn ambiguous_section(r: &Report) -> String {
         return String::new();
     }
     let mut s = format!(
-        "\n## Effects this log cannot tell apart\n\nEach set's effects, fitted alone, change the predicted measurements of the held-out windows in nearly the same direction (|cosine| at least {:.2}) and leave held-out gaps that the log cannot rank (their difference is under the noise floor, or its 95 % interval holds 0): their order in the ranking is not evidence for one over the other, except that a member fitted at the edge of its search range is ranked after the others.\n\n| effects (rank order) | smallest cosine magnitude | largest gap difference (of the baseline) | fitted at the edge of its range | motion that would reveal each |\n|---|---|---|---|---|\n",
+        "\n## Effects this log cannot tell apart\n\nEach set's effects, fitted alone, change the predicted measurements of the held-out windows in nearly the same direction (|cosine| at least {:.2}) and leave held-out gaps that the log cannot rank (their difference is under the noise floor, or its 95 % interval holds 0): their order in the ranking is not evidence for one over the other.\n\n| effects (rank order) | smallest cosine magnitude | largest gap difference (of the baseline) | fitted at the edge of its range | motion that would reveal each |\n|---|---|---|---|---|\n",
         crate::diagnose::AMBIGUOUS_COSINE
     );
     for set in &r.ambiguous {

@@ -27,8 +27,7 @@ pub struct AmbiguousSet {
     /// The largest difference of the held-out gap between two linked members alone, relative to the baseline gap
     /// (each such difference is under the noise floor or its interval holds 0).
     pub gap_difference: f64,
-    /// Members whose fit sits at the edge of its search range ([`EffectResult::at_search_bound`]); they are
-    /// ranked after the other members.
+    /// Members whose fit sits at the edge of its search range ([`EffectResult::at_search_bound`]).
     #[serde(default)]
     pub at_bound: Vec<EffectKind>,
 }
@@ -102,22 +101,14 @@ pub(super) fn ambiguous_sets(
     Ok(sets)
 }
 
-/// Within each ambiguous set, members whose fit sits at the edge of its search range go after the others (in
-/// the set and in `ranked`, which keeps the positions the set holds): the log cannot rank the members by how much
-/// they explain, but an effect whose fit asks for more than the library allows (an elbow encoder offset at its
-/// 0.1 rad limit standing in for a forearm COM shift) is the less plausible reading. The order is otherwise kept.
-pub(super) fn prefer_inside_range(ranked: &mut [EffectKind], sets: &mut [AmbiguousSet], effects: &[EffectResult]) {
+/// Marks, in each ambiguous set, the members whose fit sits at the edge of its search range: information for the
+/// reader (the optimum may lie beyond what the library allows, as when an effect stands in for another), not a
+/// reason to reorder them: a true effect near the edge of the range fits there too (a 69 % heavier ankle link was
+/// fitted at the 1.8x bound), and a rule that ranked such members last cost as many hits as it gained.
+pub(super) fn mark_range_edges(sets: &mut [AmbiguousSet], effects: &[EffectResult]) {
     let at_bound = |k: EffectKind| effects.iter().any(|e| e.kind == k && e.named && e.at_search_bound());
     for set in sets.iter_mut() {
         set.at_bound = set.effects.iter().copied().filter(|&k| at_bound(k)).collect();
-        if set.at_bound.is_empty() {
-            continue;
-        }
-        set.effects.sort_by_key(|&k| at_bound(k));
-        let slots: Vec<usize> = (0..ranked.len()).filter(|&i| set.effects.contains(&ranked[i])).collect();
-        for (&slot, &k) in slots.iter().zip(&set.effects) {
-            ranked[slot] = k;
-        }
     }
 }
 
@@ -165,25 +156,20 @@ mod tests {
     }
 
     #[test]
-    fn a_member_fitted_at_its_range_edge_goes_after_the_others_of_its_set_only() {
+    fn members_fitted_at_their_range_edge_are_marked_and_nothing_moves() {
         use EffectKind::{EncoderOffset, Friction, LinkCom};
         // Encoder offset range ±0.1 rad: 0.097 is at the edge; link COM range ±0.08 m: 0.06 is inside.
         let effects = [named(EncoderOffset, 0.097), named(LinkCom, 0.06), named(Friction, 3.95)];
         assert!(effects[0].at_search_bound() && !effects[1].at_search_bound() && effects[2].at_search_bound());
         let set = |e: Vec<EffectKind>| AmbiguousSet { effects: e, cosine: 0.9, gap_difference: 0.0, at_bound: vec![] };
-        let mut ranked = vec![EncoderOffset, Friction, LinkCom];
         let mut sets = vec![set(vec![EncoderOffset, LinkCom])];
-        prefer_inside_range(&mut ranked, &mut sets, &effects);
-        // Friction (at its edge too, but in no set) keeps its place.
-        assert_eq!(ranked, vec![LinkCom, Friction, EncoderOffset]);
-        assert_eq!(sets[0].effects, vec![LinkCom, EncoderOffset]);
+        mark_range_edges(&mut sets, &effects);
+        assert_eq!(sets[0].effects, vec![EncoderOffset, LinkCom]);
         assert_eq!(sets[0].at_bound, vec![EncoderOffset]);
-        // Inside the range (or at the no-effect end of it): nothing moves.
+        // Inside the range (or at the no-effect end of it): nothing marked.
         let inside = [named(EncoderOffset, -0.05), named(LinkCom, 0.06)];
-        let mut ranked = vec![EncoderOffset, LinkCom];
         let mut sets = vec![set(vec![EncoderOffset, LinkCom])];
-        prefer_inside_range(&mut ranked, &mut sets, &inside);
-        assert_eq!(ranked, vec![EncoderOffset, LinkCom]);
+        mark_range_edges(&mut sets, &inside);
         assert!(sets[0].at_bound.is_empty());
     }
 

@@ -286,7 +286,7 @@ fn diagnose(a: DiagnoseArgs) -> Result<Exit> {
                 if edge.is_empty() {
                     String::new()
                 } else {
-                    format!("; fitted at the edge of its range, ranked last: {}", edge.join(", "))
+                    format!("; fitted at the edge of its search range: {}", edge.join(", "))
                 }
             );
         }
