@@ -181,19 +181,19 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
     // value (an offset fitted on the shoulder against a model mismatch) would otherwise hide an elbow's true one.
     let units = units_of(ctx, kind);
     let sets = unit_sets(ctx, kind);
-    let per_set: Vec<Effects> = sets
-        .iter()
-        .map(|mask| {
-            let mut f = null.clone();
-            for u in (0..units.len()).filter(|&u| mask[u]) {
-                set_unit(kind, &mut f, ctx, u, unit_value(kind, &fx, ctx, u));
-            }
-            f
-        })
-        .collect();
     let after_sets = if sets.len() == 1 {
         ctx.eval_many(std::slice::from_ref(&fx), &ctx.test)?
     } else {
+        let per_set: Vec<Effects> = sets
+            .iter()
+            .map(|mask| {
+                let mut f = null.clone();
+                for u in (0..units.len()).filter(|&u| mask[u]) {
+                    set_unit(kind, &mut f, ctx, u, unit_value(kind, &fx, ctx, u));
+                }
+                f
+            })
+            .collect();
         ctx.eval_many(&per_set, &ctx.test)?
     };
     let mut pruned = null.clone();

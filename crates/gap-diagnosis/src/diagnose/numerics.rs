@@ -90,13 +90,14 @@ pub(super) fn numerics(ctx: &Ctx<'_>, baseline_tot: &[f64], rng: &mut impl Rng) 
             prediction_shift: shift,
         });
     }
-    let largest = variants.iter().map(|v| v.prediction_shift).fold(0.0, f64::max);
-    Ok(Some(Numerics {
+    let mut n = Numerics {
         engine: ctx.opts.engine.name(),
         variants,
-        shift_share_of_baseline: if base_gap > 0.0 { largest / base_gap } else { 0.0 },
+        shift_share_of_baseline: 0.0,
         noise_floor: noise_floor(baseline_tot),
-    }))
+    };
+    n.shift_share_of_baseline = if base_gap > 0.0 { n.largest_shift() / base_gap } else { 0.0 };
+    Ok(Some(n))
 }
 
 #[cfg(test)]
