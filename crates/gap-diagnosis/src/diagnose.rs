@@ -41,7 +41,7 @@ pub use options::{DiagnoseOptions, PlantChoice, PlantKind, FLOATING_MAX_WINDOWS}
 pub use remainder::{
     RobustGap, Unexplained, WindowFlag, WindowResidual, FAST_FRAC, SATURATED_FRAC, UNEXPLAINED_FACTOR,
 };
-pub use select::{Combination, MAX_COMBINATION, REFIT_CANDIDATES};
+pub use select::{Combination, EXPLAINED_AWAY, MAX_COMBINATION, REFIT_CANDIDATES};
 pub use stats::{Estimate, Judged, EFFECT_FLOOR_FRAC, TRIM_FRAC};
 pub use windows::{AT_LIMIT_RAD, COMMAND_STALE_S, TIMING_TOL_S};
 
@@ -57,7 +57,7 @@ pub use crate::noise::{TIMING_HI, TIMING_LO};
 /// `/7`: adds `ambiguous`.
 /// `/8`: adds `ambiguous[].at_bound` (members fitted at the edge of their search range)
 /// and `numerics` (the prediction and held-out gap under MuJoCo's other integrators).
-pub const SCHEMA_VERSION: &str = "ulab-gap-report/8";
+pub const SCHEMA_VERSION: &str = "ulab-gap-report/9";
 
 /// What the diagnosis concluded about the log as a whole.
 #[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq)]
@@ -107,7 +107,9 @@ pub struct Report {
     /// Every effect tried: named ones first, each group by its own held-out reduction.
     pub effects: Vec<EffectResult>,
     /// The named effects in rank order: the best combination's selection order (each adds the most held-out
-    /// explanatory power given the ones before it), then the other named effects.
+    /// explanatory power given the ones before it), then the effects this log cannot tell apart from a member
+    /// ([`Report::ambiguous`]). Effects that cut the gap alone but add nothing given the combination are explained
+    /// away (not named; their abstention says so).
     pub ranked: Vec<EffectKind>,
     /// Effects not named, with the reason.
     pub abstentions: Vec<(EffectKind, String)>,
@@ -157,12 +159,15 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
     let assessment = assess::assess(&ctx, kinds.clone(), &baseline, breakdown.any_contact, &mut rng)?;
     let fitted: Vec<(EffectKind, crate::plant::Effects)> =
         assessment.candidates.iter().map(|c| (c.kind, c.fx.clone())).collect();
-    let selection = select::select(&ctx, assessment, &baseline, &mut rng)?;
+    let mut selection = select::select(&ctx, assessment, &baseline, &mut rng)?;
     // Which named effects the log cannot tell apart.
     let named: Vec<(EffectKind, crate::plant::Effects)> =
         selection.ranked.iter().filter_map(|k| fitted.iter().find(|(f, _)| f == k).cloned()).collect();
     let mut ambiguous = confound::ambiguous_sets(&ctx, &named, &baseline.test_tot, &mut rng)?;
     confound::mark_range_edges(&mut ambiguous, &selection.effects);
+    // Named effects that add nothing once the best combination is in, and that the log can tell apart from its
+    // members, are not named.
+    select::explain_away(&mut selection, &mut ambiguous);
     let ranked = selection.ranked;
     // Whether the log could show each effect at all: an abstention on an effect it cannot reveal says so.
     let identifiability = identify::identify(&ctx, &breakdown.scores, &kinds)?;

@@ -124,6 +124,19 @@ pub fn markdown(r: &Report) -> String {
                 est(&c.reduction)
             );
         }
+        let away: Vec<&str> = r
+            .effects
+            .iter()
+            .filter(|e| e.note.as_deref().is_some_and(|n| n.starts_with(crate::diagnose::EXPLAINED_AWAY)))
+            .map(|e| e.kind.name())
+            .collect();
+        if !away.is_empty() {
+            s += &format!(
+                "Explained away (each cuts the gap alone, but adds nothing once the best combination is in; not \
+                 named): {}.\n\n",
+                away.join(", ")
+            );
+        }
     }
     s += "## Where the gap lies (baseline)\n\n";
     s += &share_table("By joint group", &r.by_group, 10);

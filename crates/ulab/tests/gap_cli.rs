@@ -104,6 +104,9 @@ fn simulated_log_is_a_recording_and_diagnose_finds_the_effect() {
     let md = std::fs::read_to_string(out_dir.join("report.md")).unwrap_or_default();
     assert!(md.contains("damping") && md.contains("left_arm"), "{}", tail(&md));
     assert!(md.contains("## What this log can reveal"), "{}", tail(&md));
+    // Only damping is in the log: the friction that fits part of it alone is explained away, not named.
+    assert_eq!(r["ranked"], serde_json::json!(["damping"]), "ranked {}", r["ranked"]);
+    assert!(md.contains("Explained away") && md.contains(": friction."), "{}", tail(&md));
     // The effect the fit found must be one the log could reveal where it was found (two computations: the fit
     // on the log's residual, the simulator's sensitivity at the magnitude of interest).
     let damping_left_arm = r["identifiability"]

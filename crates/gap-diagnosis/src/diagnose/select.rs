@@ -34,7 +34,8 @@ pub struct Combination {
 pub(super) struct Selection {
     /// Every effect tried: named ones first, each group by its own held-out reduction.
     pub effects: Vec<EffectResult>,
-    /// The named effects: the best combination's selection order, then the other named effects.
+    /// The named effects: the best combination's selection order, then the other named effects (until
+    /// [`explain_away`] keeps only those the log cannot tell apart from a member).
     pub ranked: Vec<EffectKind>,
     /// Effects not named, with the reason.
     pub abstentions: Vec<(EffectKind, String)>,
@@ -127,6 +128,46 @@ pub(super) fn select(
     let abstentions: Vec<(EffectKind, String)> =
         results.iter().filter(|r| !r.named).map(|r| (r.kind, r.note.clone().unwrap_or_default())).collect();
     Ok(Selection { effects: results, ranked, abstentions, best_combination, combo_fx })
+}
+
+/// How the abstention of an effect explained away by the best combination begins.
+pub const EXPLAINED_AWAY: &str = "explained away";
+
+/// Named effects outside the best combination are explained away unless an ambiguous set holds them with a
+/// member. Each was named alone (it cuts the held-out gap when nothing else is fitted), but the selection found that
+/// it adds less than the noise floor once the combination is in: on a log with friction in one leg, an armature, a
+/// damping and a gain drop of that leg all fit part of what the friction does, and naming them would report four
+/// effects where there is one. One the log cannot tell apart from a member stays named, as a member of its set.
+/// Sets without a member are dropped; the others lose the effects explained away.
+pub(super) fn explain_away(sel: &mut Selection, ambiguous: &mut Vec<super::confound::AmbiguousSet>) {
+    let Some(combo) = sel.best_combination.as_ref() else { return };
+    let members = &combo.effects;
+    let given: Vec<&str> = members.iter().map(|k| k.name()).collect();
+    let kept = |k: EffectKind| members.contains(&k) || ambiguous.iter().any(|s| members.iter().any(|&m| s.links(k, m)));
+    let away: Vec<EffectKind> = sel.ranked.iter().copied().filter(|&k| !kept(k)).collect();
+    if away.is_empty() {
+        return;
+    }
+    for r in sel.effects.iter_mut().filter(|r| away.contains(&r.kind)) {
+        r.named = false;
+        r.note = Some(format!(
+            "{EXPLAINED_AWAY}: alone it cuts the held-out gap by {:.1} % [{:.1}, {:.1}], but given {} it adds less \
+             than the noise floor of what remains",
+            100.0 * r.reduction.value,
+            100.0 * r.reduction.lo,
+            100.0 * r.reduction.hi,
+            given.join(" + ")
+        ));
+    }
+    sel.ranked.retain(|k| !away.contains(k));
+    for set in ambiguous.iter_mut() {
+        set.effects.retain(|k| !away.contains(k));
+        set.at_bound.retain(|k| !away.contains(k));
+    }
+    ambiguous.retain(|s| s.effects.len() >= 2);
+    sort_results(&mut sel.effects);
+    sel.abstentions =
+        sel.effects.iter().filter(|r| !r.named).map(|r| (r.kind, r.note.clone().unwrap_or_default())).collect();
 }
 
 /// Evaluates every candidate `cands` on top of `combo`, refits the most promising non-IMU ones with `combo`
@@ -225,5 +266,75 @@ fn name_conditionals(results: &mut [EffectResult], members: &[EffectKind], added
                 given.join(" + ")
             ));
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::confound::AmbiguousSet;
+    use super::*;
+
+    fn result(kind: EffectKind, named: bool, reduction: f64) -> EffectResult {
+        let est = |value: f64| Estimate { value, lo: value - 0.01, hi: value + 0.01 };
+        EffectResult {
+            kind,
+            parameter: String::new(),
+            scope: kind.scope(),
+            named,
+            reduction: est(reduction),
+            metric_after: est(1.0),
+            noise_floor: 0.03,
+            params: vec![],
+            note: None,
+        }
+    }
+
+    #[test]
+    fn effects_that_add_nothing_to_the_combination_are_explained_away_unless_ambiguous_with_a_member() {
+        use EffectKind::{Armature, Backlash, Damping, Friction, GainScale, Latency};
+        // Friction and latency form the best combination; damping fits as well as friction on this log (an
+        // ambiguous set with it); armature and backlash only fit alone; a gain drop was never named.
+        let effects = vec![
+            result(Friction, true, 0.9),
+            result(Latency, true, 0.4),
+            result(Damping, true, 0.88),
+            result(Armature, true, 0.6),
+            result(Backlash, true, 0.5),
+            result(GainScale, false, 0.0),
+        ];
+        let est = Estimate { value: 0.92, lo: 0.9, hi: 0.94 };
+        let mut sel = Selection {
+            effects,
+            ranked: vec![Friction, Latency, Damping, Armature, Backlash],
+            abstentions: vec![(GainScale, "below the floor".into())],
+            best_combination: Some(Combination { effects: vec![Friction, Latency], metric_after: est, reduction: est }),
+            combo_fx: None,
+        };
+        let set = |e: Vec<EffectKind>| AmbiguousSet { effects: e, cosine: 0.9, gap_difference: 0.0, at_bound: vec![] };
+        let mut sets = vec![set(vec![Friction, Damping, Armature]), set(vec![Armature, Backlash])];
+        explain_away(&mut sel, &mut sets);
+        // Armature is in a set with friction, so it stays; backlash shares a set only with armature.
+        assert_eq!(sel.ranked, vec![Friction, Latency, Damping, Armature]);
+        assert_eq!(sets, vec![set(vec![Friction, Damping, Armature])]);
+        let backlash = sel.effects.iter().find(|r| r.kind == Backlash).expect("backlash");
+        assert!(!backlash.named);
+        let note = backlash.note.as_deref().unwrap_or_default();
+        assert!(note.starts_with(EXPLAINED_AWAY) && note.contains("friction + latency"), "{note}");
+        // Named effects first, and every effect not named is an abstention, with its reason.
+        assert!(sel.effects.iter().take(4).all(|r| r.named) && sel.effects.iter().skip(4).all(|r| !r.named));
+        let abstained: Vec<EffectKind> = sel.abstentions.iter().map(|(k, _)| *k).collect();
+        assert_eq!(abstained, vec![Backlash, GainScale]);
+
+        // Nothing named: nothing changes.
+        let mut none = Selection {
+            effects: vec![result(GainScale, false, 0.0)],
+            ranked: vec![],
+            abstentions: vec![(GainScale, "below the floor".into())],
+            best_combination: None,
+            combo_fx: None,
+        };
+        let mut no_sets = vec![];
+        explain_away(&mut none, &mut no_sets);
+        assert!(none.ranked.is_empty() && none.abstentions.len() == 1);
     }
 }
