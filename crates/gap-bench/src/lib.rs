@@ -703,6 +703,12 @@ pub struct BenchSummary {
     /// Sum over effect trials of [`TrialScore::misattributed`].
     #[serde(default)]
     pub misattributions: usize,
+    /// Effects named over the effect trials, and how many of them were injected: a report that names a stand-in
+    /// beside the true effect is right first and still wrong.
+    #[serde(default)]
+    pub named_in_effect_trials: usize,
+    #[serde(default)]
+    pub named_injected: usize,
     pub abstention_effects: f64,
     pub abstention_controls: f64,
     pub mean_held_out_reduction: f64,
@@ -750,6 +756,11 @@ pub fn summarize(scores: &[TrialScore]) -> BenchSummary {
         median_param_error: pe.get(pe.len() / 2).copied().unwrap_or(f64::NAN),
         false_confident_controls: controls.iter().map(|s| s.false_confident).sum(),
         misattributions: effects.iter().map(|s| s.misattributed).sum(),
+        named_in_effect_trials: effects.iter().map(|s| s.ranked.len()).sum(),
+        named_injected: effects
+            .iter()
+            .map(|s| s.ranked.iter().filter(|k| s.injected.iter().any(|i| i.kind == **k)).count())
+            .sum(),
         abstention_effects: frac(effects.iter().map(|s| s.abstained).collect()),
         abstention_controls: frac(controls.iter().map(|s| s.abstained).collect()),
         mean_held_out_reduction: if effects.is_empty() {
@@ -846,6 +857,20 @@ fn table_rows(s: &BenchSummary) -> Vec<(String, String, String)> {
             "confident misattributions in effect trials (a named effect not injected ranked above an injected one)",
             s.misattributions.to_string(),
             "0",
+        ),
+        row(
+            "named effects that were injected, effect trials",
+            if s.named_in_effect_trials == 0 {
+                "n/a".to_string()
+            } else {
+                format!(
+                    "{} of {} ({})",
+                    s.named_injected,
+                    s.named_in_effect_trials,
+                    pct(s.named_injected as f64 / s.named_in_effect_trials as f64)
+                )
+            },
+            "",
         ),
         row(
             "abstention rate, effect trials / controls",
@@ -1138,5 +1163,22 @@ mod misattribution_tests {
         assert!(t.starts_with("| metric | all | excitation plan | gentle chirp | policy rollout | target |"), "{t}");
         assert!(t.contains("| top-1 effect, single effects | 50 % | 100 % | 0 % | n/a | ≥ 90 % |"), "{t}");
         assert!(t.contains("a library effect named | 1 of 2 | 1 of 2 | — | — | 0 |"), "{t}");
+    }
+
+    #[test]
+    fn named_effects_are_counted_against_the_injected_ones_in_effect_trials_only() {
+        use super::InputKind::Excitation;
+        let scores = vec![
+            // The injected damping and a stand-in for it; a pair with one member found; a control and an
+            // out-of-library trial naming something (their own rows).
+            trial(Excitation, &[Damping], &[Damping, Friction], false),
+            trial(Excitation, &[Damping, Latency], &[Latency], false),
+            trial(Excitation, &[], &[Armature], false),
+            trial(Excitation, &[], &[Friction], true),
+        ];
+        let s = super::summarize(&scores);
+        assert_eq!((s.named_injected, s.named_in_effect_trials), (2, 3));
+        let t = super::table_by_input(&scores);
+        assert!(t.contains("| named effects that were injected, effect trials | 2 of 3 (67 %) |  |"), "{t}");
     }
 }
