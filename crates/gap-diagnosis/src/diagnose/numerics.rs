@@ -81,8 +81,13 @@ pub(super) fn numerics(ctx: &Ctx<'_>, baseline_tot: &[f64], rng: &mut impl Rng) 
                 .map(|(a, b)| ctx.difference_scores(a, b).iter().take(ctx.nj()).sum::<f64>())
                 .collect::<Vec<f64>>(),
         );
-        let alt_tot: Vec<f64> =
-            alt.eval_many(std::slice::from_ref(&none), &ctx.test)?.remove(0).iter().map(|w| total(w)).collect();
+        // The gap from the same replay (scoring a prediction is what `eval_many` does after replaying it).
+        let alt_tot: Vec<f64> = ctx
+            .test
+            .iter()
+            .zip(&pred)
+            .map(|(&w, p)| alt.prediction_scores(&none, w, p).map(|s| total(&s)))
+            .collect::<Result<_, _>>()?;
         variants.push(IntegratorVariant {
             engine: opts.engine.name(),
             held_out_gap: mean(&alt_tot),

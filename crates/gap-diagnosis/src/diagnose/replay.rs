@@ -206,25 +206,33 @@ impl Ctx<'_> {
         w: usize,
         series: Option<&mut Vec<Vec<f64>>>,
     ) -> Result<Vec<f64>, GapError> {
-        let nj = self.nj();
         let start = self.starts[w];
         let floating = self.plant == PlantKind::Floating;
         let pred = rig.predict(model, self.feet.as_ref(), self.log, fx, start, self.len, floating)?;
+        if let Some(out) = series {
+            *out = (0..self.nj())
+                .map(|j| pred.iter().enumerate().map(|(k, p)| self.log.states[start + 1 + k].q[j] - p.q[j]).collect())
+                .collect();
+        }
+        self.prediction_scores(fx, w, &pred)
+    }
+
+    /// Normalised squared residual per column of window `w` against its prediction `pred` under `fx` (what
+    /// [`Ctx::window_scores`] computes after replaying the window).
+    pub(super) fn prediction_scores(&self, fx: &Effects, w: usize, pred: &[Measurement]) -> Result<Vec<f64>, GapError> {
+        let nj = self.nj();
+        let start = self.starts[w];
         let mut s = vec![0.0; nj + 1];
-        let mut ser = vec![Vec::with_capacity(pred.len()); nj];
         for (k, p) in pred.iter().enumerate() {
-            let m = &self.log.states[start + 1 + k];
-            self.add_joint_terms(m, p, &mut s);
-            for (j, x) in ser.iter_mut().enumerate() {
-                x.push(m.q[j] - p.q[j]);
-            }
+            self.add_joint_terms(&self.log.states[start + 1 + k], p, &mut s);
         }
         let n = pred.len().max(1) as f64;
         s.iter_mut().take(nj).for_each(|x| *x /= n);
-        s[nj] = if floating { floating_imu_score(self.log, start, &pred) } else { self.imu_score(fx, w)? };
-        if let Some(out) = series {
-            *out = ser;
-        }
+        s[nj] = if self.plant == PlantKind::Floating {
+            floating_imu_score(self.log, start, pred)
+        } else {
+            self.imu_score(fx, w)?
+        };
         Ok(s)
     }
 
