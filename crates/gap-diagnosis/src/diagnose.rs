@@ -41,7 +41,7 @@ pub use options::{DiagnoseOptions, PlantChoice, PlantKind, FLOATING_MAX_WINDOWS}
 pub use remainder::{
     RobustGap, Unexplained, WindowFlag, WindowResidual, FAST_FRAC, SATURATED_FRAC, UNEXPLAINED_FACTOR,
 };
-pub use select::{Combination, EXPLAINED_AWAY, MAX_COMBINATION, REFIT_CANDIDATES};
+pub use select::{Combination, MAX_COMBINATION, REFIT_CANDIDATES};
 pub use stats::{Estimate, Judged, EFFECT_FLOOR_FRAC, TRIM_FRAC};
 pub use windows::{AT_LIMIT_RAD, COMMAND_STALE_S, TIMING_TOL_S};
 
@@ -57,6 +57,8 @@ pub use crate::noise::{TIMING_HI, TIMING_LO};
 /// `/7`: adds `ambiguous`.
 /// `/8`: adds `ambiguous[].at_bound` (members fitted at the edge of their search range)
 /// and `numerics` (the prediction and held-out gap under MuJoCo's other integrators).
+/// `/9`: `ranked` holds the best combination and the effects the log cannot tell apart from a member; an effect
+/// that cut the gap alone but adds nothing given the combination is not named and carries `explained_by`.
 pub const SCHEMA_VERSION: &str = "ulab-gap-report/9";
 
 /// What the diagnosis concluded about the log as a whole.
@@ -240,6 +242,7 @@ fn rig_violated(
             noise_floor: 0.0,
             params: vec![],
             note: Some(why.clone()),
+            explained_by: vec![],
         })
         .collect();
     Report {

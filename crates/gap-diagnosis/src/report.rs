@@ -124,12 +124,7 @@ pub fn markdown(r: &Report) -> String {
                 est(&c.reduction)
             );
         }
-        let away: Vec<&str> = r
-            .effects
-            .iter()
-            .filter(|e| e.note.as_deref().is_some_and(|n| n.starts_with(crate::diagnose::EXPLAINED_AWAY)))
-            .map(|e| e.kind.name())
-            .collect();
+        let away: Vec<&str> = r.effects.iter().filter(|e| !e.explained_by.is_empty()).map(|e| e.kind.name()).collect();
         if !away.is_empty() {
             s += &format!(
                 "Explained away (each cuts the gap alone, but adds nothing once the best combination is in; not \

@@ -58,6 +58,10 @@ pub struct EffectResult {
     pub params: Vec<FittedParam>,
     /// Why it was not fitted or not named, or, when named given other effects, which.
     pub note: Option<String>,
+    /// The best combination's members, when this effect cut the gap alone but adds nothing given them (explained
+    /// away: not named).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub explained_by: Vec<EffectKind>,
 }
 
 /// A fitted value within this fraction of its search range from a bound (other than the no-effect value) sits at
@@ -165,6 +169,7 @@ fn not_identifiable(kind: EffectKind, any_contact: bool, baseline_metric: Estima
         noise_floor: 0.0,
         params: vec![],
         note: Some(note),
+        explained_by: vec![],
     }
 }
 
@@ -326,6 +331,7 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
         noise_floor: floor,
         params,
         note,
+        explained_by: vec![],
     };
     Ok(Assessed { result, kept: pruned, totals: after_tot })
 }

@@ -152,6 +152,7 @@ mod tests {
                 held_out_reduction: 0.0,
             }],
             note: None,
+            explained_by: vec![],
         }
     }
 

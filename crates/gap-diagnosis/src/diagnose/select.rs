@@ -130,9 +130,6 @@ pub(super) fn select(
     Ok(Selection { effects: results, ranked, abstentions, best_combination, combo_fx })
 }
 
-/// How the abstention of an effect explained away by the best combination begins.
-pub const EXPLAINED_AWAY: &str = "explained away";
-
 /// Named effects outside the best combination are explained away unless an ambiguous set holds them with a
 /// member. Each was named alone (it cuts the held-out gap when nothing else is fitted), but the selection found that
 /// it adds less than the noise floor once the combination is in: on a log with friction in one leg, an armature, a
@@ -150,8 +147,9 @@ pub(super) fn explain_away(sel: &mut Selection, ambiguous: &mut Vec<super::confo
     }
     for r in sel.effects.iter_mut().filter(|r| away.contains(&r.kind)) {
         r.named = false;
+        r.explained_by = members.clone();
         r.note = Some(format!(
-            "{EXPLAINED_AWAY}: alone it cuts the held-out gap by {:.1} % [{:.1}, {:.1}], but given {} it adds less \
+            "explained away: alone it cuts the held-out gap by {:.1} % [{:.1}, {:.1}], but given {} it adds less \
              than the noise floor of what remains",
             100.0 * r.reduction.value,
             100.0 * r.reduction.lo,
@@ -286,6 +284,7 @@ mod tests {
             noise_floor: 0.03,
             params: vec![],
             note: None,
+            explained_by: vec![],
         }
     }
 
@@ -317,9 +316,10 @@ mod tests {
         assert_eq!(sel.ranked, vec![Friction, Latency, Damping, Armature]);
         assert_eq!(sets, vec![set(vec![Friction, Damping, Armature])]);
         let backlash = sel.effects.iter().find(|r| r.kind == Backlash).expect("backlash");
-        assert!(!backlash.named);
+        assert!(!backlash.named && backlash.explained_by == vec![Friction, Latency]);
         let note = backlash.note.as_deref().unwrap_or_default();
-        assert!(note.starts_with(EXPLAINED_AWAY) && note.contains("friction + latency"), "{note}");
+        assert!(note.contains("friction + latency"), "{note}");
+        assert!(sel.effects.iter().filter(|r| r.kind != Backlash).all(|r| r.explained_by.is_empty()));
         // Named effects first, and every effect not named is an abstention, with its reason.
         assert!(sel.effects.iter().take(4).all(|r| r.named) && sel.effects.iter().skip(4).all(|r| !r.named));
         let abstained: Vec<EffectKind> = sel.abstentions.iter().map(|(k, _)| *k).collect();
