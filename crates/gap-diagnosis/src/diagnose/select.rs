@@ -125,9 +125,13 @@ pub(super) fn select(
         best_combination = Some(Combination { effects: members, metric_after, reduction });
         combo_fx = Some(combo);
     }
-    let abstentions: Vec<(EffectKind, String)> =
-        results.iter().filter(|r| !r.named).map(|r| (r.kind, r.note.clone().unwrap_or_default())).collect();
+    let abstentions = abstentions(&results);
     Ok(Selection { effects: results, ranked, abstentions, best_combination, combo_fx })
+}
+
+/// Every effect not named, with its reason.
+fn abstentions(results: &[EffectResult]) -> Vec<(EffectKind, String)> {
+    results.iter().filter(|r| !r.named).map(|r| (r.kind, r.note.clone().unwrap_or_default())).collect()
 }
 
 /// Named effects outside the best combination are explained away unless an ambiguous set holds them with a
@@ -164,8 +168,7 @@ pub(super) fn explain_away(sel: &mut Selection, ambiguous: &mut Vec<super::confo
     }
     ambiguous.retain(|s| s.effects.len() >= 2);
     sort_results(&mut sel.effects);
-    sel.abstentions =
-        sel.effects.iter().filter(|r| !r.named).map(|r| (r.kind, r.note.clone().unwrap_or_default())).collect();
+    sel.abstentions = abstentions(&sel.effects);
 }
 
 /// Evaluates every candidate `cands` on top of `combo`, refits the most promising non-IMU ones with `combo`
