@@ -7,11 +7,9 @@
 //! bootstrap, noise floor) are the leaves; `windows` picks the windows, `replay` replays and scores them,
 //! `breakdown` says where the gap lies, `fit` fits one effect, `assess` judges each effect alone, `select` builds
 //! the best combination, `confound` says which named effects the log cannot tell apart, `identify` says which
-//! effects this log could reveal at all, `constancy` whether each named effect keeps one size across the windows
-//! it acts in (one that does not stands in for an effect outside the library), `numerics` how much of the gap the
-//! integrator choice alone could make, and `remainder` says what is left (per window, robustly, and where). One
-//! RNG is threaded through the stages in a fixed order, so a seed fixes the report (the constancy checks draw from
-//! their own, so that adding them moved nothing else).
+//! effects this log could reveal at all, `numerics` how much of the gap the integrator choice alone could make,
+//! and `remainder` says what is left (per window, robustly, and where). One
+//! RNG is threaded through the stages in a fixed order, so a seed fixes the report.
 use crate::effects::EffectKind;
 use crate::log::RobotLog;
 use crate::rig_check::{self, RigCheck};
@@ -23,7 +21,6 @@ use serde::{Deserialize, Serialize};
 mod assess;
 mod breakdown;
 mod confound;
-mod constancy;
 mod fit;
 mod identify;
 mod numerics;
@@ -37,7 +34,6 @@ mod windows;
 pub use assess::{EffectResult, FittedParam, MIN_WINDOWS_OFF_LIMIT, SINGLE_JOINT_CANDIDATES, UNIT_FLOOR_FRAC};
 pub use breakdown::Share;
 pub use confound::{leading_set, AmbiguousSet, AMBIGUOUS_COSINE};
-pub use constancy::{ConstancyCheck, MISFIT_RATIO, MISFIT_SHARE, MISFIT_SHARE_LO, SIZE_SCALES};
 pub use fit::RESOLUTION_FRAC;
 pub use identify::{Identifiability, UnitSignal};
 pub use numerics::{IntegratorVariant, Numerics, INTEGRATORS};
@@ -63,12 +59,7 @@ pub use crate::noise::{TIMING_HI, TIMING_LO};
 /// and `numerics` (the prediction and held-out gap under MuJoCo's other integrators).
 /// `/9`: `ranked` holds the best combination and the effects the log cannot tell apart from a member; an effect
 /// that cut the gap alone but adds nothing given the combination is not named and carries `explained_by`.
-/// `/10`: adds `constancy`; an effect no single size of which explains the windows it acts in is not named.
-pub const SCHEMA_VERSION: &str = "ulab-gap-report/10";
-
-/// Seeds the constancy checks' own RNG (xor the diagnosis seed), so that they leave the other stages' draws as
-/// they were.
-const CONSTANCY_SEED: u64 = 0xc0_2575_a2c7;
+pub const SCHEMA_VERSION: &str = "ulab-gap-report/9";
 
 /// What the diagnosis concluded about the log as a whole.
 #[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq)]
@@ -147,10 +138,6 @@ pub struct Report {
     /// What MuJoCo's other integrators do to the prediction and the held-out gap (a baseline mismatch of numerics).
     #[serde(default)]
     pub numerics: Option<Numerics>,
-    /// Whether each effect named before this check keeps one size across the held-out windows it acts in; one that
-    /// does not is not named (an effect outside the library is likely).
-    #[serde(default)]
-    pub constancy: Vec<ConstancyCheck>,
     pub elapsed_s: f64,
 }
 
@@ -183,16 +170,6 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
     // Named effects that add nothing once the best combination is in, and that the log can tell apart from its
     // members, are not named.
     select::explain_away(&mut selection, &mut ambiguous);
-    // Named effects no single size of which explains the windows they act in are not named.
-    let mut constancy_rng = rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed ^ CONSTANCY_SEED);
-    let constancy = constancy::check_and_unname(
-        &ctx,
-        &mut selection,
-        &mut ambiguous,
-        &fitted,
-        &baseline.test_tot,
-        &mut constancy_rng,
-    )?;
     let ranked = selection.ranked;
     // Whether the log could show each effect at all: an abstention on an effect it cannot reveal says so.
     let identifiability = identify::identify(&ctx, &breakdown.scores, &kinds)?;
@@ -237,7 +214,6 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
         identifiability,
         ambiguous,
         numerics,
-        constancy,
         elapsed_s: t_start.elapsed().as_secs_f64(),
     })
 }
@@ -299,7 +275,6 @@ fn rig_violated(
         identifiability: vec![],
         ambiguous: vec![],
         numerics: None,
-        constancy: vec![],
         elapsed_s: t_start.elapsed().as_secs_f64(),
     }
 }

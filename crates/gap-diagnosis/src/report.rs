@@ -125,14 +125,6 @@ pub fn markdown(r: &Report) -> String {
             );
         }
         let away: Vec<&str> = r.effects.iter().filter(|e| !e.explained_by.is_empty()).map(|e| e.kind.name()).collect();
-        let inconsistent: Vec<&str> = r.constancy.iter().filter(|c| c.inconsistent).map(|c| c.kind.name()).collect();
-        if !inconsistent.is_empty() {
-            s += &format!(
-                "Not named because no single size of each explains the windows it acts in (an effect outside the \
-                 library is likely; \"Does each effect keep one size across windows?\"): {}.\n\n",
-                inconsistent.join(", ")
-            );
-        }
         if !away.is_empty() {
             s += &format!(
                 "Explained away (each cuts the gap alone, but adds nothing once the best combination is in; not \
@@ -171,7 +163,6 @@ pub fn markdown(r: &Report) -> String {
     }
     s += &ambiguous_section(r);
     s += &identifiability_section(r);
-    s += &constancy_section(r);
     s += &numerics_section(r);
     s += &remainder_section(r);
     s += &format!("\nDiagnosis time: {:.1} s. Plots: `by_joint.svg`, `effects.svg`.\n", r.elapsed_s);
@@ -198,38 +189,6 @@ fn ambiguous_section(r: &Report) -> String {
             100.0 * set.gap_difference,
             if edge.is_empty() { "—".to_string() } else { edge.join(", ") },
             how.join("; ")
-        );
-    }
-    s
-}
-
-/// Whether each effect named before the constancy check keeps one size across the windows it acts in.
-fn constancy_section(r: &Report) -> String {
-    if r.constancy.is_empty() {
-        return String::new();
-    }
-    let mut s = format!(
-        "\n## Does each effect keep one size across windows? (held-out windows)\n\nEach named effect replayed at \
-         scaled sizes; in each window the scale that fits it best, weighted by how much the effect cuts there. An \
-         effect is not named when the share of its cut in windows wanting a size {:.0} times larger or smaller \
-         than the fitted one reaches {:.0} % (the lower bound of its interval {:.0} %):\n\n| effect | joints | \
-         best scale, all windows | windows' median scale | windows cut | misfit share [95 % CI] | one size |\n|---|---|---|---|---|---|---|\n",
-        crate::diagnose::MISFIT_RATIO,
-        100.0 * crate::diagnose::MISFIT_SHARE,
-        100.0 * crate::diagnose::MISFIT_SHARE_LO
-    );
-    for c in &r.constancy {
-        s += &format!(
-            "| {} | {} | {:.2} | {:.2} | {} | {:.0} % [{:.0}, {:.0}] | {} |\n",
-            c.kind.name(),
-            c.joints.join(", "),
-            c.scale_all,
-            c.scale_median,
-            c.windows_cut,
-            100.0 * c.misfit_share.value,
-            100.0 * c.misfit_share.lo,
-            100.0 * c.misfit_share.hi,
-            if c.inconsistent { "**no: not named**" } else { "yes" }
         );
     }
     s

@@ -130,7 +130,7 @@ pub(super) fn select(
 }
 
 /// Every effect not named, with its reason.
-pub(super) fn abstentions(results: &[EffectResult]) -> Vec<(EffectKind, String)> {
+fn abstentions(results: &[EffectResult]) -> Vec<(EffectKind, String)> {
     results.iter().filter(|r| !r.named).map(|r| (r.kind, r.note.clone().unwrap_or_default())).collect()
 }
 
