@@ -17,7 +17,7 @@ use gap_diagnosis::diagnose::{diagnose, AmbiguousSet, DiagnoseOptions, PlantKind
 use gap_diagnosis::effects::{EffectKind, Scope};
 use gap_diagnosis::excite;
 use gap_diagnosis::log::{Command, Measurement, RobotLog};
-use gap_diagnosis::plant::{imu_reading, joint_groups, Effects, EngineChoice, Rig, DT, GROUPS};
+use gap_diagnosis::plant::{imu_reading, joint_groups, Effects, EngineChoice, Rig, Stepping, DT, GROUPS};
 use gap_diagnosis::GapError;
 use policy_runtime::{Controller, PolicyController, PolicySpec, RobotObservation};
 use rand::{Rng, SeedableRng};
@@ -50,6 +50,9 @@ pub struct RealConfig {
     pub motion: Motion,
     /// An effect outside the diagnosis's library, hidden in the plant as a torque the actuator does not know of.
     pub out_of_library: Option<OutOfLibrary>,
+    /// How the reference rig integrates a control step (the diagnosing simulator's one 2 ms step by default; finer
+    /// steps make a plant whose numerics differ, as another simulator's or a robot's do). Rig only.
+    pub stepping: Stepping,
 }
 
 /// The scripted motion of a trial (of every joint, or of the joints a policy does not drive).
@@ -75,6 +78,7 @@ impl RealConfig {
             excitation_scale: 1.0,
             motion: Motion::Plan,
             out_of_library: None,
+            stepping: Stepping::DIAGNOSING,
         }
     }
 }
@@ -125,7 +129,7 @@ pub fn generate_log_with(
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(cfg.seed);
     let (real_model, engine_fx) = in_engine(&cfg.effects.apply_to_model(model), &cfg.effects, !cfg.engine.is_mujoco());
     let fx = &engine_fx;
-    let mut rig = Rig::reference(&real_model, &cfg.engine)?;
+    let mut rig = Rig::reference(&real_model, &cfg.engine, cfg.stepping)?;
     let q0 = model.default_q();
     let nj = model.nj();
     rig.reset(&q0, &vec![0.0; nj])?;

@@ -7,7 +7,7 @@
 use diff_physics::EngineKind;
 use gap_bench::in_engine;
 use gap_diagnosis::excite;
-use gap_diagnosis::plant::{joint_groups, Effects, EngineChoice, Rig};
+use gap_diagnosis::plant::{joint_groups, Effects, EngineChoice, Rig, Stepping};
 use robot_model::RobotModel;
 
 fn model() -> RobotModel {
@@ -26,7 +26,7 @@ fn run_rig(
     duration: f64,
 ) -> (f64, f64, Vec<Vec<f64>>) {
     let (m, fx) = in_engine(&fx.apply_to_model(model), fx, native);
-    let mut rig = Rig::reference(&m, choice).expect("rig");
+    let mut rig = Rig::reference(&m, choice, Stepping::DIAGNOSING).expect("rig");
     let q0 = model.default_q();
     rig.reset(&q0, &vec![0.0; model.nj()]).expect("reset");
     let amp = excite::amplitudes(model);

@@ -7,7 +7,7 @@
 //! bootstrap, noise floor) are the leaves; `windows` picks the windows, `replay` replays and scores them,
 //! `breakdown` says where the gap lies, `fit` fits one effect, `assess` judges each effect alone, `select` builds
 //! the best combination, `confound` says which named effects the log cannot tell apart, `identify` says which
-//! effects this log could reveal at all, `numerics` how much of the gap the integrator choice alone could make,
+//! effects this log could reveal at all, `numerics` how much of the gap the integrator, timestep or PD rate alone could make,
 //! and `remainder` says what is left (per window, robustly, and where). One
 //! RNG is threaded through the stages in a fixed order, so a seed fixes the report.
 use crate::effects::EffectKind;
@@ -36,7 +36,7 @@ pub use breakdown::Share;
 pub use confound::{leading_set, AmbiguousSet, AMBIGUOUS_COSINE};
 pub use fit::RESOLUTION_FRAC;
 pub use identify::{Identifiability, UnitSignal};
-pub use numerics::{IntegratorVariant, Numerics, INTEGRATORS};
+pub use numerics::{Numerics, NumericsVariant, INTEGRATORS, STEPPINGS};
 pub use options::{DiagnoseOptions, PlantChoice, PlantKind, FLOATING_MAX_WINDOWS};
 pub use remainder::{
     RobustGap, Unexplained, WindowFlag, WindowResidual, FAST_FRAC, SATURATED_FRAC, UNEXPLAINED_FACTOR,
@@ -59,7 +59,9 @@ pub use crate::noise::{TIMING_HI, TIMING_LO};
 /// and `numerics` (the prediction and held-out gap under MuJoCo's other integrators).
 /// `/9`: `ranked` holds the best combination and the effects the log cannot tell apart from a member; an effect
 /// that cut the gap alone but adds nothing given the combination is not named and carries `explained_by`.
-pub const SCHEMA_VERSION: &str = "ulab-gap-report/9";
+/// `/10`: `numerics` also replays the rig with 1 ms physics steps (PD every 2 ms and every 1 ms); it and each
+/// variant carry `timestep_ms` and `pd_period_ms`.
+pub const SCHEMA_VERSION: &str = "ulab-gap-report/10";
 
 /// What the diagnosis concluded about the log as a whole.
 #[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq)]
@@ -135,7 +137,8 @@ pub struct Report {
     /// Named effects this log cannot tell apart (nearly collinear predicted changes), each set in rank order.
     #[serde(default)]
     pub ambiguous: Vec<AmbiguousSet>,
-    /// What MuJoCo's other integrators do to the prediction and the held-out gap (a baseline mismatch of numerics).
+    /// What MuJoCo's other integrators, a finer timestep and a faster PD rate do to the prediction and the held-out
+    /// gap (a baseline mismatch of numerics).
     #[serde(default)]
     pub numerics: Option<Numerics>,
     pub elapsed_s: f64,

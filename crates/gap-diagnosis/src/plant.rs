@@ -125,6 +125,62 @@ impl EngineChoice {
     }
 }
 
+/// When the effect layer (PD law, friction, saturation) is evaluated within a control step.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PdUpdate {
+    /// Once per control step ([`DT`]), the torque held over its physics steps.
+    PerControlStep,
+    /// At every physics step, from that step's state.
+    PerPhysicsStep,
+}
+
+/// How a plant integrates one control step of [`DT`]: `substeps` physics steps, the effect layer evaluated once
+/// or at each. The diagnosing simulator takes one 2 ms step ([`Stepping::DIAGNOSING`]); another simulator (the
+/// issue's ran 1 ms steps) or a robot whose drivers close the PD loop faster integrates the same commands
+/// differently, which the numerics stage sizes by replaying with other steppings.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct Stepping {
+    /// Physics steps per control step (at least 1).
+    pub substeps: u32,
+    pub pd: PdUpdate,
+}
+
+impl Stepping {
+    /// One physics step per control step.
+    pub const DIAGNOSING: Stepping = Stepping { substeps: 1, pd: PdUpdate::PerPhysicsStep };
+
+    /// `substeps` physics steps per control step, PD at each or held.
+    pub fn new(substeps: u32, pd: PdUpdate) -> Result<Self, GapError> {
+        if !(1..=64).contains(&substeps) {
+            return Err(GapError::Input(format!(
+                "{substeps} physics steps per {} ms control step (1 to 64)",
+                DT * 1e3
+            )));
+        }
+        Ok(Stepping { substeps, pd })
+    }
+
+    /// The physics timestep (s).
+    pub fn timestep(&self) -> f64 {
+        DT / f64::from(self.substeps.max(1))
+    }
+
+    /// How often the PD law is evaluated (s).
+    pub fn pd_period(&self) -> f64 {
+        match self.pd {
+            PdUpdate::PerControlStep => DT,
+            PdUpdate::PerPhysicsStep => self.timestep(),
+        }
+    }
+}
+
+impl Default for Stepping {
+    fn default() -> Self {
+        Stepping::DIAGNOSING
+    }
+}
+
 /// Every effect's parameters; the default is "no effect" (the baseline simulator).
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Effects {
@@ -218,6 +274,7 @@ impl Effects {
 #[derive(Debug)]
 pub struct Rig<E: Engine + ?Sized = MujocoEngine> {
     engine: Suspended<E>,
+    stepping: Stepping,
     torque_limit: Vec<f64>,
     speed_limit: Vec<f64>,
     tau: Vec<f64>,
@@ -225,33 +282,40 @@ pub struct Rig<E: Engine + ?Sized = MujocoEngine> {
 
 impl Rig<MujocoEngine> {
     /// The diagnosing rig for `model` (already carrying the model-level effects): MuJoCo with the choice's
-    /// integrator.
-    pub fn new(model: &RobotModel, choice: &EngineChoice) -> Result<Self, GapError> {
-        Ok(Rig::around(mujoco_on_stand(model, choice.mujoco_integrator()?)?, model))
+    /// integrator, stepped as `stepping` says.
+    pub fn new(model: &RobotModel, choice: &EngineChoice, stepping: Stepping) -> Result<Self, GapError> {
+        Ok(Rig::around(mujoco_on_stand(model, choice.mujoco_integrator()?, stepping)?, model, stepping))
     }
 }
 
 /// MuJoCo with `integrator` holding `model` on the stand.
-fn mujoco_on_stand(model: &RobotModel, integrator: &str) -> Result<Suspended<MujocoEngine>, GapError> {
+fn mujoco_on_stand(
+    model: &RobotModel,
+    integrator: &str,
+    stepping: Stepping,
+) -> Result<Suspended<MujocoEngine>, GapError> {
     let settings = MujocoSettings { integrator: integrator.to_string(), ..MujocoSettings::default() };
-    Suspended::new(model, DT, &settings).map_err(GapError::from)
+    Suspended::new(model, stepping.timestep(), &settings).map_err(GapError::from)
 }
 
 impl Rig<dyn Engine> {
     /// A reference rig in any engine of [`EngineChoice`] (MuJoCo with its integrator, Bullet, DART, Rapier).
-    pub fn reference(model: &RobotModel, choice: &EngineChoice) -> Result<Self, GapError> {
+    pub fn reference(model: &RobotModel, choice: &EngineChoice, stepping: Stepping) -> Result<Self, GapError> {
         let engine: Suspended = match choice {
-            EngineChoice::Mujoco { integrator } => mujoco_on_stand(model, integrator)?.into_dyn(),
-            EngineChoice::Other(kind) => Suspended::with_engine(*kind, model, DT).map_err(GapError::from)?,
+            EngineChoice::Mujoco { integrator } => mujoco_on_stand(model, integrator, stepping)?.into_dyn(),
+            EngineChoice::Other(kind) => {
+                Suspended::with_engine(*kind, model, stepping.timestep()).map_err(GapError::from)?
+            }
         };
-        Ok(Rig::around(engine, model))
+        Ok(Rig::around(engine, model, stepping))
     }
 }
 
 impl<E: Engine + ?Sized> Rig<E> {
-    fn around(engine: Suspended<E>, model: &RobotModel) -> Self {
+    fn around(engine: Suspended<E>, model: &RobotModel, stepping: Stepping) -> Self {
         Rig {
             engine,
+            stepping,
             torque_limit: model.joints.iter().map(|j| j.torque_limit).collect(),
             speed_limit: model.joints.iter().map(|j| j.speed_limit).collect(),
             tau: vec![0.0; model.nj()],
@@ -276,8 +340,8 @@ impl<E: Engine + ?Sized> Rig<E> {
         (s.base_pos, s.base_quat)
     }
 
-    /// One physics step: the effect layer turns `cmd` into joint torques; returns the motor torque (what
-    /// `tau_est` reports).
+    /// One control step of [`DT`] (its physics steps as the rig's [`Stepping`] says): the effect layer turns `cmd`
+    /// into joint torques; returns the last motor torque (what `tau_est` reports).
     pub fn step(&mut self, cmd: &Command, fx: &Effects) -> Result<&[f64], GapError> {
         self.step_disturbed(cmd, fx, &[])
     }
@@ -285,11 +349,16 @@ impl<E: Engine + ?Sized> Rig<E> {
     /// [`Rig::step`] with `disturbance` (N·m per joint; missing joints: none) added to the joint torques but not to
     /// the motor torque: a torque the actuator does not know of (a benchmark's effect outside the library).
     pub fn step_disturbed(&mut self, cmd: &Command, fx: &Effects, disturbance: &[f64]) -> Result<&[f64], GapError> {
-        let s = self.engine.state();
-        let mut joint_tau =
-            actuator_torques(cmd, fx, &s.q, &s.dq, &self.torque_limit, &self.speed_limit, &mut self.tau);
-        joint_tau.iter_mut().zip(disturbance).for_each(|(t, d)| *t += d);
-        self.engine.step(&joint_tau).map_err(GapError::from)?;
+        let mut joint_tau = Vec::new();
+        for k in 0..self.stepping.substeps.max(1) {
+            if k == 0 || self.stepping.pd == PdUpdate::PerPhysicsStep {
+                let s = self.engine.state();
+                joint_tau =
+                    actuator_torques(cmd, fx, &s.q, &s.dq, &self.torque_limit, &self.speed_limit, &mut self.tau);
+                joint_tau.iter_mut().zip(disturbance).for_each(|(t, d)| *t += d);
+            }
+            self.engine.step(&joint_tau).map_err(GapError::from)?;
+        }
         Ok(&self.tau)
     }
 

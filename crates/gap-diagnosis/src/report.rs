@@ -194,17 +194,26 @@ fn ambiguous_section(r: &Report) -> String {
     s
 }
 
-/// What the diagnosing simulator's integrator choice alone does (a baseline mismatch of numerics).
+/// What the diagnosing simulator's integrator, timestep or PD rate alone does (a baseline mismatch of numerics).
 fn numerics_section(r: &Report) -> String {
     let Some(n) = &r.numerics else { return String::new() };
     let mut s = format!(
         "\n## The simulator's own numerics (held-out windows)\n\nThe held-out windows replayed without effects by \
-         MuJoCo's other integrators (timestep 2 ms and PD every step kept):\n\n| integrator | held-out gap | \
-         reduction against `{}` [95 % CI] | prediction shift (gap metric) |\n|---|---|---|---|\n",
-        n.engine
+         MuJoCo's other integrators and, on the rig, with finer physics steps or a faster PD rate (the diagnosing \
+         simulator: `{}`, {} ms steps, PD every {} ms):\n\n| integrator | timestep | PD period | held-out gap | \
+         reduction [95 % CI] | prediction shift (gap metric) |\n|---|---|---|---|---|---|\n",
+        n.engine, n.timestep_ms, n.pd_period_ms
     );
     for v in &n.variants {
-        s += &format!("| {} | {:.3} | {} | {:.3} |\n", v.engine, v.held_out_gap, est(&v.reduction), v.prediction_shift);
+        s += &format!(
+            "| {} | {} ms | {} ms | {:.3} | {} | {:.3} |\n",
+            v.engine,
+            v.timestep_ms,
+            v.pd_period_ms,
+            v.held_out_gap,
+            est(&v.reduction),
+            v.prediction_shift
+        );
     }
     s += "\n";
     match n.better_variant() {
@@ -212,25 +221,30 @@ fn numerics_section(r: &Report) -> String {
             s += &format!(
                 "**Part of the baseline gap is numerics**: with {} the held-out gap is {:.0} % smaller without any \
                  effect, beyond the noise floor ({:.0} %, by the lower bound of its interval): the log comes from a \
-                 plant that integrates differently. The effects above are judged against `{}`.",
-                v.engine,
+                 plant that integrates differently. The effects above are judged against `{}`, {} ms steps, PD every \
+                 {} ms; to judge them against the numerics the log fits, diagnose again with `{}`.",
+                v.label(),
                 100.0 * v.reduction.value,
                 100.0 * n.noise_floor,
-                n.engine
+                n.engine,
+                n.timestep_ms,
+                n.pd_period_ms,
+                v.diagnose_flags()
             )
         }
         None => {
             s += &format!(
-            "No other integrator fits the log better beyond the noise floor ({:.0} %): the gap is not an integrator \
-                 mismatch.",
-            100.0 * n.noise_floor
-        )
+                "No other integrator, timestep or PD rate fits the log better beyond the noise floor ({:.0} %): the \
+                 gap is not a numerics mismatch of these kinds.",
+                100.0 * n.noise_floor
+            )
         }
     }
     s += &format!(
-        " The integrator choice alone moves the prediction by up to {:.3} ({:.1} % of the baseline gap)",
+        " The numerics alone move the prediction by up to {:.3} ({:.1} % of the baseline gap{})",
         n.largest_shift(),
-        100.0 * n.shift_share_of_baseline
+        100.0 * n.shift_share_of_baseline,
+        n.largest_shift_variant().map(|v| format!("; {}", v.label())).unwrap_or_default()
     );
     match &r.unexplained_residual {
         Some(u) if n.largest_shift() > 0.0 => {

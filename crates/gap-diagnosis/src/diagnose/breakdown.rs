@@ -62,7 +62,7 @@ pub(super) fn breakdown(ctx: &Ctx<'_>) -> Result<Breakdown, GapError> {
     let nj = ctx.nj();
     let null = Effects::none(nj);
     let all: Vec<usize> = (0..ctx.starts.len()).collect();
-    let mut base_rig = Plant::new(ctx.plant, model, &ctx.opts.engine, &null)?;
+    let mut base_rig = Plant::new(ctx.plant, model, ctx.opts, &null)?;
     let mut base_all: Scores = Vec::with_capacity(all.len());
     let mut band_tot = [0.0; 3];
     let cont = contacts(model, log);

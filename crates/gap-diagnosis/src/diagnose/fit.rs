@@ -279,7 +279,7 @@ fn fit_imu(ctx: &Ctx<'_>, kind: EffectKind) -> Result<Fit, GapError> {
     let null = Effects::none(ctx.nj());
     let mut acc = Vec::new();
     let mut floating_plant = match ctx.plant {
-        PlantKind::Floating => Some(Plant::new(PlantKind::Floating, ctx.model, &ctx.opts.engine, &null)?),
+        PlantKind::Floating => Some(Plant::new(PlantKind::Floating, ctx.model, ctx.opts, &null)?),
         PlantKind::Rig => None,
     };
     for &w in &ctx.train {

@@ -1,7 +1,7 @@
 //! What a diagnosis is asked to do ([`DiagnoseOptions`]) and which plant replays its windows. A leaf beside
 //! [`super::stats`]: every stage reads the options, none of them is read back from a stage.
 use crate::effects::EffectKind;
-use crate::plant::EngineChoice;
+use crate::plant::{EngineChoice, Stepping};
 use crate::GapError;
 use serde::{Deserialize, Serialize};
 
@@ -26,6 +26,8 @@ pub struct DiagnoseOptions {
     pub kinds: Option<Vec<EffectKind>>,
     /// Which plant replays the windows.
     pub plant: PlantChoice,
+    /// How the diagnosing plant integrates a control step (one 2 ms step; the numerics stage replays others).
+    pub stepping: Stepping,
 }
 
 /// The plant requested for a diagnosis.
@@ -105,6 +107,7 @@ impl Default for DiagnoseOptions {
             seed: 1,
             kinds: None,
             plant: PlantChoice::Auto,
+            stepping: Stepping::DIAGNOSING,
         }
     }
 }

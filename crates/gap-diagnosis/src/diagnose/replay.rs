@@ -5,7 +5,7 @@ use super::options::{DiagnoseOptions, PlantKind};
 use super::windows::Windows;
 use crate::floating::{self, Feet, FloatingPlant};
 use crate::log::{Measurement, RobotLog};
-use crate::plant::{imu_reading, joint_groups, predict_window, Effects, EngineChoice, Rig};
+use crate::plant::{imu_reading, joint_groups, predict_window, Effects, Rig, Stepping};
 use crate::GapError;
 use rayon::prelude::*;
 use robot_model::RobotModel;
@@ -24,15 +24,22 @@ pub(super) enum Plant {
 impl Plant {
     /// A plant of `kind` for `model` (already carrying the model-level effects of `fx`; `fx` supplies the contact
     /// time constant of the floating plant).
+    /// The engine and stepping are the options'; the floating plant takes one step per control step only.
     pub(super) fn new(
         kind: PlantKind,
         model: &RobotModel,
-        engine: &EngineChoice,
+        opts: &DiagnoseOptions,
         fx: &Effects,
     ) -> Result<Self, GapError> {
         Ok(match kind {
-            PlantKind::Rig => Plant::Rig(Rig::new(model, engine)?),
-            PlantKind::Floating => Plant::Floating(Box::new(FloatingPlant::new(model, engine, fx)?)),
+            PlantKind::Rig => Plant::Rig(Rig::new(model, &opts.engine, opts.stepping)?),
+            PlantKind::Floating if opts.stepping != Stepping::DIAGNOSING => {
+                return Err(GapError::Input(format!(
+                    "the floating plant integrates one {} ms step per control step; other steppings are the rig's",
+                    crate::plant::DT * 1e3
+                )))
+            }
+            PlantKind::Floating => Plant::Floating(Box::new(FloatingPlant::new(model, &opts.engine, fx)?)),
         })
     }
 
@@ -175,7 +182,7 @@ impl Ctx<'_> {
                 let pooled = if baseline_model { self.pool.lock().ok().and_then(|mut p| p.pop()) } else { None };
                 let mut rig = match pooled {
                     Some(r) => r,
-                    None => Plant::new(self.plant, &model, &self.opts.engine, fx)?,
+                    None => Plant::new(self.plant, &model, self.opts, fx)?,
                 };
                 let mut out = Vec::with_capacity(ws.len());
                 for &w in ws.iter() {

@@ -1,16 +1,17 @@
 //! `ulab gap`: sim-to-real gap diagnosis (the work is in the `gap-diagnosis` crate).
 //!
-//! - `ulab gap diagnose --log real.mcap --robot h1_2 [--engine E] [--plant auto|rig|floating] --out DIR [--format json]`;
+//! - `ulab gap diagnose --log real.mcap --robot h1_2 [--engine E] [--plant auto|rig|floating] [--substeps N
+//!   [--pd-held]] --out DIR [--format json]`;
 //!   exit 0 diagnosed, 3 with `--plant rig` the log is not from a suspended robot (rig-assumption check; report
 //!   written, every effect abstained), 2 error. `--plant auto` (default) diagnoses such a log on the floating base.
 //! - `ulab gap excite --robot h1_2 --out plan.mcap [--duration S] [--rate HZ]`
-//! - `ulab gap simulate --robot h1_2 --out real.mcap [--effect KIND:UNIT:VALUE]...`: a log of the benchmark's
-//!   reference plant (demo and test logs)
+//! - `ulab gap simulate --robot h1_2 --out real.mcap [--effect KIND:UNIT:VALUE]... [--engine E]
+//!   [--substeps N [--pd-held]]`: a log of the benchmark's reference plant (demo and test logs)
 //! - `ulab gap bench [--trials N] [--seed S] [--duration S] [--out DIR] [--policy SPEC.toml]... [--floating]`
 use anyhow::{bail, Context, Result};
 use gap_bench::{self as bench, BenchOptions, Motion, RealConfig};
 use gap_diagnosis::diagnose::PlantChoice;
-use gap_diagnosis::plant::{joint_groups, EngineChoice, GROUPS};
+use gap_diagnosis::plant::{joint_groups, EngineChoice, PdUpdate, Stepping, GROUPS};
 use gap_diagnosis::{effects::Scope, DiagnoseOptions, EffectKind, Outcome, RobotLog};
 
 use crate::exit::Exit;
@@ -81,6 +82,8 @@ struct DiagnoseArgs {
     block: f64,
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    #[command(flatten)]
+    stepping: SteppingArgs,
 }
 
 #[derive(Debug, clap::Args)]
@@ -119,9 +122,31 @@ struct SimulateArgs {
     /// through the engine's own joint parameters).
     #[arg(long, default_value = "mujoco-rk4")]
     engine: String,
+    #[command(flatten)]
+    stepping: SteppingArgs,
     /// Overwrite the output file.
     #[arg(long)]
     force: bool,
+}
+
+/// How a rig plant integrates each 2 ms control step (`gap simulate`: the simulated robot; `gap diagnose`: the
+/// diagnosing simulator, e.g. to re-diagnose with the stepping the report's numerics section found the log to fit).
+#[derive(Debug, clap::Args)]
+struct SteppingArgs {
+    /// Physics steps per 2 ms control step (2: 1 ms steps, as a 1 kHz simulator runs). Rig only.
+    #[arg(long, default_value_t = 1)]
+    substeps: u32,
+    /// With `--substeps` above 1: evaluate the PD law once per control step and hold it, instead of at every
+    /// physics step.
+    #[arg(long)]
+    pd_held: bool,
+}
+
+impl SteppingArgs {
+    fn stepping(&self) -> Result<Stepping> {
+        let pd = if self.pd_held { PdUpdate::PerControlStep } else { PdUpdate::PerPhysicsStep };
+        Stepping::new(self.substeps, pd).context("--substeps")
+    }
 }
 
 #[derive(Debug, clap::Args)]
@@ -224,6 +249,7 @@ fn diagnose(a: DiagnoseArgs) -> Result<Exit> {
         block_s: a.block,
         seed: a.seed,
         plant,
+        stepping: a.stepping.stepping()?,
         ..Default::default()
     };
     let report = gap_diagnosis::diagnose(&model, &log, &opts).context("diagnosing")?;
@@ -363,6 +389,7 @@ fn simulate(a: SimulateArgs) -> Result<Exit> {
     }
     let mut cfg = RealConfig::new(&model, a.duration, a.seed);
     cfg.engine = EngineChoice::parse(&a.engine).context("--engine")?;
+    cfg.stepping = a.stepping.stepping()?;
     for e in &a.effect {
         parse_effect(e, &model, &mut cfg.effects)?;
     }
