@@ -5,12 +5,13 @@ with Unitree hg messages serialized by Cyclone DDS's Python serializer. Nothing 
 
     suspended_plant.py OUT.mcap [--timestep S] [--pd-every N] [--integrator NAME] [--duration S] [--cmd-rate HZ]
                        [--extra-damping|--extra-frictionloss|--extra-armature JOINT=VALUE]...
-                       [--gain-scale JOINT=S]... [--encoder-offset JOINT=RAD]...
+                       [--gain-scale JOINT=S]... [--encoder-offset JOINT=RAD]... [--load-friction JOINT=MU]...
 
 The physics runs at `--timestep`; the PD torque is recomputed every `--pd-every` physics steps and held between;
 commands arrive at `--cmd-rate` (chirps around the standing pose on every joint) and states are logged every 2 ms.
 A hidden effect goes through MuJoCo's own joint parameters (damping, frictionloss, armature) or through the PD law
-and the encoder (gain scale, offset). Prints one JSON object with what was simulated.
+and the encoder (gain scale, offset); `--load-friction` is a law outside the diagnosis's library. Prints one JSON
+object with what was simulated.
 """
 import argparse
 import json
@@ -75,6 +76,9 @@ def main():
                     help="scale the joint's kp and kd in the PD law (not in the logged command); repeatable")
     ap.add_argument("--encoder-offset", action="append", default=[], metavar="JOINT=RAD",
                     help="the joint's encoder reads this much more than the true angle (the PD law sees it too)")
+    ap.add_argument("--load-friction", action="append", default=[], metavar="JOINT=MU",
+                    help="a friction outside the diagnosis's library: MU times the motor torque's magnitude, against "
+                         "the joint's motion, applied as a torque the motor does not report; repeatable")
     ap.add_argument("--shared", default=os.environ.get("ULAB_SHARED") or os.path.join(
         os.path.dirname(__file__), "../../../shared"))
     a = ap.parse_args()
@@ -92,8 +96,9 @@ def main():
             getattr(m, field)[dof] += float(value)
             effects.append({"field": field, "joint": name, "added": float(value)})
     nj = m.njnt
-    gain, offset = np.ones(nj), np.zeros(nj)
-    for field, specs, arr in (("gain_scale", a.gain_scale, gain), ("encoder_offset", a.encoder_offset, offset)):
+    gain, offset, load_mu = np.ones(nj), np.zeros(nj), np.zeros(nj)
+    for field, specs, arr in (("gain_scale", a.gain_scale, gain), ("encoder_offset", a.encoder_offset, offset),
+                              ("load_friction", a.load_friction, load_mu)):
         for spec in specs:
             name, value = spec.split("=")
             arr[m.joint(name).id] = float(value)
@@ -150,6 +155,8 @@ def main():
                 tau = np.array([gain[k] * (KP[k] * (q_des[k] - q_meas[k]) - KD[k] * d.qvel[k]) for k in range(nj)])
                 tau = np.clip(tau, -tau_lim, tau_lim)
                 d.ctrl[:] = tau
+            # Smooth sign (0.05 rad/s), so the plant stays an ODE.
+            d.qfrc_applied[:] = -load_mu * np.abs(tau) * np.tanh(d.qvel / 0.05)
             mujoco.mj_step(m, d)
             if (i + 1) % per_state == 0:
                 s = unitree_hg_msg_dds__LowState_()
