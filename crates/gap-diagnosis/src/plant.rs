@@ -126,8 +126,7 @@ impl EngineChoice {
 }
 
 /// When the effect layer (PD law, friction, saturation) is evaluated within a control step.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "snake_case")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum PdUpdate {
     /// Once per control step ([`DT`]), the torque held over its physics steps.
     PerControlStep,
@@ -139,7 +138,7 @@ pub enum PdUpdate {
 /// or at each. The diagnosing simulator takes one 2 ms step ([`Stepping::DIAGNOSING`]); another simulator (the
 /// issue's ran 1 ms steps) or a robot whose drivers close the PD loop faster integrates the same commands
 /// differently, which the numerics stage sizes by replaying with other steppings.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Stepping {
     /// Physics steps per control step (at least 1).
     pub substeps: u32,
@@ -172,12 +171,6 @@ impl Stepping {
             PdUpdate::PerControlStep => DT,
             PdUpdate::PerPhysicsStep => self.timestep(),
         }
-    }
-}
-
-impl Default for Stepping {
-    fn default() -> Self {
-        Stepping::DIAGNOSING
     }
 }
 

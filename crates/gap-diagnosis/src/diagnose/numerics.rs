@@ -201,11 +201,6 @@ mod tests {
         };
         assert_eq!(n.better_variant().map(|v| v.engine.as_str()), Some("mujoco-rk4"));
     }
-}
-
-#[cfg(test)]
-mod stepping_tests {
-    use super::*;
 
     #[test]
     fn the_steppings_are_distinct_and_name_their_timestep_and_pd_period() {

@@ -23,8 +23,8 @@ pub(super) enum Plant {
 
 impl Plant {
     /// A plant of `kind` for `model` (already carrying the model-level effects of `fx`; `fx` supplies the contact
-    /// time constant of the floating plant).
-    /// The engine and stepping are the options'; the floating plant takes one step per control step only.
+    /// time constant of the floating plant), in the options' engine and stepping (the floating plant takes one
+    /// step per control step only).
     pub(super) fn new(
         kind: PlantKind,
         model: &RobotModel,
