@@ -246,6 +246,8 @@ fn rig_violated(
             params: vec![],
             note: Some(why.clone()),
             explained_by: vec![],
+            worsening_units: vec![],
+            named_off_limit_only: false,
         })
         .collect();
     Report {

@@ -161,6 +161,19 @@ pub fn markdown(r: &Report) -> String {
     for (k, why) in &r.abstentions {
         s += &format!("- {}: {}\n", k.name(), why);
     }
+    let dropped: Vec<String> = r
+        .effects
+        .iter()
+        .filter(|e| !e.worsening_units.is_empty())
+        .map(|e| format!("{} on {}", e.kind.name(), e.worsening_units.join(", ")))
+        .collect();
+    if !dropped.is_empty() {
+        s += &format!(
+            "\nUnits dropped from a fit (each cut its own held-out residual but, alone, left the whole held-out gap no \
+             smaller: a value fitted against a mismatch elsewhere): {}.\n",
+            dropped.join("; ")
+        );
+    }
     s += &ambiguous_section(r);
     s += &identifiability_section(r);
     s += &numerics_section(r);

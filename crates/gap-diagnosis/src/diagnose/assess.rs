@@ -1,5 +1,6 @@
 //! Each effect alone: fit it on the training windows, keep the units that cut their own held-out residual beyond
-//! a floor, and name the effect when the kept units cut the whole held-out gap beyond the noise floor. Its output
+//! a floor (and, of several, those that alone make the whole held-out gap smaller), and name the effect when the
+//! kept units cut the whole held-out gap beyond the noise floor. Its output
 //! is also the candidate list of the forward selection ([`super::select`]).
 use super::breakdown::Baseline;
 use super::fit::{
@@ -34,7 +35,8 @@ pub struct FittedParam {
     /// Bootstrap standard deviation over training windows.
     pub sd: f64,
     /// Held-out reduction of the gap metric credited to this unit (absolute, normalised units per window): its
-    /// own residual's reduction, or, when several units are kept, the whole-gap reduction it gives alone.
+    /// own residual's reduction, or, when several units passed the unit test, the whole-gap reduction it gives alone
+    /// (positive: the others are dropped, [`EffectResult::worsening_units`]).
     pub held_out_reduction: f64,
 }
 
@@ -62,6 +64,15 @@ pub struct EffectResult {
     /// away: not named).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub explained_by: Vec<EffectKind>,
+    /// Units that cut their own held-out residual but, alone, left the whole held-out gap no smaller: dropped
+    /// from `params` (a value fitted against a mismatch elsewhere in the model).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub worsening_units: Vec<String>,
+    /// Named alone only on the held-out windows away from every range limit ([`super::stats::Judged::off_limit`]):
+    /// weaker evidence, so it stays named beside the best combination only as a member, not as the other half of an
+    /// ambiguous set (the selection's explaining away).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub named_off_limit_only: bool,
 }
 
 /// A fitted value within this fraction of its search range from a bound (other than the no-effect value) sits at
@@ -170,6 +181,8 @@ fn not_identifiable(kind: EffectKind, any_contact: bool, baseline_metric: Estima
         params: vec![],
         note: Some(note),
         explained_by: vec![],
+        worsening_units: vec![],
+        named_off_limit_only: false,
     }
 }
 
@@ -274,19 +287,17 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
         }
     }
     // With several units kept, credit each by the whole-gap reduction it gives alone (a joint's effect also
-    // shows in its neighbours' residuals, so its own column is not a fair measure).
+    // shows in its neighbours' residuals, so its own column is not a fair measure), and drop the units that alone
+    // make the whole gap no smaller: a value fitted against a model mismatch in one joint (an offset on the waist
+    // beside the shoulder's true one) cut its own column at the others' cost and would hide the true unit.
+    let mut worsening = Vec::new();
     if params.len() > 1 && matches!(kind.scope(), Scope::Joint | Scope::Group) {
         let base_sum: f64 = base_test_tot.iter().sum();
         let solo: Vec<Effects> = params
             .iter()
             .map(|p| {
                 let mut fx = null.clone();
-                if let Some(u) = (0..units.len()).find(|&u| unit_name(ctx, kind, u) == p.unit) {
-                    set_unit(kind, &mut fx, ctx, u, unit_value(kind, &pruned, ctx, u));
-                } else if let Some(j) = ctx.model.joints.iter().position(|j| j.motor_name == p.unit) {
-                    // A group effect named on one joint (localise).
-                    kind.set(&mut fx, j, kind.get(&pruned, j));
-                }
+                copy_param(ctx, kind, &units, p, &pruned, &mut fx);
                 fx
             })
             .collect();
@@ -294,6 +305,15 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
         for (p, r) in params.iter_mut().zip(res) {
             p.held_out_reduction = (base_sum - r.iter().map(|s| total(s)).sum::<f64>()) / ctx.test.len() as f64;
         }
+        let (kept, dropped): (Vec<FittedParam>, Vec<FittedParam>) =
+            params.into_iter().partition(|p| p.held_out_reduction > 0.0);
+        if !dropped.is_empty() {
+            let mut fx = null.clone();
+            kept.iter().for_each(|p| copy_param(ctx, kind, &units, p, &pruned, &mut fx));
+            pruned = fx;
+            worsening = dropped.into_iter().map(|p| p.unit).collect();
+        }
+        params = kept;
     }
     let after_tot = if params.is_empty() {
         base_test_tot.clone()
@@ -301,17 +321,22 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
         let a = ctx.eval_many(std::slice::from_ref(&pruned), &ctx.test)?.remove(0);
         a.iter().map(|s| total(s)).collect::<Vec<f64>>()
     };
-    let judged = judge(base_test_tot, &after_tot, bootstrap, rng);
+    let judged = judge(base_test_tot, &after_tot, &ctx.off_limit_test(), bootstrap, rng);
     let (red, floor) = (judged.reduction, judged.floor);
     let metric_after = bootstrap_mean(&after_tot, bootstrap, rng);
     let named = !params.is_empty() && judged.clears();
     let note = if named {
-        judged.trimmed_note()
+        judged.route_note()
     } else if params.is_empty() && !limit_only.is_empty() {
         Some(format!(
             "reduces the held-out residual of {} only in windows where a joint reaches its range limit (simulators \
              model joint limits differently): not named",
             limit_only.join(", ")
+        ))
+    } else if params.is_empty() && !worsening.is_empty() {
+        Some(format!(
+            "the units that cut their own held-out residual ({}) each make the whole held-out gap larger alone",
+            worsening.join(", ")
         ))
     } else if params.is_empty() {
         Some("no joint/group reduced the held-out residual beyond its floor".to_string())
@@ -332,8 +357,28 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
         params,
         note,
         explained_by: vec![],
+        worsening_units: worsening,
+        named_off_limit_only: named && judged.off_limit.is_some(),
     };
     Ok(Assessed { result, kept: pruned, totals: after_tot })
+}
+
+/// Sets the unit of `p` (a unit of `kind`, or one joint of a group effect named on that joint) in `to` at its value
+/// in `from`.
+fn copy_param(
+    ctx: &Ctx<'_>,
+    kind: EffectKind,
+    units: &[Vec<usize>],
+    p: &FittedParam,
+    from: &Effects,
+    to: &mut Effects,
+) {
+    if let Some(u) = (0..units.len()).find(|&u| unit_name(ctx, kind, u) == p.unit) {
+        set_unit(kind, to, ctx, u, unit_value(kind, from, ctx, u));
+    } else if let Some(j) = ctx.model.joints.iter().position(|j| j.motor_name == p.unit) {
+        // A group effect named on one joint (localise).
+        kind.set(to, j, kind.get(from, j));
+    }
 }
 
 /// Whether a unit's held-out cuts keep it.

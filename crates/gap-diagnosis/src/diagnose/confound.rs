@@ -153,6 +153,8 @@ mod tests {
             }],
             note: None,
             explained_by: vec![],
+            worsening_units: vec![],
+            named_off_limit_only: false,
         }
     }
 

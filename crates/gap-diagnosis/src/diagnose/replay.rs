@@ -151,6 +151,16 @@ impl<'a> Ctx<'a> {
 }
 
 impl Ctx<'_> {
+    /// Per held-out window: whether no joint comes within [`super::AT_LIMIT_RAD`] of its range in it (the off-limit
+    /// route of [`super::stats::judge`]). On the rig only: none on the floating plant, whose benchmark was not
+    /// re-measured with that route.
+    pub(super) fn off_limit_test(&self) -> Vec<bool> {
+        if self.plant != PlantKind::Rig {
+            return Vec::new();
+        }
+        self.test.iter().map(|&w| !self.at_limit.get(w).is_some_and(|l| l.iter().any(|&b| b))).collect()
+    }
+
     pub(super) fn nj(&self) -> usize {
         self.model.nj()
     }
