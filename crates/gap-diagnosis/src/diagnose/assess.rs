@@ -1,7 +1,7 @@
 //! Each effect alone: fit it on the training windows, keep the units that cut their own held-out residual beyond
 //! a floor (and, of several, those that alone make the whole held-out gap smaller), and name the effect when the
-//! kept units cut the whole held-out gap beyond the noise floor. Its output
-//! is also the candidate list of the forward selection ([`super::select`]).
+//! kept units cut the whole held-out gap beyond the noise floor. Its output is also the candidate list of the forward
+//! selection ([`super::select`]).
 use super::breakdown::Baseline;
 use super::fit::{
     fit_kind, fit_one_joint_per_group, report_value, set_unit, unit_name, unit_sets, unit_value, units_of,
