@@ -91,6 +91,7 @@ pub(super) fn select(
         let mut cur: Vec<f64> =
             named_scores.iter().find(|n| n.kind == first).map(|n| n.totals.clone()).unwrap_or_default();
         let mut added: Vec<Conditional> = Vec::new();
+        let off_limit = ctx.off_limit_test();
         while members.len() < MAX_COMBINATION {
             let cands: Vec<EffectKind> = candidates.iter().map(|c| c.kind).filter(|k| !members.contains(k)).collect();
             if cands.is_empty() {
@@ -99,7 +100,7 @@ pub(super) fn select(
             let Some(mut trial) = best_trial(ctx, &combo, &cands, &candidates, rng)? else {
                 break;
             };
-            let judged = judge(&cur, &trial.totals, &ctx.off_limit_test(), bootstrap, rng);
+            let judged = judge(&cur, &trial.totals, &off_limit, bootstrap, rng);
             if !judged.clears() {
                 break;
             }
