@@ -23,6 +23,7 @@ mod breakdown;
 mod confound;
 mod fit;
 mod identify;
+mod load_split;
 mod numerics;
 mod options;
 mod remainder;
@@ -36,6 +37,7 @@ pub use breakdown::Share;
 pub use confound::{leading_set, AmbiguousSet, AMBIGUOUS_COSINE};
 pub use fit::RESOLUTION_FRAC;
 pub use identify::{Identifiability, UnitSignal};
+pub use load_split::{LoadSplit, LOAD_CHECKED, LOAD_SCALE_RATIO, MIN_LOAD_RATIO};
 pub use numerics::{Numerics, NumericsVariant, INTEGRATORS, STEPPINGS};
 pub use options::{DiagnoseOptions, PlantChoice, PlantKind, FLOATING_MAX_WINDOWS};
 pub use remainder::{
@@ -61,7 +63,9 @@ pub use crate::noise::{TIMING_HI, TIMING_LO};
 /// that cut the gap alone but adds nothing given the combination is not named and carries `explained_by`.
 /// `/10`: `numerics` also replays the rig with 1 ms physics steps (PD every 2 ms and every 1 ms); it and each
 /// variant carry `timestep_ms` and `pd_period_ms`.
-pub const SCHEMA_VERSION: &str = "ulab-gap-report/10";
+/// `/11`: effects may carry `worsening_units` and `named_off_limit_only`; a damping, friction or backlash that
+/// cleared the floor on the rig carries `load_split` (not named when it grows with the load).
+pub const SCHEMA_VERSION: &str = "ulab-gap-report/11";
 
 /// What the diagnosis concluded about the log as a whole.
 #[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq)]
@@ -248,6 +252,7 @@ fn rig_violated(
             explained_by: vec![],
             worsening_units: vec![],
             named_off_limit_only: false,
+            load_split: None,
         })
         .collect();
     Report {

@@ -174,12 +174,49 @@ pub fn markdown(r: &Report) -> String {
             dropped.join("; ")
         );
     }
+    s += &load_split_section(r);
     s += &ambiguous_section(r);
     s += &identifiability_section(r);
     s += &numerics_section(r);
     s += &remainder_section(r);
     s += &format!("\nDiagnosis time: {:.1} s. Plots: `by_joint.svg`, `effects.svg`.\n", r.elapsed_s);
     s
+}
+
+/// Each friction-like effect that cleared the floor, refitted on the windows of low and of high carried torque.
+fn load_split_section(r: &Report) -> String {
+    let rows: Vec<String> = r
+        .effects
+        .iter()
+        .filter_map(|e| {
+            let l = e.load_split.as_ref()?;
+            let est = |x: &crate::diagnose::Estimate| format!("{:.2}x [{:.2}, {:.2}]", x.value, x.lo, x.hi);
+            Some(format!(
+                "| {} | {:.1} % | {} | {:.1} % | {} | {} |\n",
+                e.kind.name(),
+                l.load_low * 100.0,
+                est(&l.scale_low),
+                l.load_high * 100.0,
+                est(&l.scale_high),
+                if l.load_dependent { "depends on load: not named" } else { "holds at both loads" }
+            ))
+        })
+        .collect();
+    if rows.is_empty() {
+        return String::new();
+    }
+    format!(
+        "\n## Does the effect hold at every load (training windows)\n\nA damping, friction or dead band of the \
+         library has one size whatever torque the joint carries; a friction that grows with the load (a gear's) does \
+         not, and the library's effects fit it as an average. Each such effect that cleared the floor is refitted, as \
+         one scale of its fitted values, on the half of the training windows where its joints carry the least torque \
+         and on the half where they carry the most (load: mean |torque| of its joints, in % of their limits; scale \
+         with a 95 % bootstrap interval over the half's windows). A high-load scale at least {:.1}x the low-load one, \
+         with intervals apart, means the effect grows with the load.\n\n| effect | load, low half | scale there | load, high half | scale \
+         there | verdict |\n|---|---|---|---|---|---|\n{}",
+        crate::diagnose::LOAD_SCALE_RATIO,
+        rows.concat()
+    )
 }
 
 /// The named effects the log cannot tell apart, with the motion that would reveal each.

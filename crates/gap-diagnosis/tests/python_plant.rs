@@ -9,7 +9,8 @@
 //! Checked: a single effect on one joint (the classes the reviewer saw missed on such a plant: dry friction
 //! on one elbow, a weak gain on one shoulder, armature on one leg; and an encoder offset on one hip) is named first,
 //! on that joint, at its size; both effects of a pair are named; a no-effect log names nothing; and the numerics
-//! stage says which stepping the log was made with (1 ms steps and PD at 1 kHz, or the diagnosing one).
+//! stage says which stepping the log was made with (1 ms steps and PD at 1 kHz, or the diagnosing one); a friction
+//! proportional to the load (outside the library) names nothing, where a viscous damping on the same joint is named.
 mod common;
 
 use gap_diagnosis::diagnose::Report;
@@ -75,6 +76,12 @@ fn single_joint_effects_of_another_program_s_plant_are_named_on_their_joint() {
     // Dry friction (MuJoCo's frictionloss, a hard Coulomb law; the library's is smooth with stiction) on one elbow.
     let r = diagnose_plant(&shared, "friction", &["--extra-frictionloss", "left_elbow_joint=1.0"]);
     assert_named_first(&r, EffectKind::Friction, "left_elbow", 1.0, 0.15);
+    // MuJoCo's frictionloss does not depend on the load: the refit on either half of the windows wants its size.
+    let l = r.effects.iter().find(|e| e.kind == EffectKind::Friction).and_then(|e| e.load_split.clone());
+    assert!(
+        l.as_ref().is_some_and(|l| !l.load_dependent && (l.scale_high.value - l.scale_low.value).abs() < 0.2),
+        "{l:?}"
+    );
     // A weak gain on one shoulder (kp and kd at 60 %).
     let r = diagnose_plant(&shared, "gain", &["--gain-scale", "left_shoulder_pitch_joint=0.6"]);
     assert_named_first(&r, EffectKind::GainScale, "left_shoulder_pitch", 0.6, 0.06);
@@ -84,6 +91,28 @@ fn single_joint_effects_of_another_program_s_plant_are_named_on_their_joint() {
     // An encoder reading 0.05 rad high on one hip.
     let r = diagnose_plant(&shared, "encoder", &["--encoder-offset", "right_hip_pitch_joint=0.05"]);
     assert_named_first(&r, EffectKind::EncoderOffset, "right_hip_pitch", 0.05, 0.01);
+}
+
+#[test]
+fn a_friction_that_grows_with_the_load_is_not_named_as_one_of_the_library() {
+    let Some(shared) = shared() else { return };
+    // 0.15 times the motor torque's magnitude against the motion of one elbow: outside the library. Damping,
+    // friction and a dead band each fit it as an average (before the load split, damping and friction were named
+    // on this log); refitted on the lightly and on the heavily loaded training windows they want sizes far apart.
+    let r = diagnose_plant(&shared, "load_friction", &["--load-friction", "left_elbow_joint=0.15"]);
+    assert!(r.ranked.is_empty() && r.unexplained, "ranked {:?}", r.ranked);
+    let split = |r: &Report, kind: EffectKind| {
+        r.effects.iter().find(|e| e.kind == kind).and_then(|e| e.load_split.clone()).expect("a load split")
+    };
+    for kind in [EffectKind::Damping, EffectKind::Friction] {
+        let l = split(&r, kind);
+        assert!(l.load_dependent && l.scale_high.lo > l.scale_low.hi, "{}: {l:?}", kind.name());
+    }
+    // A viscous damping (MuJoCo's dof_damping) on the same elbow has one size at every load: named, on the elbow.
+    let r = diagnose_plant(&shared, "damping", &["--extra-damping", "left_elbow_joint=1.0"]);
+    assert_named_first(&r, EffectKind::Damping, "left_elbow", 1.0, 0.1);
+    let l = split(&r, EffectKind::Damping);
+    assert!(!l.load_dependent && (l.scale_high.value - l.scale_low.value).abs() < 0.2, "{l:?}");
 }
 
 #[test]

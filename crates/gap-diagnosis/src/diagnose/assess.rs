@@ -7,6 +7,7 @@ use super::fit::{
     fit_kind, fit_one_joint_per_group, report_value, set_unit, unit_name, unit_sets, unit_value, units_of,
     RESOLUTION_FRAC,
 };
+use super::load_split::{load_split, LoadSplit};
 use super::options::PlantKind;
 use super::replay::Ctx;
 use super::replay::Scores;
@@ -73,6 +74,10 @@ pub struct EffectResult {
     /// ambiguous set (the selection's explaining away).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub named_off_limit_only: bool,
+    /// A damping or friction that cleared the floor, refitted on the training windows of low and of high carried
+    /// torque ([`LoadSplit`]; rig only): not named when it is load-dependent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub load_split: Option<LoadSplit>,
 }
 
 /// A fitted value within this fraction of its search range from a bound (other than the no-effect value) sits at
@@ -141,8 +146,10 @@ pub(super) fn assess(
             continue;
         }
         let a = assess_one(ctx, kind, baseline, rng)?;
-        // Every effect that cut some unit's own residual stays a candidate of the conditional selection.
-        if !a.result.params.is_empty() {
+        // Every effect that cut some unit's own residual stays a candidate of the conditional selection, unless
+        // it fits as a load-dependent friction (outside the library).
+        let load_dependent = a.result.load_split.as_ref().is_some_and(|s| s.load_dependent);
+        if !a.result.params.is_empty() && !load_dependent {
             candidates.push(Candidate { kind, fx: a.kept });
         }
         if a.result.named {
@@ -183,6 +190,7 @@ fn not_identifiable(kind: EffectKind, any_contact: bool, baseline_metric: Estima
         explained_by: vec![],
         worsening_units: vec![],
         named_off_limit_only: false,
+        load_split: None,
     }
 }
 
@@ -324,8 +332,13 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
     let judged = judge(base_test_tot, &after_tot, &ctx.off_limit_test(), bootstrap, rng);
     let (red, floor) = (judged.reduction, judged.floor);
     let metric_after = bootstrap_mean(&after_tot, bootstrap, rng);
-    let named = !params.is_empty() && judged.clears();
-    let note = if named {
+    let cleared = !params.is_empty() && judged.clears();
+    let split = if cleared && ctx.plant == PlantKind::Rig { load_split(ctx, kind, &pruned)? } else { None };
+    let load_dependent = split.as_ref().is_some_and(|s| s.load_dependent);
+    let named = cleared && !load_dependent;
+    let note = if load_dependent {
+        split.as_ref().map(LoadSplit::note)
+    } else if named {
         judged.route_note()
     } else if params.is_empty() && !limit_only.is_empty() {
         Some(format!(
@@ -359,6 +372,7 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
         explained_by: vec![],
         worsening_units: worsening,
         named_off_limit_only: named && judged.off_limit.is_some(),
+        load_split: split,
     };
     Ok(Assessed { result, kept: pruned, totals: after_tot })
 }
