@@ -74,8 +74,8 @@ pub struct EffectResult {
     /// ambiguous set (the selection's explaining away).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub named_off_limit_only: bool,
-    /// A damping or friction that cleared the floor, refitted on the training windows of low and of high carried
-    /// torque ([`LoadSplit`]; rig only): not named when it is load-dependent.
+    /// A damping, friction or backlash that cleared the floor, refitted on the training windows of low and of high
+    /// carried torque ([`LoadSplit`]; rig only): not named when it grows with the load.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub load_split: Option<LoadSplit>,
 }
@@ -85,6 +85,11 @@ pub struct EffectResult {
 pub const AT_BOUND_FRAC: f64 = 0.05;
 
 impl EffectResult {
+    /// Whether the load split set it aside ([`LoadSplit::load_dependent`]).
+    pub fn grows_with_load(&self) -> bool {
+        self.load_split.as_ref().is_some_and(|s| s.load_dependent)
+    }
+
     /// Whether some kept unit's value sits at the edge of the effect's search range, away from the no-effect
     /// value: the fit asked for more than the library allows, as an effect does when it stands in for another.
     pub fn at_search_bound(&self) -> bool {
@@ -148,8 +153,7 @@ pub(super) fn assess(
         let a = assess_one(ctx, kind, baseline, rng)?;
         // Every effect that cut some unit's own residual stays a candidate of the conditional selection, unless
         // it fits as a load-dependent friction (outside the library).
-        let load_dependent = a.result.load_split.as_ref().is_some_and(|s| s.load_dependent);
-        if !a.result.params.is_empty() && !load_dependent {
+        if !a.result.params.is_empty() && !a.result.grows_with_load() {
             candidates.push(Candidate { kind, fx: a.kept });
         }
         if a.result.named {
