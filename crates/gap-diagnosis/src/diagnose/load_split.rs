@@ -11,7 +11,7 @@
 //! viscous damping and a dry friction there want their fitted size on both halves). A first form without intervals
 //! and in both directions was dropped: it un-named the true friction of Rapier's seed-1 trial 2.
 use super::replay::Ctx;
-use super::stats::{median, Estimate};
+use super::stats::{median, percentile_interval, Estimate};
 use crate::effects::EffectKind;
 use crate::plant::Effects;
 use crate::GapError;
@@ -139,12 +139,10 @@ fn half_scale(per_window: &[Vec<f64>], idx: &[usize], rng: &mut impl Rng) -> Est
         f
     };
     let value = best_scale(&curve(&mut idx.iter().copied()));
-    let mut draws: Vec<f64> = (0..RESAMPLES)
+    let draws: Vec<f64> = (0..RESAMPLES)
         .map(|_| best_scale(&curve(&mut (0..idx.len()).map(|_| idx[rng.gen_range(0..idx.len())]))))
         .collect();
-    draws.sort_by(f64::total_cmp);
-    let at = |p: f64| draws[((p * (draws.len() - 1) as f64).round() as usize).min(draws.len() - 1)];
-    Estimate { value, lo: at(0.025), hi: at(0.975) }
+    percentile_interval(value, draws)
 }
 
 /// Mean |measured torque| / torque limit of `joints` over training window `w`.

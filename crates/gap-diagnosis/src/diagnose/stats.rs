@@ -52,7 +52,7 @@ pub(super) fn bootstrap_mean(x: &[f64], b: usize, rng: &mut impl Rng) -> Estimat
     if x.len() < 2 {
         return Estimate { value: v, lo: v, hi: v };
     }
-    let mut ms: Vec<f64> = (0..b)
+    let ms: Vec<f64> = (0..b)
         .map(|_| {
             let mut s = 0.0;
             for _ in 0..x.len() {
@@ -61,9 +61,17 @@ pub(super) fn bootstrap_mean(x: &[f64], b: usize, rng: &mut impl Rng) -> Estimat
             s / x.len() as f64
         })
         .collect();
-    ms.sort_by(f64::total_cmp);
-    let at = |p: f64| ms[((p * (ms.len() - 1) as f64).round() as usize).min(ms.len() - 1)];
-    Estimate { value: v, lo: at(0.025), hi: at(0.975) }
+    percentile_interval(v, ms)
+}
+
+/// `value` with the 95 % percentile interval of its resampled `draws` (empty: no spread).
+pub(super) fn percentile_interval(value: f64, mut draws: Vec<f64>) -> Estimate {
+    if draws.is_empty() {
+        return Estimate { value, lo: value, hi: value };
+    }
+    draws.sort_by(f64::total_cmp);
+    let at = |p: f64| draws[((p * (draws.len() - 1) as f64).round() as usize).min(draws.len() - 1)];
+    Estimate { value, lo: at(0.025), hi: at(0.975) }
 }
 
 /// Paired relative reduction `1 - mean(after)/mean(before)` with a bootstrap interval over windows.
@@ -85,15 +93,13 @@ pub(super) fn bootstrap_ratio(before: &[f64], after: &[f64], b: usize, rng: &mut
     if n < 2 {
         return Estimate { value: v, lo: v, hi: v };
     }
-    let mut ms: Vec<f64> = (0..b)
+    let ms: Vec<f64> = (0..b)
         .map(|_| {
             let idx: Vec<usize> = (0..n).map(|_| rng.gen_range(0..n)).collect();
             r(&mut idx.into_iter())
         })
         .collect();
-    ms.sort_by(f64::total_cmp);
-    let at = |p: f64| ms[((p * (ms.len() - 1) as f64).round() as usize).min(ms.len() - 1)];
-    Estimate { value: v, lo: at(0.025), hi: at(0.975) }
+    percentile_interval(v, ms)
 }
 
 /// The relative noise floor of the whole-gap reduction: the larger of a fixed fraction and the relative spread
