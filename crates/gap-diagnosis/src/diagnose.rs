@@ -22,8 +22,8 @@ mod assess;
 mod breakdown;
 mod confound;
 mod fit;
+mod halves;
 mod identify;
-mod load_split;
 mod numerics;
 mod options;
 mod remainder;
@@ -36,8 +36,8 @@ pub use assess::{EffectResult, FittedParam, MIN_WINDOWS_OFF_LIMIT, SINGLE_JOINT_
 pub use breakdown::Share;
 pub use confound::{leading_set, AmbiguousSet, AMBIGUOUS_COSINE};
 pub use fit::RESOLUTION_FRAC;
+pub use halves::{HalvesRefit, SplitBy, LOAD_CHECKED, MIN_SPLIT_RATIO, SCALE_RATIO, SPEED_CHECKED};
 pub use identify::{Identifiability, UnitSignal};
-pub use load_split::{LoadSplit, LOAD_CHECKED, LOAD_SCALE_RATIO, MIN_LOAD_RATIO};
 pub use numerics::{Numerics, NumericsVariant, INTEGRATORS, STEPPINGS};
 pub use options::{DiagnoseOptions, PlantChoice, PlantKind, FLOATING_MAX_WINDOWS};
 pub use remainder::{
@@ -65,7 +65,9 @@ pub use crate::noise::{TIMING_HI, TIMING_LO};
 /// variant carry `timestep_ms` and `pd_period_ms`.
 /// `/11`: effects may carry `worsening_units` and `named_off_limit_only`; a damping, friction or backlash that
 /// cleared the floor on the rig carries `load_split` (not named when it grows with the load).
-pub const SCHEMA_VERSION: &str = "ulab-gap-report/11";
+/// `/12`: `load_split` becomes `splits`, a list of refits on halves of the training windows, each with `by`
+/// (`load`, or `speed` for a damping: not named when its scale falls with speed), `low`, `high` and `set_aside`.
+pub const SCHEMA_VERSION: &str = "ulab-gap-report/12";
 
 /// What the diagnosis concluded about the log as a whole.
 #[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq)]
@@ -252,7 +254,7 @@ fn rig_violated(
             explained_by: vec![],
             worsening_units: vec![],
             named_off_limit_only: false,
-            load_split: None,
+            splits: vec![],
         })
         .collect();
     Report {

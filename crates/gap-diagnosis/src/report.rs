@@ -174,7 +174,7 @@ pub fn markdown(r: &Report) -> String {
             dropped.join("; ")
         );
     }
-    s += &load_split_section(r);
+    s += &splits_section(r);
     s += &ambiguous_section(r);
     s += &identifiability_section(r);
     s += &numerics_section(r);
@@ -183,39 +183,54 @@ pub fn markdown(r: &Report) -> String {
     s
 }
 
-/// Each friction-like effect that cleared the floor, refitted on the windows of low and of high carried torque.
-fn load_split_section(r: &Report) -> String {
+/// Each friction-like effect that cleared the floor, refitted on the halves of the training windows by load and
+/// (damping) by speed.
+fn splits_section(r: &Report) -> String {
+    use crate::diagnose::SplitBy;
     let rows: Vec<String> = r
         .effects
         .iter()
-        .filter_map(|e| {
-            let l = e.load_split.as_ref()?;
+        .flat_map(|e| e.splits.iter().map(move |l| (e, l)))
+        .map(|(e, l)| {
             let est = |x: &crate::diagnose::Estimate| format!("{:.2}x [{:.2}, {:.2}]", x.value, x.lo, x.hi);
-            Some(format!(
-                "| {} | {:.1} % | {} | {:.1} % | {} | {} |\n",
+            let (by, q, verdict): (_, fn(f64) -> String, _) = match l.by {
+                SplitBy::Load => (
+                    "load",
+                    |x| format!("{:.1} %", x * 100.0),
+                    if l.set_aside { "grows with the load: not named" } else { "holds at both loads" },
+                ),
+                SplitBy::Speed => (
+                    "speed",
+                    |x| format!("{x:.2} rad/s"),
+                    if l.set_aside { "falls with speed: not named" } else { "holds at both speeds" },
+                ),
+            };
+            format!(
+                "| {} | {by} | {} | {} | {} | {} | {verdict} |\n",
                 e.kind.name(),
-                l.load_low * 100.0,
+                q(l.low),
                 est(&l.scale_low),
-                l.load_high * 100.0,
+                q(l.high),
                 est(&l.scale_high),
-                if l.load_dependent { "depends on load: not named" } else { "holds at both loads" }
-            ))
+            )
         })
         .collect();
     if rows.is_empty() {
         return String::new();
     }
     format!(
-        "\n## Does the effect hold at every load (training windows)\n\nA damping, friction or dead band of the \
-         library has one size whatever torque the joint carries; a friction that grows with the load (a gear's) does \
-         not, and the library's effects fit it as an average. Each such effect that cleared the floor is refitted, as \
-         one scale of its fitted values, on the half of the training windows where its joints carry the least torque \
-         and on the half where they carry the most (load: mean |torque| of its joints, in % of their limits; scale \
-         with a 95 % bootstrap interval over the half's windows). A high-load scale at least {:.1}x the low-load one, \
-         with intervals apart, means the effect grows with the load.\n\n| effect | load, low half | scale there | load, high half | scale \
-         there | verdict |\n|---|---|---|---|---|---|\n{}",
-        crate::diagnose::LOAD_SCALE_RATIO,
-        rows.concat()
+        "\n## Does the effect hold on every part of the motion (training windows)\n\nA damping, friction or dead \
+         band of the library has one size whatever torque the joint carries and however fast it turns; a friction \
+         that grows with the load (a gear's) does not, and the library's effects fit it as an average. Each such \
+         effect that cleared the floor is refitted, as one scale of its fitted values, on the half of the training \
+         windows where its joints carry the least torque and on the half where they carry the most (load: mean \
+         |torque| of its joints, in % of their limits), and a damping also on the half where they move slowest and \
+         the half where they move fastest (mean |velocity|); scales with a 95 % bootstrap interval over the half's \
+         windows. A high-load scale at least {r:.1}x the low-load one, or a slow-half scale at least {r:.1}x the \
+         fast-half one, with intervals apart, sets the effect aside.\n\n| effect | split by | low half | scale \
+         there | high half | scale there | verdict |\n|---|---|---|---|---|---|---|\n{}",
+        rows.concat(),
+        r = crate::diagnose::SCALE_RATIO,
     )
 }
 

@@ -13,7 +13,7 @@
 //! proportional to the load (outside the library) names nothing, where a viscous damping on the same joint is named.
 mod common;
 
-use gap_diagnosis::diagnose::Report;
+use gap_diagnosis::diagnose::{HalvesRefit, Report, SplitBy};
 use gap_diagnosis::{diagnose, DiagnoseOptions, EffectKind, RobotLog};
 use std::path::Path;
 
@@ -57,6 +57,12 @@ fn diagnose_plant(shared: &str, name: &str, args: &[&str]) -> Report {
 }
 
 /// The effect is ranked first, its best unit is `unit`, fitted within `tol` of `value`.
+/// The refit of effect `kind` of `r` on the halves of the training windows by `by`.
+fn split(r: &Report, kind: EffectKind, by: SplitBy) -> HalvesRefit {
+    let e = r.effects.iter().find(|e| e.kind == kind).expect("the effect is assessed");
+    e.splits.iter().find(|s| s.by == by).cloned().unwrap_or_else(|| panic!("no {by:?} split of {}", kind.name()))
+}
+
 fn assert_named_first(r: &Report, kind: EffectKind, unit: &str, value: f64, tol: f64) {
     assert_eq!(r.ranked.first(), Some(&kind), "ranked {:?}", r.ranked);
     assert_named_on(r, kind, unit, value, tol);
@@ -77,11 +83,8 @@ fn single_joint_effects_of_another_program_s_plant_are_named_on_their_joint() {
     let r = diagnose_plant(&shared, "friction", &["--extra-frictionloss", "left_elbow_joint=1.0"]);
     assert_named_first(&r, EffectKind::Friction, "left_elbow", 1.0, 0.15);
     // MuJoCo's frictionloss does not depend on the load: the refit on either half of the windows wants its size.
-    let l = r.effects.iter().find(|e| e.kind == EffectKind::Friction).and_then(|e| e.load_split.clone());
-    assert!(
-        l.as_ref().is_some_and(|l| !l.load_dependent && (l.scale_high.value - l.scale_low.value).abs() < 0.2),
-        "{l:?}"
-    );
+    let l = split(&r, EffectKind::Friction, SplitBy::Load);
+    assert!(!l.set_aside && (l.scale_high.value - l.scale_low.value).abs() < 0.2, "{l:?}");
     // A weak gain on one shoulder (kp and kd at 60 %).
     let r = diagnose_plant(&shared, "gain", &["--gain-scale", "left_shoulder_pitch_joint=0.6"]);
     assert_named_first(&r, EffectKind::GainScale, "left_shoulder_pitch", 0.6, 0.06);
@@ -101,18 +104,18 @@ fn a_friction_that_grows_with_the_load_is_not_named_as_one_of_the_library() {
     // on this log); refitted on the lightly and on the heavily loaded training windows they want sizes far apart.
     let r = diagnose_plant(&shared, "load_friction", &["--load-friction", "left_elbow_joint=0.15"]);
     assert!(r.ranked.is_empty() && r.unexplained, "ranked {:?}", r.ranked);
-    let split = |r: &Report, kind: EffectKind| {
-        r.effects.iter().find(|e| e.kind == kind).and_then(|e| e.load_split.clone()).expect("a load split")
-    };
     for kind in [EffectKind::Damping, EffectKind::Friction] {
-        let l = split(&r, kind);
-        assert!(l.load_dependent && l.scale_high.lo > l.scale_low.hi, "{}: {l:?}", kind.name());
+        let l = split(&r, kind, SplitBy::Load);
+        assert!(l.set_aside && l.scale_high.lo > l.scale_low.hi, "{}: {l:?}", kind.name());
     }
     // A viscous damping (MuJoCo's dof_damping) on the same elbow has one size at every load: named, on the elbow.
     let r = diagnose_plant(&shared, "damping", &["--extra-damping", "left_elbow_joint=1.0"]);
     assert_named_first(&r, EffectKind::Damping, "left_elbow", 1.0, 0.1);
-    let l = split(&r, EffectKind::Damping);
-    assert!(!l.load_dependent && (l.scale_high.value - l.scale_low.value).abs() < 0.2, "{l:?}");
+    // ... and, being viscous, one size at every speed: the speed split keeps it.
+    for by in [SplitBy::Load, SplitBy::Speed] {
+        let l = split(&r, EffectKind::Damping, by);
+        assert!(!l.set_aside && (l.scale_high.value - l.scale_low.value).abs() < 0.2, "{l:?}");
+    }
 }
 
 #[test]

@@ -109,11 +109,21 @@ fn simulated_log_is_a_recording_and_diagnose_finds_the_effect() {
     // split sets it aside (before it, the selection explained it away).
     assert_eq!(r["ranked"], serde_json::json!(["damping"]), "ranked {}", r["ranked"]);
     let friction = r["effects"].as_array().and_then(|a| a.iter().find(|e| e["kind"] == "friction")).cloned();
-    let split = friction.as_ref().map(|f| f["load_split"].clone()).unwrap_or_default();
-    assert_eq!(split["load_dependent"], true, "friction {friction:?}");
+    let split = friction
+        .as_ref()
+        .and_then(|f| f["splits"].as_array().and_then(|a| a.iter().find(|s| s["by"] == "load")).cloned())
+        .unwrap_or_default();
+    assert_eq!(split["set_aside"], true, "friction {friction:?}");
     assert!(split["scale_high"]["lo"].as_f64() > split["scale_low"]["hi"].as_f64(), "{split}");
+    // The damping that is in the log holds at both speeds (a viscous torque grows with speed).
+    let damping = r["effects"].as_array().and_then(|a| a.iter().find(|e| e["kind"] == "damping")).cloned();
+    let by_speed = damping
+        .as_ref()
+        .and_then(|f| f["splits"].as_array().and_then(|a| a.iter().find(|s| s["by"] == "speed")).cloned())
+        .unwrap_or_default();
+    assert_eq!(by_speed["set_aside"], false, "damping {damping:?}");
     assert!(
-        md.contains("## Does the effect hold at every load") && md.contains("grows with the load"),
+        md.contains("## Does the effect hold on every part of the motion") && md.contains("grows with the load"),
         "{}",
         tail(&md)
     );

@@ -7,7 +7,7 @@ use super::fit::{
     fit_kind, fit_one_joint_per_group, report_value, set_unit, unit_name, unit_sets, unit_value, units_of,
     RESOLUTION_FRAC,
 };
-use super::load_split::{load_split, LoadSplit};
+use super::halves::{split_refit, HalvesRefit, SplitBy};
 use super::options::PlantKind;
 use super::replay::Ctx;
 use super::replay::Scores;
@@ -74,10 +74,11 @@ pub struct EffectResult {
     /// ambiguous set (the selection's explaining away).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub named_off_limit_only: bool,
-    /// A damping, friction or backlash that cleared the floor, refitted on the training windows of low and of high
-    /// carried torque ([`LoadSplit`]; rig only): not named when it grows with the load.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub load_split: Option<LoadSplit>,
+    /// A damping, friction or backlash that cleared the floor, refitted on halves of the training windows split by
+    /// carried torque and (damping) by speed ([`HalvesRefit`]; rig only): not named when its size changes the way
+    /// no library effect's does.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub splits: Vec<HalvesRefit>,
 }
 
 /// A fitted value within this fraction of its search range from a bound (other than the no-effect value) sits at
@@ -85,9 +86,9 @@ pub struct EffectResult {
 pub const AT_BOUND_FRAC: f64 = 0.05;
 
 impl EffectResult {
-    /// Whether the load split set it aside ([`LoadSplit::load_dependent`]).
-    pub fn grows_with_load(&self) -> bool {
-        self.load_split.as_ref().is_some_and(|s| s.load_dependent)
+    /// The split that set it aside ([`HalvesRefit::set_aside`]), if one did.
+    pub fn set_aside_by_split(&self) -> Option<&HalvesRefit> {
+        self.splits.iter().find(|s| s.set_aside)
     }
 
     /// Whether some kept unit's value sits at the edge of the effect's search range, away from the no-effect
@@ -153,7 +154,7 @@ pub(super) fn assess(
         let a = assess_one(ctx, kind, baseline, rng)?;
         // Every effect that cut some unit's own residual stays a candidate of the conditional selection, unless
         // it fits as a load-dependent friction (outside the library).
-        if !a.result.params.is_empty() && !a.result.grows_with_load() {
+        if !a.result.params.is_empty() && a.result.set_aside_by_split().is_none() {
             candidates.push(Candidate { kind, fx: a.kept });
         }
         if a.result.named {
@@ -194,7 +195,7 @@ fn not_identifiable(kind: EffectKind, any_contact: bool, baseline_metric: Estima
         explained_by: vec![],
         worsening_units: vec![],
         named_off_limit_only: false,
-        load_split: None,
+        splits: vec![],
     }
 }
 
@@ -337,11 +338,16 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
     let (red, floor) = (judged.reduction, judged.floor);
     let metric_after = bootstrap_mean(&after_tot, bootstrap, rng);
     let cleared = !params.is_empty() && judged.clears();
-    let split = if cleared && ctx.plant == PlantKind::Rig { load_split(ctx, kind, &pruned)? } else { None };
-    let load_dependent = split.as_ref().is_some_and(|s| s.load_dependent);
-    let named = cleared && !load_dependent;
-    let note = if load_dependent {
-        split.as_ref().map(LoadSplit::note)
+    let mut splits = Vec::new();
+    if cleared && ctx.plant == PlantKind::Rig {
+        for by in [SplitBy::Load, SplitBy::Speed] {
+            splits.extend(split_refit(ctx, kind, &pruned, by)?);
+        }
+    }
+    let set_aside = splits.iter().find(|s| s.set_aside);
+    let named = cleared && set_aside.is_none();
+    let note = if let Some(s) = set_aside {
+        Some(s.note())
     } else if named {
         judged.route_note()
     } else if params.is_empty() && !limit_only.is_empty() {
@@ -376,7 +382,7 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
         explained_by: vec![],
         worsening_units: worsening,
         named_off_limit_only: named && judged.off_limit.is_some(),
-        load_split: split,
+        splits,
     };
     Ok(Assessed { result, kept: pruned, totals: after_tot })
 }

@@ -155,7 +155,7 @@ mod tests {
             explained_by: vec![],
             worsening_units: vec![],
             named_off_limit_only: false,
-            load_split: None,
+            splits: vec![],
         }
     }
 

@@ -298,7 +298,7 @@ mod tests {
             explained_by: vec![],
             worsening_units: vec![],
             named_off_limit_only: false,
-            load_split: None,
+            splits: vec![],
         }
     }
 
