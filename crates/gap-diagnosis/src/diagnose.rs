@@ -30,6 +30,7 @@ mod remainder;
 mod replay;
 mod select;
 mod stats;
+mod torque_ceiling;
 mod windows;
 
 pub use assess::{EffectResult, FittedParam, MIN_WINDOWS_OFF_LIMIT, SINGLE_JOINT_CANDIDATES, UNIT_FLOOR_FRAC};
@@ -45,6 +46,7 @@ pub use remainder::{
 };
 pub use select::{Combination, MAX_COMBINATION, REFIT_CANDIDATES};
 pub use stats::{Estimate, Judged, EFFECT_FLOOR_FRAC, TRIM_FRAC};
+pub use torque_ceiling::{CEILING_MARGIN, MAX_FRACTION_ABOVE};
 pub use windows::{AT_LIMIT_RAD, COMMAND_STALE_S, TIMING_TOL_S};
 
 pub use crate::noise::{SIGMA_DQ, SIGMA_GYRO, SIGMA_Q, SIGMA_QUAT, SIGMA_TAU_FRAC};
@@ -66,7 +68,8 @@ pub use crate::noise::{TIMING_HI, TIMING_LO};
 /// `/11`: effects may carry `worsening_units` and `named_off_limit_only`; a damping, friction or backlash that
 /// cleared the floor on the rig carries `load_split` (not named when it grows with the load).
 /// `/12`: `load_split` becomes `splits`, a list of refits on halves of the training windows, each with `by`
-/// (`load`, or `speed` for a damping: not named when its scale falls with speed), `low`, `high` and `set_aside`.
+/// (`load`, or `speed` for a damping: not named when its scale falls with speed), `low`, `high` and `set_aside`;
+/// a torque saturation may carry `contradicted_units` (fitted ceilings the logged torque exceeds, dropped).
 pub const SCHEMA_VERSION: &str = "ulab-gap-report/12";
 
 /// What the diagnosis concluded about the log as a whole.
@@ -253,6 +256,7 @@ fn rig_violated(
             note: Some(why.clone()),
             explained_by: vec![],
             worsening_units: vec![],
+            contradicted_units: vec![],
             named_off_limit_only: false,
             splits: vec![],
         })

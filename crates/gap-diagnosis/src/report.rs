@@ -174,6 +174,21 @@ pub fn markdown(r: &Report) -> String {
             dropped.join("; ")
         );
     }
+    let contradicted: Vec<String> = r
+        .effects
+        .iter()
+        .filter(|e| !e.contradicted_units.is_empty())
+        .map(|e| format!("{} on {}", e.kind.name(), e.contradicted_units.join(", ")))
+        .collect();
+    if !contradicted.is_empty() {
+        s += &format!(
+            "\nUnits the log contradicts (their fitted torque ceiling is exceeded by the logged torque, more than \
+             {}x it in over {:.0} % of the samples): {}.\n",
+            crate::diagnose::CEILING_MARGIN,
+            crate::diagnose::MAX_FRACTION_ABOVE * 100.0,
+            contradicted.join("; ")
+        );
+    }
     s += &splits_section(r);
     s += &ambiguous_section(r);
     s += &identifiability_section(r);

@@ -12,6 +12,7 @@ use super::options::PlantKind;
 use super::replay::Ctx;
 use super::replay::Scores;
 use super::stats::{bootstrap_mean, judge, mean, total, Estimate};
+use super::torque_ceiling::{joints_above_ceiling, CEILING_MARGIN, MAX_FRACTION_ABOVE};
 use crate::effects::{EffectKind, Scope};
 use crate::plant::Effects;
 use crate::GapError;
@@ -69,6 +70,10 @@ pub struct EffectResult {
     /// from `params` (a value fitted against a mismatch elsewhere in the model).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub worsening_units: Vec<String>,
+    /// Torque saturation: units whose fitted ceiling the log's own torque exceeds (`diagnose/torque_ceiling.rs`),
+    /// dropped from `params`, or "joints (of unit)" when the ceiling came off only those joints of a kept unit.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub contradicted_units: Vec<String>,
     /// Named alone only on the held-out windows away from every range limit ([`super::stats::Judged::off_limit`]):
     /// weaker evidence, so it stays named beside the best combination only as a member, not as the other half of an
     /// ambiguous set (the selection's explaining away).
@@ -194,6 +199,7 @@ fn not_identifiable(kind: EffectKind, any_contact: bool, baseline_metric: Estima
         note: Some(note),
         explained_by: vec![],
         worsening_units: vec![],
+        contradicted_units: vec![],
         named_off_limit_only: false,
         splits: vec![],
     }
@@ -299,6 +305,31 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
             });
         }
     }
+    // A torque saturation whose fitted ceiling the log's own torque exceeds is contradicted by the log: the ceiling
+    // comes off the contradicted joints (a unit with none left is dropped) before anything else is judged.
+    let mut contradicted = Vec::new();
+    if kind == EffectKind::TorqueSaturation {
+        let mut kept = Vec::new();
+        for p in params {
+            let mut fx = null.clone();
+            copy_param(ctx, kind, &units, &p, &pruned, &mut fx);
+            let above = joints_above_ceiling(ctx, &fx);
+            if above.is_empty() {
+                kept.push(p);
+                continue;
+            }
+            above.iter().for_each(|&j| kind.set(&mut pruned, j, v0));
+            let limited = (0..ctx.nj()).filter(|&j| kind.get(&fx, j) < v0).count();
+            if above.len() == limited {
+                contradicted.push(p.unit);
+            } else {
+                let names: Vec<&str> = above.iter().map(|&j| ctx.model.joints[j].motor_name.as_str()).collect();
+                contradicted.push(format!("{} (of {})", names.join(", "), p.unit));
+                kept.push(p);
+            }
+        }
+        params = kept;
+    }
     // With several units kept, credit each by the whole-gap reduction it gives alone (a joint's effect also
     // shows in its neighbours' residuals, so its own column is not a fair measure), and drop the units that alone
     // make the whole gap no smaller: a value fitted against a model mismatch in one joint (an offset on the waist
@@ -356,6 +387,14 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
              model joint limits differently): not named",
             limit_only.join(", ")
         ))
+    } else if params.is_empty() && !contradicted.is_empty() {
+        Some(format!(
+            "the log's own torque (tau_est, the delivered torque) exceeds {CEILING_MARGIN} times the fitted ceiling of \
+             {} in more than {:.0} % of its samples: no saturation at that ceiling, the fit stood in for another \
+             effect; not named",
+            contradicted.join(", "),
+            MAX_FRACTION_ABOVE * 100.0
+        ))
     } else if params.is_empty() && !worsening.is_empty() {
         Some(format!(
             "the units that cut their own held-out residual ({}) each make the whole held-out gap larger alone",
@@ -381,6 +420,7 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
         note,
         explained_by: vec![],
         worsening_units: worsening,
+        contradicted_units: contradicted,
         named_off_limit_only: named && judged.off_limit.is_some(),
         splits,
     };

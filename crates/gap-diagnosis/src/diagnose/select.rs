@@ -297,6 +297,7 @@ mod tests {
             note: None,
             explained_by: vec![],
             worsening_units: vec![],
+            contradicted_units: vec![],
             named_off_limit_only: false,
             splits: vec![],
         }
