@@ -161,32 +161,30 @@ pub fn markdown(r: &Report) -> String {
     for (k, why) in &r.abstentions {
         s += &format!("- {}: {}\n", k.name(), why);
     }
-    let dropped: Vec<String> = r
-        .effects
-        .iter()
-        .filter(|e| !e.worsening_units.is_empty())
-        .map(|e| format!("{} on {}", e.kind.name(), e.worsening_units.join(", ")))
-        .collect();
+    // Units taken out of a fit, by why: each as "kind on units", the kinds separated by "; ".
+    let listed = |units: fn(&crate::diagnose::EffectResult) -> &Vec<String>| -> String {
+        let rows: Vec<String> = r
+            .effects
+            .iter()
+            .filter(|e| !units(e).is_empty())
+            .map(|e| format!("{} on {}", e.kind.name(), units(e).join(", ")))
+            .collect();
+        rows.join("; ")
+    };
+    let dropped = listed(|e| &e.worsening_units);
     if !dropped.is_empty() {
         s += &format!(
             "\nUnits dropped from a fit (each cut its own held-out residual but, alone, left the whole held-out gap no \
-             smaller: a value fitted against a mismatch elsewhere): {}.\n",
-            dropped.join("; ")
+             smaller: a value fitted against a mismatch elsewhere): {dropped}.\n"
         );
     }
-    let contradicted: Vec<String> = r
-        .effects
-        .iter()
-        .filter(|e| !e.contradicted_units.is_empty())
-        .map(|e| format!("{} on {}", e.kind.name(), e.contradicted_units.join(", ")))
-        .collect();
+    let contradicted = listed(|e| &e.contradicted_units);
     if !contradicted.is_empty() {
         s += &format!(
             "\nUnits the log contradicts (their fitted torque ceiling is exceeded by the logged torque, more than \
-             {}x it in over {:.0} % of the samples): {}.\n",
+             {}x it in over {:.0} % of the samples): {contradicted}.\n",
             crate::diagnose::CEILING_MARGIN,
             crate::diagnose::MAX_FRACTION_ABOVE * 100.0,
-            contradicted.join("; ")
         );
     }
     s += &splits_section(r);

@@ -108,20 +108,17 @@ fn simulated_log_is_a_recording_and_diagnose_finds_the_effect() {
     // to a viscous damping wants more in the fast, heavily loaded windows than in the slow, light ones, so the load
     // split sets it aside (before it, the selection explained it away).
     assert_eq!(r["ranked"], serde_json::json!(["damping"]), "ranked {}", r["ranked"]);
-    let friction = r["effects"].as_array().and_then(|a| a.iter().find(|e| e["kind"] == "friction")).cloned();
-    let split = friction
-        .as_ref()
-        .and_then(|f| f["splits"].as_array().and_then(|a| a.iter().find(|s| s["by"] == "load")).cloned())
-        .unwrap_or_default();
-    assert_eq!(split["set_aside"], true, "friction {friction:?}");
+    // The refit of effect `kind` on the halves of the training windows by `by`.
+    let split_of = |kind: &str, by: &str| {
+        let e = r["effects"].as_array().and_then(|a| a.iter().find(|e| e["kind"] == kind));
+        e.and_then(|e| e["splits"].as_array()?.iter().find(|s| s["by"] == by).cloned()).unwrap_or_default()
+    };
+    let split = split_of("friction", "load");
+    assert_eq!(split["set_aside"], true, "friction's load split {split}");
     assert!(split["scale_high"]["lo"].as_f64() > split["scale_low"]["hi"].as_f64(), "{split}");
     // The damping that is in the log holds at both speeds (a viscous torque grows with speed).
-    let damping = r["effects"].as_array().and_then(|a| a.iter().find(|e| e["kind"] == "damping")).cloned();
-    let by_speed = damping
-        .as_ref()
-        .and_then(|f| f["splits"].as_array().and_then(|a| a.iter().find(|s| s["by"] == "speed")).cloned())
-        .unwrap_or_default();
-    assert_eq!(by_speed["set_aside"], false, "damping {damping:?}");
+    let by_speed = split_of("damping", "speed");
+    assert_eq!(by_speed["set_aside"], false, "damping's speed split {by_speed}");
     assert!(
         md.contains("## Does the effect hold on every part of the motion") && md.contains("grows with the load"),
         "{}",

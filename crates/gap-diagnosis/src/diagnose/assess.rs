@@ -158,7 +158,7 @@ pub(super) fn assess(
         }
         let a = assess_one(ctx, kind, baseline, rng)?;
         // Every effect that cut some unit's own residual stays a candidate of the conditional selection, unless
-        // it fits as a load-dependent friction (outside the library).
+        // a split set it aside (its size changes with load or speed as no library effect's does).
         if !a.result.params.is_empty() && a.result.set_aside_by_split().is_none() {
             candidates.push(Candidate { kind, fx: a.kept });
         }
