@@ -7,7 +7,7 @@ use super::fit::{
     fit_kind, fit_one_joint_per_group, report_value, set_unit, unit_name, unit_sets, unit_value, units_of,
     RESOLUTION_FRAC,
 };
-use super::halves::{split_refit, HalvesRefit, SplitBy};
+use super::halves::{split_refits, HalvesRefit};
 use super::options::PlantKind;
 use super::replay::Ctx;
 use super::replay::Scores;
@@ -369,12 +369,7 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
     let (red, floor) = (judged.reduction, judged.floor);
     let metric_after = bootstrap_mean(&after_tot, bootstrap, rng);
     let cleared = !params.is_empty() && judged.clears();
-    let mut splits = Vec::new();
-    if cleared && ctx.plant == PlantKind::Rig {
-        for by in [SplitBy::Load, SplitBy::Speed] {
-            splits.extend(split_refit(ctx, kind, &pruned, by)?);
-        }
-    }
+    let splits = if cleared && ctx.plant == PlantKind::Rig { split_refits(ctx, kind, &pruned)? } else { Vec::new() };
     let set_aside = splits.iter().find(|s| s.set_aside);
     let named = cleared && set_aside.is_none();
     let note = if let Some(s) = set_aside {

@@ -113,32 +113,21 @@ impl HalvesRefit {
     }
 }
 
-/// Refits the kept values `kept` of `kind` on the low and high halves of the training windows by `by` (`None` when
-/// `by` does not check `kind`, or the windows are too few), scoring each half on the columns of the groups the
-/// effect acts in.
-pub(super) fn split_refit(
-    ctx: &Ctx<'_>,
-    kind: EffectKind,
-    kept: &Effects,
-    by: SplitBy,
-) -> Result<Option<HalvesRefit>, GapError> {
-    if !by.checked().contains(&kind) || ctx.train.len() < 8 {
-        return Ok(None);
+/// Refits the kept values `kept` of `kind` on the low and high halves of the training windows by each quantity that
+/// checks `kind` (load, then speed; none when the windows are too few), scoring each half on the columns of the
+/// groups the effect acts in. The scaled fits are replayed once and shared by the splits.
+pub(super) fn split_refits(ctx: &Ctx<'_>, kind: EffectKind, kept: &Effects) -> Result<Vec<HalvesRefit>, GapError> {
+    let splits: Vec<SplitBy> =
+        [SplitBy::Load, SplitBy::Speed].into_iter().filter(|b| b.checked().contains(&kind)).collect();
+    if splits.is_empty() || ctx.train.len() < 8 {
+        return Ok(Vec::new());
     }
     let v0 = kind.range().2;
     let joints: Vec<usize> = (0..ctx.nj()).filter(|&j| (kind.get(kept, j) - v0).abs() > 1e-12).collect();
     if joints.is_empty() {
-        return Ok(None);
+        return Ok(Vec::new());
     }
     let cols: Vec<usize> = (0..ctx.nj()).filter(|&c| joints.iter().any(|&j| ctx.groups[j] == ctx.groups[c])).collect();
-    let quantity: Vec<f64> = ctx.train.iter().map(|&w| window_mean(ctx, &joints, w, by)).collect();
-    let cut = median(&quantity);
-    let (low, high): (Vec<usize>, Vec<usize>) = (0..ctx.train.len()).partition(|&i| quantity[i] <= cut);
-    if low.len() < 4 || high.len() < 4 {
-        return Ok(None);
-    }
-    let mean_of = |idx: &[usize]| idx.iter().map(|&i| quantity[i]).sum::<f64>() / idx.len() as f64;
-    let (q_low, q_high) = (mean_of(&low), mean_of(&high));
     let (lo, hi, _) = kind.range();
     let cfgs: Vec<Effects> = SCALES
         .iter()
@@ -160,9 +149,24 @@ pub(super) fn split_refit(
                 .collect()
         })
         .collect();
+    Ok(splits.into_iter().filter_map(|by| split_on(ctx, &joints, &per_window, by)).collect())
+}
+
+/// The split of the training windows at the median of `by` over `joints`, each half's best scale from `per_window`
+/// (`None` when a half has fewer than 4 windows).
+fn split_on(ctx: &Ctx<'_>, joints: &[usize], per_window: &[Vec<f64>], by: SplitBy) -> Option<HalvesRefit> {
+    let quantity: Vec<f64> = ctx.train.iter().map(|&w| window_mean(ctx, joints, w, by)).collect();
+    let cut = median(&quantity);
+    let (low, high): (Vec<usize>, Vec<usize>) = (0..ctx.train.len()).partition(|&i| quantity[i] <= cut);
+    if low.len() < 4 || high.len() < 4 {
+        return None;
+    }
+    let mean_of = |idx: &[usize]| idx.iter().map(|&i| quantity[i]).sum::<f64>() / idx.len() as f64;
+    let (q_low, q_high) = (mean_of(&low), mean_of(&high));
+    // Each split draws its resamples from the same fresh stream.
     let mut rng = ChaCha8Rng::seed_from_u64(SPLIT_STREAM);
-    let scale_low = half_scale(&per_window, &low, &mut rng);
-    let scale_high = half_scale(&per_window, &high, &mut rng);
+    let scale_low = half_scale(per_window, &low, &mut rng);
+    let scale_high = half_scale(per_window, &high, &mut rng);
     // The half that must not want more: the heavy one (a library effect's size does not grow with the load) or the
     // slow one (a damping's torque grows with speed, so its scale must not fall with it).
     let (more, less) = match by {
@@ -172,7 +176,7 @@ pub(super) fn split_refit(
     let set_aside = q_high >= MIN_SPLIT_RATIO * q_low
         && more.value >= SCALE_RATIO * less.value.max(SCALE_FLOOR)
         && more.lo > less.hi;
-    Ok(Some(HalvesRefit { by, low: q_low, high: q_high, scale_low, scale_high, set_aside }))
+    Some(HalvesRefit { by, low: q_low, high: q_high, scale_low, scale_high, set_aside })
 }
 
 /// The best scale on the windows `idx` (indices into `per_window`), with a percentile interval over resamples of
@@ -197,11 +201,8 @@ fn half_scale(per_window: &[Vec<f64>], idx: &[usize], rng: &mut impl Rng) -> Est
 /// Mean over training window `w` of the quantity `by` of `joints`: |measured torque| / torque limit, or
 /// |measured velocity|.
 fn window_mean(ctx: &Ctx<'_>, joints: &[usize], w: usize, by: SplitBy) -> f64 {
-    let start = ctx.starts.get(w).copied().unwrap_or(0);
-    let end = (start + ctx.len + 1).min(ctx.log.states.len());
-    let states = ctx.log.states.get(start..end).unwrap_or(&[]);
     let (mut acc, mut n) = (0.0, 0usize);
-    for s in states {
+    for s in ctx.window_states(w) {
         for &j in joints {
             let v = match by {
                 SplitBy::Load => {

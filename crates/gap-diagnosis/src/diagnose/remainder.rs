@@ -139,10 +139,7 @@ pub(super) fn remainder(
                 held_out: ctx.test.contains(&w),
                 baseline: total(b),
                 after: total(&after_scores[w]),
-                flags: flags(
-                    ctx.model,
-                    ctx.log.states.get(ctx.starts[w]..).map_or(&[][..], |s| &s[..s.len().min(ctx.len + 1)]),
-                ),
+                flags: flags(ctx.model, ctx.window_states(w)),
                 worst_joint: column_name(worst),
             }
         })

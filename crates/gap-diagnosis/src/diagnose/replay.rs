@@ -99,10 +99,7 @@ impl<'a> Ctx<'a> {
         let at_limit = windows
             .starts
             .iter()
-            .map(|&s| {
-                let end = (s + windows.len + 1).min(log.states.len());
-                super::windows::joints_at_limit(model, log.states.get(s..end).unwrap_or(&[]))
-            })
+            .map(|&s| super::windows::joints_at_limit(model, super::windows::window_states(log, s, windows.len)))
             .collect();
         Ctx {
             model,
@@ -159,6 +156,11 @@ impl Ctx<'_> {
             return Vec::new();
         }
         self.test.iter().map(|&w| !self.at_limit.get(w).is_some_and(|l| l.iter().any(|&b| b))).collect()
+    }
+
+    /// The logged states of window `w` (empty when there is no such window).
+    pub(super) fn window_states(&self, w: usize) -> &[Measurement] {
+        self.starts.get(w).map_or(&[], |&s| super::windows::window_states(self.log, s, self.len))
     }
 
     pub(super) fn nj(&self) -> usize {

@@ -20,6 +20,13 @@ pub const TIMING_TOL_S: f64 = 0.005;
 pub const AT_LIMIT_RAD: f64 = 0.02;
 
 /// Which joints come within [`AT_LIMIT_RAD`] of their range in these logged states.
+/// The logged states of the window starting at `start`: its `len` steps and the state they end on (fewer at the
+/// end of the log).
+pub(super) fn window_states(log: &RobotLog, start: usize, len: usize) -> &[crate::log::Measurement] {
+    let end = (start + len + 1).min(log.states.len());
+    log.states.get(start..end).unwrap_or(&[])
+}
+
 pub(super) fn joints_at_limit(model: &RobotModel, states: &[crate::log::Measurement]) -> Vec<bool> {
     model
         .joints
