@@ -7,6 +7,8 @@
 //! and, with the reference plant in Rapier instead of MuJoCo, a single-joint friction, a single-joint COM shift, an
 //! arm's encoder offset and a load-dependent friction (two trials of the Rapier benchmark) and a no-effect control; the others are ignored here and
 //! run by `scripts/nightly.sh` (issue 21: the CI time budget).
+mod common;
+
 use gap_bench::{generate_log, RealConfig};
 use gap_diagnosis::diagnose::SplitBy;
 use gap_diagnosis::effects::Scope;
@@ -206,13 +208,7 @@ fn arm_encoder_offset_of_a_rapier_benchmark_trial() {
     let m = model();
     let mut opts = gap_bench::BenchOptions::new(24, 3, INDEPENDENT_DURATION);
     opts.reference = EngineChoice::Other(diff_physics::EngineKind::RapierMultibody);
-    // Through MCAP, as the benchmark writes and reads its logs.
-    let mut through_mcap = |_: usize, log: &RobotLog| {
-        let mut buf = std::io::Cursor::new(Vec::new());
-        log.write_mcap(&mut buf, &m)?;
-        RobotLog::from_mcap(buf.get_ref(), &m)
-    };
-    let (_, score, report) = gap_bench::run_trial(&m, 13, &opts, &mut through_mcap).expect("trial");
+    let (score, report) = common::run_trial_through_mcap(&m, 13, &opts);
     assert_eq!(score.injected.len(), 1, "{:?}", score.injected);
     assert_eq!(score.injected[0].kind, EffectKind::EncoderOffset);
     assert!(score.top1, "ranking {:?}; abstentions {:?}", report.ranked, report.abstentions);
@@ -234,12 +230,7 @@ fn a_load_friction_of_a_rapier_benchmark_trial_is_not_named_as_damping() {
     let mut opts = gap_bench::BenchOptions::new(0, 1, INDEPENDENT_DURATION);
     opts.reference = EngineChoice::Other(diff_physics::EngineKind::RapierMultibody);
     opts.out_of_library = 6;
-    let mut through_mcap = |_: usize, log: &RobotLog| {
-        let mut buf = std::io::Cursor::new(Vec::new());
-        log.write_mcap(&mut buf, &m)?;
-        RobotLog::from_mcap(buf.get_ref(), &m)
-    };
-    let (_, score, report) = gap_bench::run_trial(&m, 5, &opts, &mut through_mcap).expect("trial");
+    let (score, report) = common::run_trial_through_mcap(&m, 5, &opts);
     let ool = score.out_of_library.as_ref().expect("an out-of-library trial");
     assert_eq!((ool.kind.as_str(), ool.unit.as_str()), ("load_friction", "right_arm"), "{ool:?}");
     assert!(report.ranked.is_empty(), "named {:?} on a load-dependent friction", report.ranked);

@@ -2,6 +2,8 @@
 //! the suspended reference plant's noisy measurements at 50 Hz with timing jitter drives the legs; torso and arms
 //! follow the excitation plan. The diagnosis must still find an effect injected on a leg; and on a trial of the
 //! Rapier benchmark driven by the LSTM, must not name a torque saturation that the logged torque contradicts.
+mod common;
+
 use gap_bench::{generate_log, generate_log_with, trial_input, InputKind, PolicyInput, RealConfig};
 use gap_diagnosis::plant::{joint_groups, Effects, GROUPS};
 use gap_diagnosis::{diagnose, DiagnoseOptions, EffectKind, Outcome};
@@ -91,12 +93,7 @@ fn a_torque_saturation_the_logged_torque_exceeds_is_not_named() {
     opts.reference = gap_diagnosis::plant::EngineChoice::Other(diff_physics::EngineKind::RapierMultibody);
     opts.out_of_library = 6;
     opts.policies = vec![gepetto, lstm];
-    let mut through_mcap = |_: usize, log: &gap_diagnosis::RobotLog| {
-        let mut buf = std::io::Cursor::new(Vec::new());
-        log.write_mcap(&mut buf, &m)?;
-        gap_diagnosis::RobotLog::from_mcap(buf.get_ref(), &m)
-    };
-    let (_, score, report) = gap_bench::run_trial(&m, 6, &opts, &mut through_mcap).expect("trial");
+    let (score, report) = common::run_trial_through_mcap(&m, 6, &opts);
     let kinds: Vec<EffectKind> = score.injected.iter().map(|i| i.kind).collect();
     assert_eq!(kinds, vec![EffectKind::Latency, EffectKind::Armature], "{:?}", score.injected);
     assert!(!report.ranked.contains(&EffectKind::TorqueSaturation), "ranked {:?}", report.ranked);
