@@ -70,7 +70,9 @@ pub use crate::noise::{TIMING_HI, TIMING_LO};
 /// `/12`: `load_split` becomes `splits`, a list of refits on halves of the training windows, each with `by`
 /// (`load`, or `speed` for a damping: not named when its scale falls with speed), `low`, `high` and `set_aside`;
 /// a torque saturation may carry `contradicted_units` (fitted ceilings the logged torque exceeds, dropped).
-pub const SCHEMA_VERSION: &str = "ulab-gap-report/12";
+/// `/13`: each split carries `cleared_on_part` (the effect cleared the floor only on part of the held-out windows:
+/// halves apart in scale set it aside without their intervals apart).
+pub const SCHEMA_VERSION: &str = "ulab-gap-report/13";
 
 /// What the diagnosis concluded about the log as a whole.
 #[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq)]

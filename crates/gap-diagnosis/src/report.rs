@@ -218,8 +218,9 @@ fn splits_section(r: &Report) -> String {
                     if l.set_aside { "falls with speed: not named" } else { "holds at both speeds" },
                 ),
             };
+            let part = if l.cleared_on_part && l.set_aside { " (cleared on part)" } else { "" };
             format!(
-                "| {} | {by} | {} | {} | {} | {} | {verdict} |\n",
+                "| {} | {by} | {} | {} | {} | {} | {verdict}{part} |\n",
                 e.kind.name(),
                 q(l.low),
                 est(&l.scale_low),
@@ -240,7 +241,9 @@ fn splits_section(r: &Report) -> String {
          |torque| of its joints, in % of their limits), and a damping also on the half where they move slowest and \
          the half where they move fastest (mean |velocity|); scales with a 95 % bootstrap interval over the half's \
          windows. A high-load scale at least {r:.1}x the low-load one, or a slow-half scale at least {r:.1}x the \
-         fast-half one, with intervals apart, sets the effect aside.\n\n| effect | split by | low half | scale \
+         fast-half one, with intervals apart, sets the effect aside; the intervals need not be apart when the \
+         effect cleared the floor only on part of the held-out windows (verdict marked \"cleared on part\").\n\n| \
+         effect | split by | low half | scale \
          there | high half | scale there | verdict |\n|---|---|---|---|---|---|---|\n{}",
         rows.concat(),
         r = crate::diagnose::SCALE_RATIO,

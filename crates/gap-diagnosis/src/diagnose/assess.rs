@@ -369,7 +369,11 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
     let (red, floor) = (judged.reduction, judged.floor);
     let metric_after = bootstrap_mean(&after_tot, bootstrap, rng);
     let cleared = !params.is_empty() && judged.clears();
-    let splits = if cleared && ctx.plant == PlantKind::Rig { split_refits(ctx, kind, &pruned)? } else { Vec::new() };
+    let splits = if cleared && ctx.plant == PlantKind::Rig {
+        split_refits(ctx, kind, &pruned, judged.reduction.lo <= judged.floor)?
+    } else {
+        Vec::new()
+    };
     let set_aside = splits.iter().find(|s| s.set_aside);
     let named = cleared && set_aside.is_none();
     let note = if let Some(s) = set_aside {
