@@ -5,8 +5,8 @@
 //!
 //! Each case takes ~25 s of a core: CI runs the no-effect control and three effects (armature, friction, latency),
 //! and, with the reference plant in Rapier instead of MuJoCo, a single-joint friction, a single-joint COM shift, an
-//! arm's encoder offset and a load-dependent friction (two trials of the Rapier benchmark) and a no-effect control; the others are ignored here and
-//! run by `scripts/nightly.sh` (issue 21: the CI time budget).
+//! arm's encoder offset and two load-dependent frictions (three trials of the Rapier benchmark) and a no-effect
+//! control; the others are ignored here and run by `scripts/nightly.sh` (issue 21: the CI time budget).
 mod common;
 
 use gap_bench::{generate_log, RealConfig};
