@@ -370,7 +370,7 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
     let metric_after = bootstrap_mean(&after_tot, bootstrap, rng);
     let cleared = !params.is_empty() && judged.clears();
     let splits = if cleared && ctx.plant == PlantKind::Rig {
-        split_refits(ctx, kind, &pruned, judged.reduction.lo <= judged.floor)?
+        split_refits(ctx, kind, &pruned, judged.cleared_on_part_only())?
     } else {
         Vec::new()
     };

@@ -136,6 +136,12 @@ impl Judged {
         self.reduction.lo > self.floor || self.trimmed.is_some() || self.off_limit.is_some()
     }
 
+    /// Cleared the floor only on part of the windows (the trimmed ones or those away from the range limits), not on
+    /// every window.
+    pub fn cleared_on_part_only(&self) -> bool {
+        self.clears() && self.reduction.lo <= self.floor
+    }
+
     /// Why it was named on part of the windows only (`None` when every window cleared, or nothing did).
     pub fn route_note(&self) -> Option<String> {
         if let Some((r, f)) = self.trimmed {
