@@ -5,8 +5,8 @@
 //!
 //! Each case takes ~25 s of a core: CI runs the no-effect control and three effects (armature, friction, latency),
 //! and, with the reference plant in Rapier instead of MuJoCo, a single-joint friction, a single-joint COM shift, an
-//! arm's encoder offset and two load-dependent frictions (three trials of the Rapier benchmark) and a no-effect
-//! control; the others are ignored here and run by `scripts/nightly.sh` (issue 21: the CI time budget).
+//! arm's encoder offset, two load-dependent frictions and a torque ripple (four trials of the Rapier benchmark) and a
+//! no-effect control; the others are ignored here and run by `scripts/nightly.sh` (issue 21: the CI time budget).
 mod common;
 
 use gap_bench::{generate_log, RealConfig};
@@ -260,6 +260,26 @@ fn a_load_friction_cleared_on_part_of_the_windows_is_not_named_as_damping() {
     let by_speed = damping.splits.iter().find(|s| s.by == SplitBy::Speed).expect("a speed split of the damping");
     assert!(by_speed.set_aside && by_speed.cleared_on_part, "{by_speed:?}");
     assert!(by_speed.scale_low.value >= 2.0 * by_speed.scale_high.value, "{by_speed:?}");
+}
+
+/// Issue 14 item 5, found blind: out-of-library trial 0 of the Rapier benchmark's seed 6 (`ulab gap bench
+/// --reference-engine rapier_multibody --trials 0 --out-of-library 6 --seed 6 --duration 15`): a torque ripple
+/// periodic in the right knee's angle, fitted as a friction of 4.0 N·m and named. The inertia filters a ripple out
+/// at speed, so the fitted friction cuts the gap of the slowest half of the training windows and not that of the
+/// fastest half, which no Coulomb torque does: the speed split sets it aside and nothing is named.
+#[test]
+fn a_torque_ripple_fitted_as_a_friction_that_fades_with_speed_is_not_named() {
+    let m = model();
+    let mut opts = gap_bench::BenchOptions::new(0, 6, INDEPENDENT_DURATION);
+    opts.reference = EngineChoice::Other(diff_physics::EngineKind::RapierMultibody);
+    opts.out_of_library = 6;
+    let (score, report) = common::run_trial_through_mcap(&m, 0, &opts);
+    let ool = score.out_of_library.as_ref().expect("an out-of-library trial");
+    assert_eq!((ool.kind.as_str(), ool.unit.as_str()), ("torque_ripple", "right_knee"), "{ool:?}");
+    assert!(report.ranked.is_empty(), "named {:?} on a torque ripple", report.ranked);
+    let friction = report.effects.iter().find(|e| e.kind == EffectKind::Friction).expect("friction assessed");
+    let by_speed = friction.splits.iter().find(|s| s.by == SplitBy::Speed).expect("a speed split of the friction");
+    assert!(by_speed.set_aside && by_speed.by_cut && by_speed.cut_low.lo > by_speed.cut_high.hi, "{by_speed:?}");
 }
 
 #[test]

@@ -71,7 +71,9 @@ pub use crate::noise::{TIMING_HI, TIMING_LO};
 /// (`load`, or `speed` for a damping: not named when its scale falls with speed), `low`, `high` and `set_aside`;
 /// a torque saturation may carry `contradicted_units` (fitted ceilings the logged torque exceeds, dropped).
 /// `/13`: each split carries `cleared_on_part` (the effect cleared the floor only on part of the held-out windows:
-/// halves apart in scale set it aside without their intervals apart).
+/// halves apart in scale set it aside without their intervals apart) and `cut_low`/`cut_high` (the mean cut per
+/// window of each half's gap by the fitted value); a friction also has a speed split, judged on those cuts
+/// (`by_cut`: not named when it cuts the slow half's gap 2x the fast half's).
 pub const SCHEMA_VERSION: &str = "ulab-gap-report/13";
 
 /// What the diagnosis concluded about the log as a whole.

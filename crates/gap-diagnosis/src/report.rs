@@ -197,7 +197,7 @@ pub fn markdown(r: &Report) -> String {
 }
 
 /// Each friction-like effect that cleared the floor, refitted on the halves of the training windows by load and
-/// (damping) by speed.
+/// (damping, friction) by speed.
 fn splits_section(r: &Report) -> String {
     use crate::diagnose::SplitBy;
     let rows: Vec<String> = r
@@ -206,11 +206,18 @@ fn splits_section(r: &Report) -> String {
         .flat_map(|e| e.splits.iter().map(move |l| (e, l)))
         .map(|(e, l)| {
             let est = |x: &crate::diagnose::Estimate| format!("{:.2}x [{:.2}, {:.2}]", x.value, x.lo, x.hi);
+            let cut =
+                |x: &crate::diagnose::Estimate| format!("cut {:.3} [{:.3}, {:.3}] per window", x.value, x.lo, x.hi);
             let (by, q, verdict): (_, fn(f64) -> String, _) = match l.by {
                 SplitBy::Load => (
                     "load",
                     |x| format!("{:.1} %", x * 100.0),
                     if l.set_aside { "grows with the load: not named" } else { "holds at both loads" },
+                ),
+                SplitBy::Speed if l.by_cut => (
+                    "speed",
+                    |x| format!("{x:.2} rad/s"),
+                    if l.set_aside { "cuts only the slow half: not named" } else { "cuts both halves" },
                 ),
                 SplitBy::Speed => (
                     "speed",
@@ -218,14 +225,16 @@ fn splits_section(r: &Report) -> String {
                     if l.set_aside { "falls with speed: not named" } else { "holds at both speeds" },
                 ),
             };
+            let (low, high) =
+                if l.by_cut { (cut(&l.cut_low), cut(&l.cut_high)) } else { (est(&l.scale_low), est(&l.scale_high)) };
             let part = if l.cleared_on_part && l.set_aside { " (cleared on part)" } else { "" };
             format!(
                 "| {} | {by} | {} | {} | {} | {} | {verdict}{part} |\n",
                 e.kind.name(),
                 q(l.low),
-                est(&l.scale_low),
+                low,
                 q(l.high),
-                est(&l.scale_high),
+                high,
             )
         })
         .collect();
@@ -242,7 +251,10 @@ fn splits_section(r: &Report) -> String {
          the half where they move fastest (mean |velocity|); scales with a 95 % bootstrap interval over the half's \
          windows. A high-load scale at least {r:.1}x the low-load one, or a slow-half scale at least {r:.1}x the \
          fast-half one, with intervals apart, sets the effect aside; the intervals need not be apart when the \
-         effect cleared the floor only on part of the held-out windows (verdict marked \"cleared on part\").\n\n| \
+         effect cleared the floor only on part of the held-out windows (verdict marked \"cleared on part\"). A \
+         friction split by speed is judged by what its fitted value cuts of each half's gap instead (a Coulomb \
+         torque keeps its size at speed): set aside when it cuts the slow half's {r:.1}x as much as the fast \
+         half's, intervals apart.\n\n| \
          effect | split by | low half | scale \
          there | high half | scale there | verdict |\n|---|---|---|---|---|---|---|\n{}",
         rows.concat(),

@@ -85,6 +85,11 @@ fn single_joint_effects_of_another_program_s_plant_are_named_on_their_joint() {
     // MuJoCo's frictionloss does not depend on the load: the refit on either half of the windows wants its size.
     let l = split(&r, EffectKind::Friction, SplitBy::Load);
     assert!(!l.set_aside && (l.scale_high.value - l.scale_low.value).abs() < 0.2, "{l:?}");
+    // A Coulomb torque keeps its size at speed: the fitted friction cuts the fast half's gap as well as the slow
+    // half's (within a factor of two either way).
+    let l = split(&r, EffectKind::Friction, SplitBy::Speed);
+    assert!(!l.set_aside && l.by_cut, "{l:?}");
+    assert!(l.cut_high.value > 0.5 * l.cut_low.value && l.cut_low.value > 0.5 * l.cut_high.value, "{l:?}");
     // A weak gain on one shoulder (kp and kd at 60 %).
     let r = diagnose_plant(&shared, "gain", &["--gain-scale", "left_shoulder_pitch_joint=0.6"]);
     assert_named_first(&r, EffectKind::GainScale, "left_shoulder_pitch", 0.6, 0.06);

@@ -10,9 +10,15 @@
 //!   speed, and an effect of another speed law wants more in the slow, light windows (Rapier's joint friction
 //!   against the library's smooth one), which says nothing about load. A first form in both directions un-named the
 //!   true friction of Rapier's seed-1 trial 2.
-//! - by speed (mean |velocity| of its joints), damping only: a viscous torque grows with speed, so a damping that
+//! - by speed (mean |velocity| of its joints), damping: a viscous torque grows with speed, so a damping that
 //!   wants more in the slow half stands for a torque that does not (a dry or load-dependent friction, which on
 //!   Rapier and DART the library's damping fitted better than its friction).
+//! - by speed, friction: a Coulomb torque keeps its size at any speed, so at its fitted value it must cut the gap
+//!   of the fast half too. Its scale cannot say so (Rapier's own friction wants more in the slow windows, as under
+//!   light load), so this split compares what the fitted value cuts on each half ([`HalvesRefit::cut_low`]): a
+//!   friction that cuts the slow half's gap [`SCALE_RATIO`] times as much as the fast half's, intervals apart,
+//!   stands for a torque that matters only in slow motion (a ripple periodic in the joint angle, which the inertia
+//!   filters out at speed, fitted as "stiction") and is not named.
 //!
 //! Checked on a plant of another program (`tests/python_plant.rs`: a load-proportional friction on an elbow names
 //! nothing, a viscous damping and a dry friction there want their fitted size on both halves) and on the Rapier and
@@ -45,8 +51,12 @@ const SPLIT_STREAM: u64 = 0x6c6f_6164_5f73_706c;
 
 /// The kinds whose size cannot depend on the carried torque and that a load-dependent friction can stand in for.
 pub const LOAD_CHECKED: [EffectKind; 3] = [EffectKind::Damping, EffectKind::Friction, EffectKind::Backlash];
-/// The kinds whose torque must grow with speed: a scale that falls with speed contradicts them.
-pub const SPEED_CHECKED: [EffectKind; 1] = [EffectKind::Damping];
+/// The kinds whose torque must not fade with speed: a damping's scale that falls with speed, or a friction that
+/// cuts only the slow windows' gap, contradicts them.
+pub const SPEED_CHECKED: [EffectKind; 2] = [EffectKind::Damping, EffectKind::Friction];
+/// Where the scale of no effect and the fitted scale sit in [`SCALES`].
+const NO_EFFECT: usize = 0;
+const FITTED: usize = 4;
 
 /// What the training windows are split on.
 #[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq)]
@@ -54,7 +64,8 @@ pub const SPEED_CHECKED: [EffectKind; 1] = [EffectKind::Damping];
 pub enum SplitBy {
     /// Mean |measured torque| / torque limit of the effect's joints; set aside when the heavy half wants more.
     Load,
-    /// Mean |measured velocity| (rad/s) of the effect's joints; set aside when the slow half wants more.
+    /// Mean |measured velocity| (rad/s) of the effect's joints; a damping is set aside when the slow half wants a
+    /// larger scale, a friction when its fitted value cuts the slow half's gap far more than the fast half's.
     Speed,
 }
 
@@ -79,6 +90,11 @@ pub struct HalvesRefit {
     /// a 95 % bootstrap interval over the half's windows.
     pub scale_low: Estimate,
     pub scale_high: Estimate,
+    /// The mean cut per window of each half's gap (on the effect's columns, in the gap metric's units) by the
+    /// fitted value, against no effect, with a 95 % bootstrap interval over the half's windows: what the speed split
+    /// of a friction judges.
+    pub cut_low: Estimate,
+    pub cut_high: Estimate,
     /// Whether the effect cleared the floor only on part of the held-out windows (without the windows of largest
     /// gap, or away from the range limits). Its case is then already weaker than one cleared on every window, and
     /// halves [`SCALE_RATIO`] apart set it aside without their intervals apart: on Rapier's seed 5, a friction
@@ -87,16 +103,31 @@ pub struct HalvesRefit {
     /// scale at both speeds (0.96x to 1.09x).
     pub cleared_on_part: bool,
     /// Whether the half that should not want more (the heavy one by load, the slow one by speed) wants
-    /// [`SCALE_RATIO`] times the other's scale, intervals apart unless [`Self::cleared_on_part`]: the effect is
-    /// not named.
+    /// [`SCALE_RATIO`] times the other's scale, intervals apart unless [`Self::cleared_on_part`] (for a friction
+    /// split by speed: its fitted value cuts the slow half's gap [`SCALE_RATIO`] times the fast half's, intervals
+    /// apart): the effect is not named.
     pub set_aside: bool,
+    /// Set aside by what the fitted value cuts rather than by the scales (a friction split by speed).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub by_cut: bool,
 }
 
 impl HalvesRefit {
     /// Why the effect is not named, when the split set it aside.
     pub fn note(&self) -> String {
         let est = |x: &Estimate| format!("{:.2}x [{:.2}, {:.2}]", x.value, x.lo, x.hi);
+        let cut = |x: &Estimate| format!("{:.3} [{:.3}, {:.3}] per window", x.value, x.lo, x.hi);
         let why = match self.by {
+            SplitBy::Speed if self.by_cut => format!(
+                "a Coulomb friction's torque keeps its size at any speed, yet at the fitted value it cuts the gap of \
+                 the training windows where its joints move slowest ({:.2} rad/s) by {} and of those where they move \
+                 fastest ({:.2} rad/s) by {}: a torque that matters only in slow motion (one periodic in the joint \
+                 angle, a cogging ripple, which the inertia filters out at speed) fitted as a friction; not named",
+                self.low,
+                cut(&self.cut_low),
+                self.high,
+                cut(&self.cut_high)
+            ),
             SplitBy::Load => format!(
                 "its size grows with the torque its joints carry, which no effect of the library does: refitted on \
                  the training windows where they carry the least torque ({:.1} % of the limit) it wants {} the \
@@ -172,13 +203,14 @@ pub(super) fn split_refits(
                 .collect()
         })
         .collect();
-    Ok(splits.into_iter().filter_map(|by| split_on(ctx, &joints, &per_window, by, cleared_on_part)).collect())
+    Ok(splits.into_iter().filter_map(|by| split_on(ctx, kind, &joints, &per_window, by, cleared_on_part)).collect())
 }
 
 /// The split of the training windows at the median of `by` over `joints`, each half's best scale from `per_window`
 /// (`None` when a half has fewer than 4 windows).
 fn split_on(
     ctx: &Ctx<'_>,
+    kind: EffectKind,
     joints: &[usize],
     per_window: &[Vec<f64>],
     by: SplitBy,
@@ -202,8 +234,54 @@ fn split_on(
         SplitBy::Load => (&scale_high, &scale_low),
         SplitBy::Speed => (&scale_low, &scale_high),
     };
-    let set_aside = contradicts(q_low, q_high, more, less, cleared_on_part);
-    Some(HalvesRefit { by, low: q_low, high: q_high, scale_low, scale_high, cleared_on_part, set_aside })
+    // Drawn after the scales, so that the scales' draws stay as they were before the cuts were added.
+    let cut_low = half_cut(per_window, &low, &mut rng);
+    let cut_high = half_cut(per_window, &high, &mut rng);
+    let by_cut = by == SplitBy::Speed && kind == EffectKind::Friction;
+    let set_aside = if by_cut {
+        cuts_only_slow_motion(q_low, q_high, &cut_low, &cut_high)
+    } else {
+        contradicts(q_low, q_high, more, less, cleared_on_part)
+    };
+    Some(HalvesRefit {
+        by,
+        low: q_low,
+        high: q_high,
+        scale_low,
+        scale_high,
+        cut_low,
+        cut_high,
+        cleared_on_part,
+        set_aside,
+        by_cut,
+    })
+}
+
+/// Whether a friction's fitted value cuts the gap of the slow half of the windows (mean speed `q_low`) `cut_low`
+/// [`SCALE_RATIO`] times what it cuts of the fast half's (`q_high`), intervals apart: a torque that fades with
+/// speed, which a Coulomb friction's does not.
+fn cuts_only_slow_motion(q_low: f64, q_high: f64, cut_low: &Estimate, cut_high: &Estimate) -> bool {
+    q_high >= MIN_SPLIT_RATIO * q_low && cut_low.value >= SCALE_RATIO * cut_high.value && cut_low.lo > cut_high.hi
+}
+
+/// The mean cut per window of the gap of the windows `idx` by the fitted value against no effect, with a
+/// percentile interval over resamples of those windows. Absolute, not relative: other effects that swell one half's
+/// gap (a torque limit reached only in fast motion) would dilute a relative cut there.
+fn half_cut(per_window: &[Vec<f64>], idx: &[usize], rng: &mut impl Rng) -> Estimate {
+    let cut = |pick: &mut dyn Iterator<Item = usize>| -> f64 {
+        let (mut sum, mut n) = (0.0, 0usize);
+        for i in pick {
+            if let Some(w) = per_window.get(i) {
+                sum += w.get(NO_EFFECT).copied().unwrap_or(0.0) - w.get(FITTED).copied().unwrap_or(0.0);
+                n += 1;
+            }
+        }
+        sum / n.max(1) as f64
+    };
+    let value = cut(&mut idx.iter().copied());
+    let draws: Vec<f64> =
+        (0..RESAMPLES).map(|_| cut(&mut (0..idx.len()).map(|_| idx[rng.gen_range(0..idx.len())]))).collect();
+    percentile_interval(value, draws)
 }
 
 /// Whether halves whose split quantity averages `q_low` and `q_high` contradict a library effect: the half that
@@ -296,6 +374,24 @@ mod tests {
         // Apart in scale and interval: set aside either way.
         let (slow, fast) = (e(6.0, 3.12, 6.0), e(1.03, 0.88, 1.33));
         assert!(contradicts(0.016, 1.964, &slow, &fast, false));
+    }
+
+    /// The cuts of Rapier's seed-6 out-of-library trial 0 (a torque ripple on the right knee, fitted as a friction
+    /// of 4.0) and of seed 1's trial 2 (a true friction on the left leg beside a hip-roll torque limit that swells
+    /// the fast half's gap): only the first fades with speed.
+    #[test]
+    fn a_friction_that_cuts_only_the_slow_windows_gap_fades_with_speed() {
+        let e = |value, lo, hi| Estimate { value, lo, hi };
+        assert!(cuts_only_slow_motion(0.018, 1.76, &e(50.31, 49.19, 51.22), &e(7.91, -3.44, 20.30)));
+        assert!(!cuts_only_slow_motion(0.021, 2.261, &e(10.86, 10.52, 11.28), &e(20.71, 7.06, 34.89)));
+        // Intervals that touch, or halves too alike in speed, say nothing.
+        assert!(!cuts_only_slow_motion(0.018, 1.76, &e(50.31, 19.0, 51.22), &e(7.91, -3.44, 20.30)));
+        assert!(!cuts_only_slow_motion(1.0, 1.4, &e(50.31, 49.19, 51.22), &e(7.91, -3.44, 20.30)));
+    }
+
+    #[test]
+    fn the_scale_grid_holds_no_effect_and_the_fitted_value_where_the_cuts_read_them() {
+        assert_eq!((SCALES[NO_EFFECT], SCALES[FITTED]), (0.0, 1.0));
     }
 
     #[test]
