@@ -218,6 +218,26 @@ fn arm_encoder_offset_of_a_rapier_benchmark_trial() {
     assert!(score.param_errors.iter().all(|&x| x < 0.25), "{:?}", score.param_errors);
 }
 
+/// Runs trial `i` of the Rapier benchmark `--trials trials --out-of-library 6 --seed seed --duration 15` as the
+/// benchmark does, checks it hides the out-of-library effect `label` (kind, unit) and that nothing is named.
+fn out_of_library_trial_names_nothing(trials: usize, seed: u64, i: usize, label: (&str, &str)) -> Report {
+    let m = model();
+    let mut opts = gap_bench::BenchOptions::new(trials, seed, INDEPENDENT_DURATION);
+    opts.reference = EngineChoice::Other(diff_physics::EngineKind::RapierMultibody);
+    opts.out_of_library = 6;
+    let (score, report) = common::run_trial_through_mcap(&m, i, &opts);
+    let ool = score.out_of_library.as_ref().expect("an out-of-library trial");
+    assert_eq!((ool.kind.as_str(), ool.unit.as_str()), label, "{ool:?}");
+    assert!(report.ranked.is_empty(), "named {:?} on a {}", report.ranked, label.0);
+    report
+}
+
+/// The speed split of effect `kind` in `report`.
+fn speed_split(report: &Report, kind: EffectKind) -> gap_diagnosis::diagnose::HalvesRefit {
+    let e = report.effects.iter().find(|e| e.kind == kind).expect("effect assessed");
+    e.splits.iter().find(|s| s.by == SplitBy::Speed).cloned().expect("a speed split")
+}
+
 /// Issue 14 item 5: out-of-library trial 5 of the Rapier benchmark's seed 1 (`ulab gap bench --reference-engine
 /// rapier_multibody --trials 0 --out-of-library 6 --seed 1 --duration 15`): a friction of about 0.1 times the motor
 /// torque against the motion of the right arm, outside the library. The library's damping fitted it better than
@@ -226,16 +246,8 @@ fn arm_encoder_offset_of_a_rapier_benchmark_trial() {
 /// library is named (the load split alone did not: this damping wants less, not more, under load).
 #[test]
 fn a_load_friction_of_a_rapier_benchmark_trial_is_not_named_as_damping() {
-    let m = model();
-    let mut opts = gap_bench::BenchOptions::new(0, 1, INDEPENDENT_DURATION);
-    opts.reference = EngineChoice::Other(diff_physics::EngineKind::RapierMultibody);
-    opts.out_of_library = 6;
-    let (score, report) = common::run_trial_through_mcap(&m, 5, &opts);
-    let ool = score.out_of_library.as_ref().expect("an out-of-library trial");
-    assert_eq!((ool.kind.as_str(), ool.unit.as_str()), ("load_friction", "right_arm"), "{ool:?}");
-    assert!(report.ranked.is_empty(), "named {:?} on a load-dependent friction", report.ranked);
-    let damping = report.effects.iter().find(|e| e.kind == EffectKind::Damping).expect("damping assessed");
-    let by_speed = damping.splits.iter().find(|s| s.by == SplitBy::Speed).expect("a speed split of the damping");
+    let report = out_of_library_trial_names_nothing(0, 1, 5, ("load_friction", "right_arm"));
+    let by_speed = speed_split(&report, EffectKind::Damping);
     assert!(by_speed.set_aside && by_speed.scale_low.lo > by_speed.scale_high.hi, "{by_speed:?}");
 }
 
@@ -248,16 +260,8 @@ fn a_load_friction_of_a_rapier_benchmark_trial_is_not_named_as_damping() {
 /// far apart in scale, and nothing of the library is named.
 #[test]
 fn a_load_friction_cleared_on_part_of_the_windows_is_not_named_as_damping() {
-    let m = model();
-    let mut opts = gap_bench::BenchOptions::new(2, 5, INDEPENDENT_DURATION);
-    opts.reference = EngineChoice::Other(diff_physics::EngineKind::RapierMultibody);
-    opts.out_of_library = 6;
-    let (score, report) = common::run_trial_through_mcap(&m, 5, &opts);
-    let ool = score.out_of_library.as_ref().expect("an out-of-library trial");
-    assert_eq!((ool.kind.as_str(), ool.unit.as_str()), ("load_friction", "left_leg"), "{ool:?}");
-    assert!(report.ranked.is_empty(), "named {:?} on a load-dependent friction", report.ranked);
-    let damping = report.effects.iter().find(|e| e.kind == EffectKind::Damping).expect("damping assessed");
-    let by_speed = damping.splits.iter().find(|s| s.by == SplitBy::Speed).expect("a speed split of the damping");
+    let report = out_of_library_trial_names_nothing(2, 5, 5, ("load_friction", "left_leg"));
+    let by_speed = speed_split(&report, EffectKind::Damping);
     assert!(by_speed.set_aside && by_speed.cleared_on_part, "{by_speed:?}");
     assert!(by_speed.scale_low.value >= 2.0 * by_speed.scale_high.value, "{by_speed:?}");
 }
@@ -269,16 +273,8 @@ fn a_load_friction_cleared_on_part_of_the_windows_is_not_named_as_damping() {
 /// fastest half, which no Coulomb torque does: the speed split sets it aside and nothing is named.
 #[test]
 fn a_torque_ripple_fitted_as_a_friction_that_fades_with_speed_is_not_named() {
-    let m = model();
-    let mut opts = gap_bench::BenchOptions::new(0, 6, INDEPENDENT_DURATION);
-    opts.reference = EngineChoice::Other(diff_physics::EngineKind::RapierMultibody);
-    opts.out_of_library = 6;
-    let (score, report) = common::run_trial_through_mcap(&m, 0, &opts);
-    let ool = score.out_of_library.as_ref().expect("an out-of-library trial");
-    assert_eq!((ool.kind.as_str(), ool.unit.as_str()), ("torque_ripple", "right_knee"), "{ool:?}");
-    assert!(report.ranked.is_empty(), "named {:?} on a torque ripple", report.ranked);
-    let friction = report.effects.iter().find(|e| e.kind == EffectKind::Friction).expect("friction assessed");
-    let by_speed = friction.splits.iter().find(|s| s.by == SplitBy::Speed).expect("a speed split of the friction");
+    let report = out_of_library_trial_names_nothing(0, 6, 0, ("torque_ripple", "right_knee"));
+    let by_speed = speed_split(&report, EffectKind::Friction);
     assert!(by_speed.set_aside && by_speed.by_cut && by_speed.cut_low.lo > by_speed.cut_high.hi, "{by_speed:?}");
 }
 
