@@ -227,7 +227,8 @@ fn splits_section(r: &Report) -> String {
             };
             let (low, high) =
                 if l.by_cut { (cut(&l.cut_low), cut(&l.cut_high)) } else { (est(&l.scale_low), est(&l.scale_high)) };
-            let part = if l.cleared_on_part && l.set_aside { " (cleared on part)" } else { "" };
+            // Only the scales' verdict loosens with the route (`HalvesRefit::note` says the same).
+            let part = if l.cleared_on_part && l.set_aside && !l.by_cut { " (cleared on part)" } else { "" };
             format!(
                 "| {} | {by} | {} | {} | {} | {} | {verdict}{part} |\n",
                 e.kind.name(),
@@ -254,9 +255,7 @@ fn splits_section(r: &Report) -> String {
          effect cleared the floor only on part of the held-out windows (verdict marked \"cleared on part\"). A \
          friction split by speed is judged by what its fitted value cuts of each half's gap instead (a Coulomb \
          torque keeps its size at speed): set aside when it cuts the slow half's {r:.1}x as much as the fast \
-         half's, intervals apart.\n\n| \
-         effect | split by | low half | scale \
-         there | high half | scale there | verdict |\n|---|---|---|---|---|---|---|\n{}",
+         half's, intervals apart.\n\n| effect | split by | low half | scale there | high half | scale there | verdict |\n|---|---|---|---|---|---|---|\n{}",
         rows.concat(),
         r = crate::diagnose::SCALE_RATIO,
     )
