@@ -19,6 +19,10 @@
 //!   friction that cuts the slow half's gap [`SCALE_RATIO`] times as much as the fast half's, intervals apart,
 //!   stands for a torque that matters only in slow motion (a ripple periodic in the joint angle, which the inertia
 //!   filters out at speed, fitted as "stiction") and is not named.
+//! - by speed, dead band: judged by its cuts as the friction. A dead band loses its width at every load reversal
+//!   however fast the joint turns; the benchmark's own backlashes cut the slow half's gap 0.01 to 0.97 times as
+//!   much as the fast half's, while the two torque ripples on ankle pitches of Rapier seeds 5 and 6, named a
+//!   backlash, cut the slow half's 2.3 and 11 times as much.
 //!
 //! Checked on a plant of another program (`tests/python_plant.rs`: a load-proportional friction on an elbow names
 //! nothing, a viscous damping and a dry friction there want their fitted size on both halves) and on the Rapier and
@@ -51,9 +55,9 @@ const SPLIT_STREAM: u64 = 0x6c6f_6164_5f73_706c;
 
 /// The kinds whose size cannot depend on the carried torque and that a load-dependent friction can stand in for.
 pub const LOAD_CHECKED: [EffectKind; 3] = [EffectKind::Damping, EffectKind::Friction, EffectKind::Backlash];
-/// The kinds whose torque must not fade with speed: a damping's scale that falls with speed, or a friction that
-/// cuts only the slow windows' gap, contradicts them.
-pub const SPEED_CHECKED: [EffectKind; 2] = [EffectKind::Damping, EffectKind::Friction];
+/// The kinds whose torque must not fade with speed: a damping's scale that falls with speed, or a friction or dead
+/// band that cuts only the slow windows' gap, contradicts them.
+pub const SPEED_CHECKED: [EffectKind; 3] = [EffectKind::Damping, EffectKind::Friction, EffectKind::Backlash];
 /// Where the scale of no effect and the fitted scale sit in [`SCALES`].
 const NO_EFFECT: usize = 0;
 const FITTED: usize = 4;
@@ -65,7 +69,8 @@ pub enum SplitBy {
     /// Mean |measured torque| / torque limit of the effect's joints; set aside when the heavy half wants more.
     Load,
     /// Mean |measured velocity| (rad/s) of the effect's joints; a damping is set aside when the slow half wants a
-    /// larger scale, a friction when its fitted value cuts the slow half's gap far more than the fast half's.
+    /// larger scale, a friction or a dead band when its fitted value cuts the slow half's gap far more than the fast
+    /// half's.
     Speed,
 }
 
@@ -104,10 +109,11 @@ pub struct HalvesRefit {
     pub cleared_on_part: bool,
     /// Whether the half that should not want more (the heavy one by load, the slow one by speed) wants
     /// [`SCALE_RATIO`] times the other's scale, intervals apart unless [`Self::cleared_on_part`] (for a friction
-    /// split by speed: its fitted value cuts the slow half's gap [`SCALE_RATIO`] times the fast half's, intervals
+    /// or a dead band split by speed: its fitted value cuts the slow half's gap [`SCALE_RATIO`] times the fast half's, intervals
     /// apart): the effect is not named.
     pub set_aside: bool,
-    /// Set aside by what the fitted value cuts rather than by the scales (a friction split by speed).
+    /// Set aside by what the fitted value cuts rather than by the scales (a friction or a dead band split by
+    /// speed).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub by_cut: bool,
 }
@@ -119,10 +125,11 @@ impl HalvesRefit {
         let cut = |x: &Estimate| format!("{:.3} [{:.3}, {:.3}] per window", x.value, x.lo, x.hi);
         let why = match self.by {
             SplitBy::Speed if self.by_cut => format!(
-                "a Coulomb friction's torque keeps its size at any speed, yet at the fitted value it cuts the gap of \
-                 the training windows where its joints move slowest ({:.2} rad/s) by {} and of those where they move \
-                 fastest ({:.2} rad/s) by {}: a torque that matters only in slow motion (one periodic in the joint \
-                 angle, a cogging ripple, which the inertia filters out at speed) fitted as a friction; not named",
+                "a Coulomb friction's torque keeps its size at any speed and a dead band loses its width at every \
+                 reversal however fast, yet at the fitted value it cuts the gap of the training windows where its \
+                 joints move slowest ({:.2} rad/s) by {} and of those where they move fastest ({:.2} rad/s) by {}: a \
+                 torque that matters only in slow motion (one periodic in the joint angle, a cogging ripple, which \
+                 the inertia filters out at speed) fitted as this effect; not named",
                 self.low,
                 cut(&self.cut_low),
                 self.high,
@@ -238,7 +245,9 @@ fn split_on(
     // Drawn after the scales, so that the scales' draws stay as they were before the cuts were added.
     let cut_low = half_cut(per_window, &low, &mut rng);
     let cut_high = half_cut(per_window, &high, &mut rng);
-    let by_cut = by == SplitBy::Speed && kind == EffectKind::Friction;
+    // A friction's or a dead band's scale may rightly change with speed (Rapier's friction wants more in slow motion,
+    // a dead band is crossed differently), so only what its fitted value cuts can say it fades with speed.
+    let by_cut = by == SplitBy::Speed && matches!(kind, EffectKind::Friction | EffectKind::Backlash);
     let set_aside = if by_cut {
         cuts_only_slow_motion(q_low, q_high, &cut_low, &cut_high)
     } else {
@@ -385,6 +394,10 @@ mod tests {
         let e = |value, lo, hi| Estimate { value, lo, hi };
         assert!(cuts_only_slow_motion(0.018, 1.76, &e(50.31, 49.19, 51.22), &e(7.91, -3.44, 20.30)));
         assert!(!cuts_only_slow_motion(0.021, 2.261, &e(10.86, 10.52, 11.28), &e(20.71, 7.06, 34.89)));
+        // The same for a dead band: seed 6's trial 4 (a ripple on the right ankle pitch, fitted as a backlash) and
+        // the true backlash of seed 3's trial 10, which cuts both halves alike.
+        assert!(cuts_only_slow_motion(0.009, 1.863, &e(9.56, 8.61, 10.50), &e(4.14, 0.41, 7.51)));
+        assert!(!cuts_only_slow_motion(0.068, 4.421, &e(2.28, 2.11, 2.45), &e(2.34, 1.84, 2.91)));
         // Intervals that touch, or halves too alike in speed, say nothing.
         assert!(!cuts_only_slow_motion(0.018, 1.76, &e(50.31, 19.0, 51.22), &e(7.91, -3.44, 20.30)));
         assert!(!cuts_only_slow_motion(1.0, 1.4, &e(50.31, 49.19, 51.22), &e(7.91, -3.44, 20.30)));
