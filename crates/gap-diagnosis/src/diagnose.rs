@@ -73,7 +73,8 @@ pub use crate::noise::{TIMING_HI, TIMING_LO};
 /// `/13`: each split carries `cleared_on_part` (the effect cleared the floor only on part of the held-out windows:
 /// halves apart in scale set it aside without their intervals apart) and `cut_low`/`cut_high` (the mean cut per
 /// window of each half's gap by the fitted value); a friction also has a speed split, judged on those cuts
-/// (`by_cut`: not named when it cuts the slow half's gap 2x the fast half's).
+/// (`by_cut`: not named when it cuts the slow half's gap 2x the fast half's); later within `/13`, a backlash too
+/// (the same fields, so the version did not change).
 pub const SCHEMA_VERSION: &str = "ulab-gap-report/13";
 
 /// What the diagnosis concluded about the log as a whole.

@@ -253,9 +253,9 @@ fn splits_section(r: &Report) -> String {
          windows. A high-load scale at least {r:.1}x the low-load one, or a slow-half scale at least {r:.1}x the \
          fast-half one, with intervals apart, sets the effect aside; the intervals need not be apart when the \
          effect cleared the floor only on part of the held-out windows (verdict marked \"cleared on part\"). A \
-         friction split by speed is judged by what its fitted value cuts of each half's gap instead (a Coulomb \
-         torque keeps its size at speed): set aside when it cuts the slow half's {r:.1}x as much as the fast \
-         half's, intervals apart.\n\n| effect | split by | low half | scale there | high half | scale there | \
+         friction or a backlash split by speed is judged by what its fitted value cuts of each half's gap instead \
+         (a Coulomb torque keeps its size at speed, a dead band its width): set aside when it cuts the slow \
+         half's {r:.1}x as much as the fast half's, intervals apart.\n\n| effect | split by | low half | scale there | high half | scale there | \
          verdict |\n|---|---|---|---|---|---|---|\n{}",
         rows.concat(),
         r = crate::diagnose::SCALE_RATIO,
