@@ -255,8 +255,8 @@ fn splits_section(r: &Report) -> String {
          effect cleared the floor only on part of the held-out windows (verdict marked \"cleared on part\"). A \
          friction or a backlash split by speed is judged by what its fitted value cuts of each half's gap instead \
          (a Coulomb torque keeps its size at speed, a dead band its width): set aside when it cuts the slow \
-         half's {r:.1}x as much as the fast half's, intervals apart.\n\n| effect | split by | low half | scale there | high half | scale there | \
-         verdict |\n|---|---|---|---|---|---|---|\n{}",
+         half's {r:.1}x as much as the fast half's, intervals apart.\n\n| effect | split by | low half | \
+         scale there | high half | scale there | verdict |\n|---|---|---|---|---|---|---|\n{}",
         rows.concat(),
         r = crate::diagnose::SCALE_RATIO,
     )

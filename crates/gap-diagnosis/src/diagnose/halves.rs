@@ -109,8 +109,8 @@ pub struct HalvesRefit {
     pub cleared_on_part: bool,
     /// Whether the half that should not want more (the heavy one by load, the slow one by speed) wants
     /// [`SCALE_RATIO`] times the other's scale, intervals apart unless [`Self::cleared_on_part`] (for a friction
-    /// or a dead band split by speed: its fitted value cuts the slow half's gap [`SCALE_RATIO`] times the fast half's, intervals
-    /// apart): the effect is not named.
+    /// or a dead band split by speed: its fitted value cuts the slow half's gap [`SCALE_RATIO`] times the fast
+    /// half's, intervals apart): the effect is not named.
     pub set_aside: bool,
     /// Set aside by what the fitted value cuts rather than by the scales (a friction or a dead band split by
     /// speed).
@@ -245,8 +245,8 @@ fn split_on(
     // Drawn after the scales, so that the scales' draws stay as they were before the cuts were added.
     let cut_low = half_cut(per_window, &low, &mut rng);
     let cut_high = half_cut(per_window, &high, &mut rng);
-    // A friction's or a dead band's scale may rightly change with speed (Rapier's friction wants more in slow motion,
-    // a dead band is crossed differently), so only what its fitted value cuts can say it fades with speed.
+    // A friction's or a dead band's best scale may rightly differ between slow and fast motion (Rapier's own friction
+    // wants more in the slow windows), so only what its fitted value cuts can say its torque fades with speed.
     let by_cut = by == SplitBy::Speed && matches!(kind, EffectKind::Friction | EffectKind::Backlash);
     let set_aside = if by_cut {
         cuts_only_slow_motion(q_low, q_high, &cut_low, &cut_high)
