@@ -227,8 +227,7 @@ fn splits_section(r: &Report) -> String {
             };
             let (low, high) =
                 if l.by_cut { (cut(&l.cut_low), cut(&l.cut_high)) } else { (est(&l.scale_low), est(&l.scale_high)) };
-            // Only the scales' verdict loosens with the route (`HalvesRefit::note` says the same).
-            let part = if l.cleared_on_part && l.set_aside && !l.by_cut { " (cleared on part)" } else { "" };
+            let part = if l.set_aside && l.loosened_by_route() { " (cleared on part)" } else { "" };
             format!(
                 "| {} | {by} | {} | {} | {} | {} | {verdict}{part} |\n",
                 e.kind.name(),
@@ -248,8 +247,8 @@ fn splits_section(r: &Report) -> String {
          that grows with the load (a gear's) does not, and the library's effects fit it as an average. Each such \
          effect that cleared the floor is refitted, as one scale of its fitted values, on the half of the training \
          windows where its joints carry the least torque and on the half where they carry the most (load: mean \
-         |torque| of its joints, in % of their limits), and a damping also on the half where they move slowest and \
-         the half where they move fastest (mean |velocity|); scales with a 95 % bootstrap interval over the half's \
+         |torque| of its joints, in % of their limits), and on the half where they move slowest and the half \
+         where they move fastest (mean |velocity|); scales with a 95 % bootstrap interval over the half's \
          windows. A high-load scale at least {r:.1}x the low-load one, or a slow-half scale at least {r:.1}x the \
          fast-half one, with intervals apart, sets the effect aside; the intervals need not be apart when the \
          effect cleared the floor only on part of the held-out windows (verdict marked \"cleared on part\"). A \

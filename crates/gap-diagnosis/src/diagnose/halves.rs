@@ -119,6 +119,12 @@ pub struct HalvesRefit {
 }
 
 impl HalvesRefit {
+    /// Whether the verdict was judged with the looser test of an effect cleared on part of the windows (scales
+    /// apart without intervals apart). The cuts' test does not loosen with the route.
+    pub fn loosened_by_route(&self) -> bool {
+        self.cleared_on_part && !self.by_cut
+    }
+
     /// Why the effect is not named, when the split set it aside.
     pub fn note(&self) -> String {
         let est = |x: &Estimate| format!("{:.2}x [{:.2}, {:.2}]", x.value, x.lo, x.hi);
@@ -157,8 +163,7 @@ impl HalvesRefit {
                 est(&self.scale_high)
             ),
         };
-        // The cuts' test does not loosen with the route, so only the scales' verdict says so.
-        if self.cleared_on_part && !self.by_cut {
+        if self.loosened_by_route() {
             format!(
                 "{why} (it cleared the floor only on part of the held-out windows, so halves {SCALE_RATIO} times \
                  apart in scale suffice)"
