@@ -75,7 +75,9 @@ pub use crate::noise::{TIMING_HI, TIMING_LO};
 /// window of each half's gap by the fitted value); a friction also has a speed split, judged on those cuts
 /// (`by_cut`: not named when it cuts the slow half's gap 2x the fast half's); later within `/13`, a backlash too
 /// (the same fields, so the version did not change).
-pub const SCHEMA_VERSION: &str = "ulab-gap-report/13";
+/// `/14`: a backlash's load split carries `load_paced`: it is set aside only when, besides its scales, its fitted
+/// value cuts the heavy half's gap at least as much per unit of load as the light half's.
+pub const SCHEMA_VERSION: &str = "ulab-gap-report/14";
 
 /// What the diagnosis concluded about the log as a whole.
 #[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq)]

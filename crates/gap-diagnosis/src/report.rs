@@ -212,17 +212,31 @@ fn splits_section(r: &Report) -> String {
                 SplitBy::Load => (
                     "load",
                     |x| format!("{:.1} %", x * 100.0),
-                    if l.set_aside { "grows with the load: not named" } else { "holds at both loads" },
+                    match (l.set_aside, l.load_paced && l.scales_contradict()) {
+                        (true, true) => format!(
+                            "grows with the load, and so does its cut ({} light, {} heavy): not named",
+                            cut(&l.cut_low),
+                            cut(&l.cut_high)
+                        ),
+                        (true, false) => "grows with the load: not named".to_string(),
+                        (false, true) => format!(
+                            "a wider band under load, yet it cuts the light half's gap too ({} light, {} heavy, \
+                             less per unit of load): kept",
+                            cut(&l.cut_low),
+                            cut(&l.cut_high)
+                        ),
+                        (false, false) => "holds at both loads".to_string(),
+                    },
                 ),
                 SplitBy::Speed if l.by_cut => (
                     "speed",
                     |x| format!("{x:.2} rad/s"),
-                    if l.set_aside { "cuts only the slow half: not named" } else { "cuts both halves" },
+                    if l.set_aside { "cuts only the slow half: not named" } else { "cuts both halves" }.to_string(),
                 ),
                 SplitBy::Speed => (
                     "speed",
                     |x| format!("{x:.2} rad/s"),
-                    if l.set_aside { "falls with speed: not named" } else { "holds at both speeds" },
+                    if l.set_aside { "falls with speed: not named" } else { "holds at both speeds" }.to_string(),
                 ),
             };
             let (low, high) =
@@ -254,7 +268,10 @@ fn splits_section(r: &Report) -> String {
          effect cleared the floor only on part of the held-out windows (verdict marked \"cleared on part\"). A \
          friction or a backlash split by speed is judged by what its fitted value cuts of each half's gap instead \
          (a Coulomb torque keeps its size at speed, a dead band its width): set aside when it cuts the slow \
-         half's {r:.1}x as much as the fast half's, intervals apart.\n\n| effect | split by | low half | \
+         half's {r:.1}x as much as the fast half's, intervals apart. A backlash whose scales grow with the load \
+         is set aside only when its fitted value also cuts the heavy half's gap at least as much per unit of load \
+         as the light half's: a band is lost at every reversal, so it cuts the light windows' gap too, where a \
+         torque growing with the load is nothing there.\n\n| effect | split by | low half | \
          scale there | high half | scale there | verdict |\n|---|---|---|---|---|---|---|\n{}",
         rows.concat(),
         r = crate::diagnose::SCALE_RATIO,

@@ -113,6 +113,11 @@ fn a_friction_that_grows_with_the_load_is_not_named_as_one_of_the_library() {
         let l = split(&r, kind, SplitBy::Load);
         assert!(l.set_aside && l.scale_high.lo > l.scale_low.hi, "{}: {l:?}", kind.name());
     }
+    // A dead band fitted to it wants a wider band under load, as a true band on a leg may (DART's seed 8, trial 6);
+    // what sets this one aside is that it cuts nothing of the light half's gap, where a band, lost at every
+    // reversal, cuts some at any load.
+    let l = split(&r, EffectKind::Backlash, SplitBy::Load);
+    assert!(l.set_aside && l.load_paced && l.cut_low.lo <= 0.0 && l.cut_high.lo > 0.0, "{l:?}");
     // A viscous damping (MuJoCo's dof_damping) on the same elbow has one size at every load: named, on the elbow.
     let r = diagnose_plant(&shared, "damping", &["--extra-damping", "left_elbow_joint=1.0"]);
     assert_named_first(&r, EffectKind::Damping, "left_elbow", 1.0, 0.1);

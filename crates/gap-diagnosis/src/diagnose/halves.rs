@@ -19,6 +19,14 @@
 //!   friction that cuts the slow half's gap [`SCALE_RATIO`] times as much as the fast half's, intervals apart,
 //!   stands for a torque that matters only in slow motion (a ripple periodic in the joint angle, which the inertia
 //!   filters out at speed, fitted as "stiction") and is not named.
+//! - by load, dead band: its width is a gap in the gears, not a torque, yet on both independent engines a true dead
+//!   band on a leg wants a wider one in the heavily loaded windows (DART seed 8 trial 6: 0.75x light, 1.75x heavy,
+//!   intervals apart; Rapier's same draw 1.98x). What tells it from a friction growing with the load fitted as a
+//!   band is what its fitted value cuts: a band is lost at every reversal at any load, so it cuts the light half's
+//!   gap too, and its cut grows more slowly than the load (DART: 3x the cut for 28x the load), while a torque that
+//!   grows with the load is nothing in the light windows (the Python plant's elbow load friction: a cut of -0.01 at
+//!   10 % of the limit, 1.48 at 32 %). So a dead band is set aside by load only when, besides the scales, its cut
+//!   per unit of load in the heavy half is at least that of the light half ([`HalvesRefit::load_paced`]).
 //! - by speed, dead band: judged by its cuts as the friction. A dead band loses its width at every load reversal
 //!   however fast the joint turns; the benchmark's own backlashes cut the slow half's gap 0.01 to 0.97 times as
 //!   much as the fast half's, while the two torque ripples on ankle pitches of Rapier seeds 5 and 6, named a
@@ -116,6 +124,11 @@ pub struct HalvesRefit {
     /// speed).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub by_cut: bool,
+    /// A dead band split by load: besides the scales, the verdict asks that its fitted value cut the heavy half's
+    /// gap at least as much per unit of load as the light half's (a torque that grows with the load, not a band
+    /// lost at every reversal).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub load_paced: bool,
 }
 
 impl HalvesRefit {
@@ -123,6 +136,16 @@ impl HalvesRefit {
     /// apart without intervals apart). The cuts' test does not loosen with the route.
     pub fn loosened_by_route(&self) -> bool {
         self.cleared_on_part && !self.by_cut
+    }
+
+    /// Whether the halves' scales alone contradict the effect (the test of a split judged on scales; for a dead
+    /// band split by load, [`Self::load_paced`] asks more before it is set aside).
+    pub fn scales_contradict(&self) -> bool {
+        let (more, less) = match self.by {
+            SplitBy::Load => (&self.scale_high, &self.scale_low),
+            SplitBy::Speed => (&self.scale_low, &self.scale_high),
+        };
+        contradicts(self.low, self.high, more, less, self.cleared_on_part)
     }
 
     /// Why the effect is not named, when the split set it aside.
@@ -139,6 +162,20 @@ impl HalvesRefit {
                 self.low,
                 cut(&self.cut_low),
                 self.high,
+                cut(&self.cut_high)
+            ),
+            SplitBy::Load if self.load_paced => format!(
+                "its size grows with the torque its joints carry, which a dead band's width does not: refitted on \
+                 the training windows where they carry the least torque ({:.1} % of the limit) it wants {} the \
+                 fitted value, where they carry the most ({:.1} %) {}; and at the fitted value it cuts the gap of the \
+                 first by {} and of the second by {}, no less per unit of load: a torque that grows with the load (a \
+                 gear friction) fitted as a band, where a band, lost at every reversal, cuts the light windows' gap \
+                 too; not named",
+                self.low * 100.0,
+                est(&self.scale_low),
+                self.high * 100.0,
+                est(&self.scale_high),
+                cut(&self.cut_low),
                 cut(&self.cut_high)
             ),
             SplitBy::Load => format!(
@@ -253,10 +290,12 @@ fn split_on(
     // A friction's or a dead band's best scale may rightly differ between slow and fast motion (Rapier's own friction
     // wants more in the slow windows), so only what its fitted value cuts can say its torque fades with speed.
     let by_cut = by == SplitBy::Speed && matches!(kind, EffectKind::Friction | EffectKind::Backlash);
+    let load_paced = by == SplitBy::Load && kind == EffectKind::Backlash;
     let set_aside = if by_cut {
         cuts_only_slow_motion(q_low, q_high, &cut_low, &cut_high)
     } else {
         contradicts(q_low, q_high, more, less, cleared_on_part)
+            && (!load_paced || cut_keeps_pace_with_load(q_low, q_high, &cut_low, &cut_high))
     };
     Some(HalvesRefit {
         by,
@@ -269,7 +308,15 @@ fn split_on(
         cleared_on_part,
         set_aside,
         by_cut,
+        load_paced,
     })
+}
+
+/// Whether the fitted value cuts the gap of the heavy half of the windows (mean load `q_high`) at least as much per
+/// unit of load as that of the light half (`q_low`): what a torque growing with the load does and a dead band,
+/// whose cut grows more slowly than the load, does not.
+fn cut_keeps_pace_with_load(q_low: f64, q_high: f64, cut_low: &Estimate, cut_high: &Estimate) -> bool {
+    cut_high.value * q_low > cut_low.value * q_high
 }
 
 /// Whether a friction's fitted value cuts the gap of the slow half of the windows (mean speed `q_low`) `cut_low`
@@ -406,6 +453,18 @@ mod tests {
         // Intervals that touch, or halves too alike in speed, say nothing.
         assert!(!cuts_only_slow_motion(0.018, 1.76, &e(50.31, 19.0, 51.22), &e(7.91, -3.44, 20.30)));
         assert!(!cuts_only_slow_motion(1.0, 1.4, &e(50.31, 49.19, 51.22), &e(7.91, -3.44, 20.30)));
+    }
+
+    /// The cuts of dead bands split by load whose scales grow with it: DART seed 8 trial 6's true left-leg band
+    /// (beside latency) cuts 3x the light half's gap at 28x the load; the Python plant's elbow friction growing
+    /// with the load, fitted as a band, cuts nothing of the light half's; on Rapier's seed 1 trial 9 a band standing
+    /// in for a weak left-arm gain cuts 47x at 7.5x the load. Only the first is kept.
+    #[test]
+    fn a_dead_band_whose_cut_grows_more_slowly_than_the_load_is_kept() {
+        let e = |value, lo, hi| Estimate { value, lo, hi };
+        assert!(!cut_keeps_pace_with_load(0.005, 0.141, &e(39.24, 37.16, 42.64), &e(118.50, 78.99, 171.72)));
+        assert!(cut_keeps_pace_with_load(0.104, 0.316, &e(-0.01, -0.39, 0.35), &e(1.48, 0.57, 2.32)));
+        assert!(cut_keeps_pace_with_load(0.041, 0.309, &e(2.75, 0.20, 4.48), &e(128.24, 99.46, 161.23)));
     }
 
     #[test]
