@@ -141,6 +141,8 @@ impl HalvesRefit {
     /// Whether the halves' scales alone contradict the effect (the test of a split judged on scales; for a dead
     /// band split by load, [`Self::load_paced`] asks more before it is set aside).
     pub fn scales_contradict(&self) -> bool {
+        // The half that must not want more: the heavy one (a library effect's size does not grow with the load) or
+        // the slow one (a damping's torque grows with speed, so its scale must not fall with it).
         let (more, less) = match self.by {
             SplitBy::Load => (&self.scale_high, &self.scale_low),
             SplitBy::Speed => (&self.scale_low, &self.scale_high),
@@ -278,12 +280,6 @@ fn split_on(
     let mut rng = ChaCha8Rng::seed_from_u64(SPLIT_STREAM);
     let scale_low = half_scale(per_window, &low, &mut rng);
     let scale_high = half_scale(per_window, &high, &mut rng);
-    // The half that must not want more: the heavy one (a library effect's size does not grow with the load) or the
-    // slow one (a damping's torque grows with speed, so its scale must not fall with it).
-    let (more, less) = match by {
-        SplitBy::Load => (&scale_high, &scale_low),
-        SplitBy::Speed => (&scale_low, &scale_high),
-    };
     // Drawn after the scales, so that the scales' draws stay as they were before the cuts were added.
     let cut_low = half_cut(per_window, &low, &mut rng);
     let cut_high = half_cut(per_window, &high, &mut rng);
@@ -291,13 +287,7 @@ fn split_on(
     // wants more in the slow windows), so only what its fitted value cuts can say its torque fades with speed.
     let by_cut = by == SplitBy::Speed && matches!(kind, EffectKind::Friction | EffectKind::Backlash);
     let load_paced = by == SplitBy::Load && kind == EffectKind::Backlash;
-    let set_aside = if by_cut {
-        cuts_only_slow_motion(q_low, q_high, &cut_low, &cut_high)
-    } else {
-        contradicts(q_low, q_high, more, less, cleared_on_part)
-            && (!load_paced || cut_keeps_pace_with_load(q_low, q_high, &cut_low, &cut_high))
-    };
-    Some(HalvesRefit {
+    let mut refit = HalvesRefit {
         by,
         low: q_low,
         high: q_high,
@@ -306,10 +296,17 @@ fn split_on(
         cut_low,
         cut_high,
         cleared_on_part,
-        set_aside,
+        set_aside: false,
         by_cut,
         load_paced,
-    })
+    };
+    refit.set_aside = if by_cut {
+        cuts_only_slow_motion(q_low, q_high, &refit.cut_low, &refit.cut_high)
+    } else {
+        refit.scales_contradict()
+            && (!load_paced || cut_keeps_pace_with_load(q_low, q_high, &refit.cut_low, &refit.cut_high))
+    };
+    Some(refit)
 }
 
 /// Whether the fitted value cuts the gap of the heavy half of the windows (mean load `q_high`) at least as much per
