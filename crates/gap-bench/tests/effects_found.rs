@@ -205,10 +205,7 @@ fn single_link_com_in_an_independent_engine() {
 /// shoulder's (before it was, this trial abstained).
 #[test]
 fn arm_encoder_offset_of_a_rapier_benchmark_trial() {
-    let m = model();
-    let mut opts = gap_bench::BenchOptions::new(24, 3, INDEPENDENT_DURATION);
-    opts.reference = EngineChoice::Other(diff_physics::EngineKind::RapierMultibody);
-    let (score, report) = common::run_trial_through_mcap(&m, 13, &opts);
+    let (score, report) = benchmark_trial(diff_physics::EngineKind::RapierMultibody, 24, 0, 3, 13);
     assert_eq!(score.injected.len(), 1, "{:?}", score.injected);
     assert_eq!(score.injected[0].kind, EffectKind::EncoderOffset);
     assert!(score.top1, "ranking {:?}; abstentions {:?}", report.ranked, report.abstentions);
@@ -218,14 +215,25 @@ fn arm_encoder_offset_of_a_rapier_benchmark_trial() {
     assert!(score.param_errors.iter().all(|&x| x < 0.25), "{:?}", score.param_errors);
 }
 
+/// Runs trial `i` of the benchmark `--reference-engine engine --trials trials --out-of-library out_of_library --seed
+/// seed --duration 15` as `ulab gap bench` does (its log written as MCAP and read back).
+fn benchmark_trial(
+    engine: diff_physics::EngineKind,
+    trials: usize,
+    out_of_library: usize,
+    seed: u64,
+    i: usize,
+) -> (gap_bench::TrialScore, Report) {
+    let mut opts = gap_bench::BenchOptions::new(trials, seed, INDEPENDENT_DURATION);
+    opts.reference = EngineChoice::Other(engine);
+    opts.out_of_library = out_of_library;
+    common::run_trial_through_mcap(&model(), i, &opts)
+}
+
 /// Runs trial `i` of the Rapier benchmark `--trials trials --out-of-library 6 --seed seed --duration 15` as the
 /// benchmark does, checks it hides the out-of-library effect `label` (kind, unit) and that nothing is named.
 fn out_of_library_trial_names_nothing(trials: usize, seed: u64, i: usize, label: (&str, &str)) -> Report {
-    let m = model();
-    let mut opts = gap_bench::BenchOptions::new(trials, seed, INDEPENDENT_DURATION);
-    opts.reference = EngineChoice::Other(diff_physics::EngineKind::RapierMultibody);
-    opts.out_of_library = 6;
-    let (score, report) = common::run_trial_through_mcap(&m, i, &opts);
+    let (score, report) = benchmark_trial(diff_physics::EngineKind::RapierMultibody, trials, 6, seed, i);
     let ool = score.out_of_library.as_ref().expect("an out-of-library trial");
     assert_eq!((ool.kind.as_str(), ool.unit.as_str()), label, "{ool:?}");
     assert!(report.ranked.is_empty(), "named {:?} on a {}", report.ranked, label.0);
@@ -299,10 +307,7 @@ fn a_torque_ripple_fitted_as_a_dead_band_that_fades_with_speed_is_not_named() {
 /// else.
 #[test]
 fn a_leg_dead_band_that_wants_a_wider_band_under_load_is_still_named() {
-    let m = model();
-    let mut opts = gap_bench::BenchOptions::new(8, 8, INDEPENDENT_DURATION);
-    opts.reference = EngineChoice::Other(diff_physics::EngineKind::Dart);
-    let (score, report) = common::run_trial_through_mcap(&m, 6, &opts);
+    let (score, report) = benchmark_trial(diff_physics::EngineKind::Dart, 8, 0, 8, 6);
     let mut injected: Vec<EffectKind> = score.injected.iter().map(|i| i.kind).collect();
     injected.sort_by_key(|k| k.name());
     assert_eq!(injected, vec![EffectKind::Backlash, EffectKind::Latency], "{:?}", score.injected);
