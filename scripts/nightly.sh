@@ -3,7 +3,8 @@
 #   - PhysX (the `physx` feature: its vendored SDK takes ~7 min of two cores to build): the engine's own tests
 #     against the reference and MuJoCo, `ulab model check/inspect`, and Unitree's SDK clients (Python SDK on
 #     Cyclone 11, C on Cyclone 0.10.2) driving `ulab sim --engine physx`;
-#   - the gap diagnosis on every single effect (`effects_found`, ~25 s a case; CI runs four);
+#   - the gap diagnosis on every single effect (`effects_found`, ~25 s a case; CI runs four) and on every stored
+#     benchmark trial (~2 min a case; CI runs three);
 #   - the control of the planted cheat (a gait optimised in MuJoCo transfers; CI runs the cheat itself);
 #   - every fuzz target, `engine_divergence` included (a release build of three engines with coverage).
 # Run after scripts/test.sh on the same checkout (it reuses its set-up); ~30 min on 2 cores.

@@ -6,11 +6,14 @@ with Unitree hg messages serialized by Cyclone DDS's Python serializer. Nothing 
     suspended_plant.py OUT.mcap [--timestep S] [--pd-every N] [--integrator NAME] [--duration S] [--cmd-rate HZ]
                        [--extra-damping|--extra-frictionloss|--extra-armature JOINT=VALUE]...
                        [--gain-scale JOINT=S]... [--encoder-offset JOINT=RAD]... [--load-friction JOINT=MU]...
+                       [--torque-scale JOINT=S]...
 
 The physics runs at `--timestep`; the PD torque is recomputed every `--pd-every` physics steps and held between;
 commands arrive at `--cmd-rate` (chirps around the standing pose on every joint) and states are logged every 2 ms.
 A hidden effect goes through MuJoCo's own joint parameters (damping, frictionloss, armature) or through the PD law
-and the encoder (gain scale, offset); `--load-friction` is a law outside the diagnosis's library. Prints one JSON
+and the encoder (gain scale, offset) or clips the motor torque (`--torque-scale`, a plain clip at S times the limit:
+no torque-speed line, unlike the diagnosis's saturation); `--load-friction` is a law outside the diagnosis's
+library. Prints one JSON
 object with what was simulated.
 """
 import argparse
@@ -79,6 +82,9 @@ def main():
     ap.add_argument("--load-friction", action="append", default=[], metavar="JOINT=MU",
                     help="a friction outside the diagnosis's library: MU times the motor torque's magnitude, against "
                          "the joint's motion, applied as a torque the motor does not report; repeatable")
+    ap.add_argument("--torque-scale", action="append", default=[], metavar="JOINT=S",
+                    help="the motor delivers at most S times the joint's torque limit (a plain clip, reported as "
+                         "tau_est); repeatable")
     ap.add_argument("--shared", default=os.environ.get("ULAB_SHARED") or os.path.join(
         os.path.dirname(__file__), "../../../shared"))
     a = ap.parse_args()
@@ -96,9 +102,10 @@ def main():
             getattr(m, field)[dof] += float(value)
             effects.append({"field": field, "joint": name, "added": float(value)})
     nj = m.njnt
-    gain, offset, load_mu = np.ones(nj), np.zeros(nj), np.zeros(nj)
+    gain, offset, load_mu, torque_scale = np.ones(nj), np.zeros(nj), np.zeros(nj), np.ones(nj)
     for field, specs, arr in (("gain_scale", a.gain_scale, gain), ("encoder_offset", a.encoder_offset, offset),
-                              ("load_friction", a.load_friction, load_mu)):
+                              ("load_friction", a.load_friction, load_mu),
+                              ("torque_scale", a.torque_scale, torque_scale)):
         for spec in specs:
             name, value = spec.split("=")
             arr[m.joint(name).id] = float(value)
@@ -109,7 +116,7 @@ def main():
     act_joint = [int(m.actuator_trnid[k, 0]) for k in range(m.nu)]
     assert act_joint == list(range(nj)), act_joint
     lo, hi = m.jnt_range[:, 0], m.jnt_range[:, 1]
-    tau_lim = m.actuator_ctrlrange[:, 1]
+    tau_lim = m.actuator_ctrlrange[:, 1] * torque_scale
     d.qpos[:] = STAND
     mujoco.mj_forward(m, d)
     sens = {n: m.sensor(n).adr[0] for n in ("imu_quat", "imu_gyro", "imu_acc")}

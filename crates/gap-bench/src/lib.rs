@@ -469,7 +469,11 @@ pub fn score(labels: &Labels, report: &Report) -> TrialScore {
     let mut param_errors = Vec::new();
     for i in inj {
         let r = report.effects.iter().find(|e| e.kind == i.kind && e.named);
-        let top = r.and_then(|r| r.params.iter().max_by(|a, b| a.held_out_reduction.total_cmp(&b.held_out_reduction)));
+        // The unit credited with the largest held-out cut; of equal ones, the first listed (a saturation named from
+        // the log lists its joints by evidence, the most samples held at a plateau first).
+        let top = r.and_then(|r| {
+            r.params.iter().reduce(|a, b| if b.held_out_reduction > a.held_out_reduction { b } else { a })
+        });
         attributed_units.push(top.map(|p| p.unit.clone()));
         if matches!(i.kind.scope(), Scope::Group | Scope::Joint) {
             jt += 1;

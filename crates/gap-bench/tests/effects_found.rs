@@ -204,6 +204,7 @@ fn single_link_com_in_an_independent_engine() {
 /// own difference there, which alone makes the whole held-out gap larger: such a unit is dropped, or it hides the
 /// shoulder's (before it was, this trial abstained).
 #[test]
+#[ignore = "nightly (scripts/nightly.sh): CI keeps three benchmark-trial cases (~2 min each)"]
 fn arm_encoder_offset_of_a_rapier_benchmark_trial() {
     let (score, report) = benchmark_trial(diff_physics::EngineKind::RapierMultibody, 24, 0, 3, 13);
     assert_eq!(score.injected.len(), 1, "{:?}", score.injected);
@@ -253,6 +254,7 @@ fn speed_split(report: &Report, kind: EffectKind) -> gap_diagnosis::diagnose::Ha
 /// more where the arm moves slowly, which a viscous torque cannot: the speed split sets it aside and nothing of the
 /// library is named (the load split alone did not: this damping wants less, not more, under load).
 #[test]
+#[ignore = "nightly (scripts/nightly.sh): CI keeps three benchmark-trial cases (~2 min each)"]
 fn a_load_friction_of_a_rapier_benchmark_trial_is_not_named_as_damping() {
     let report = out_of_library_trial_names_nothing(0, 1, 5, ("load_friction", "right_arm"));
     let by_speed = speed_split(&report, EffectKind::Damping);
@@ -267,6 +269,7 @@ fn a_load_friction_of_a_rapier_benchmark_trial_is_not_named_as_damping() {
 /// slowest windows barely move the leg). An effect cleared on part of the windows only is set aside by halves that
 /// far apart in scale, and nothing of the library is named.
 #[test]
+#[ignore = "nightly (scripts/nightly.sh): CI keeps three benchmark-trial cases (~2 min each)"]
 fn a_load_friction_cleared_on_part_of_the_windows_is_not_named_as_damping() {
     let report = out_of_library_trial_names_nothing(2, 5, 5, ("load_friction", "left_leg"));
     let by_speed = speed_split(&report, EffectKind::Damping);
@@ -280,6 +283,7 @@ fn a_load_friction_cleared_on_part_of_the_windows_is_not_named_as_damping() {
 /// at speed, so the fitted friction cuts the gap of the slowest half of the training windows and not that of the
 /// fastest half, which no Coulomb torque does: the speed split sets it aside and nothing is named.
 #[test]
+#[ignore = "nightly (scripts/nightly.sh): CI keeps three benchmark-trial cases (~2 min each)"]
 fn a_torque_ripple_fitted_as_a_friction_that_fades_with_speed_is_not_named() {
     let report = out_of_library_trial_names_nothing(0, 6, 0, ("torque_ripple", "right_knee"));
     let by_speed = speed_split(&report, EffectKind::Friction);
@@ -317,6 +321,28 @@ fn a_leg_dead_band_that_wants_a_wider_band_under_load_is_still_named() {
     let by_load = e.splits.iter().find(|s| s.by == SplitBy::Load).expect("a load split");
     assert!(by_load.scales_contradict() && by_load.load_paced && !by_load.set_aside, "{by_load:?}");
     assert!(by_load.cut_low.lo > 0.0, "{by_load:?}");
+}
+
+/// Issue 14, a sparse effect: trial 2 of the Rapier benchmark's seed 10 (`ulab gap bench --reference-engine
+/// rapier_multibody --trials 8 --out-of-library 4 --seed 10 --duration 15`, blind before this rule): a friction on the
+/// right leg and a torque saturation of the right knee at 0.49 of its limit, which the excitation reaches for a few
+/// tens of milliseconds. The saturation's fit cut too little of the whole held-out gap to clear a floor and only the
+/// friction was named; the log's own torque shows the knee held at 0.49 of its limit while the PD law asked for up
+/// to 1.45 times that, and the saturation is named from it, on that joint, beside the friction.
+#[test]
+fn a_torque_ceiling_the_motion_reaches_in_a_few_windows_is_named_from_the_log() {
+    let (score, report) = benchmark_trial(diff_physics::EngineKind::RapierMultibody, 8, 4, 10, 2);
+    let mut injected: Vec<EffectKind> = score.injected.iter().map(|i| i.kind).collect();
+    injected.sort_by_key(|k| k.name());
+    assert_eq!(injected, vec![EffectKind::Friction, EffectKind::TorqueSaturation], "{:?}", score.injected);
+    assert!(score.all_found && score.misattributed == 0, "ranked {:?}", report.ranked);
+    assert_eq!(report.ranked.len(), 2, "ranked {:?}", report.ranked);
+    let e = report.effects.iter().find(|e| e.kind == EffectKind::TorqueSaturation).expect("saturation assessed");
+    assert_eq!(e.ceilings_in_log.len(), 1, "{:?}", e.ceilings_in_log);
+    assert_eq!(e.ceilings_in_log[0].joint, "right_knee");
+    assert!((e.ceilings_in_log[0].scale - 0.491).abs() < 0.02, "{:?}", e.ceilings_in_log);
+    assert_eq!(e.params.len(), 1);
+    assert_eq!(e.params[0].unit, "right_knee");
 }
 
 #[test]

@@ -46,7 +46,10 @@ pub use remainder::{
 };
 pub use select::{Combination, MAX_COMBINATION, REFIT_CANDIDATES};
 pub use stats::{Estimate, Judged, EFFECT_FLOOR_FRAC, TRIM_FRAC};
-pub use torque_ceiling::{CEILING_MARGIN, MAX_FRACTION_ABOVE};
+pub use torque_ceiling::{
+    ceilings_in_log, LogCeiling, CEILING_MARGIN, DEMAND_OVER, FOLLOW_BELOW, FOLLOW_TOL, MAX_FRACTION_ABOVE,
+    MAX_SCALE_IN_LOG, MIN_FOLLOW, MIN_PINNED, PLATEAU_BAND,
+};
 pub use windows::{AT_LIMIT_RAD, COMMAND_STALE_S, TIMING_TOL_S};
 
 pub use crate::noise::{SIGMA_DQ, SIGMA_GYRO, SIGMA_Q, SIGMA_QUAT, SIGMA_TAU_FRAC};
@@ -77,7 +80,9 @@ pub use crate::noise::{TIMING_HI, TIMING_LO};
 /// (the same fields, so the version did not change).
 /// `/14`: a backlash's load split carries `load_paced`: it is set aside only when, besides its scales, its fitted
 /// value cuts the heavy half's gap at least as much per unit of load as the light half's.
-pub const SCHEMA_VERSION: &str = "ulab-gap-report/14";
+/// `/15`: a torque saturation no fit named may be named from the log's own torque and carries `ceilings_in_log`
+/// (per joint: `joint`, `scale`, `pinned`, `follow`); it is never explained away.
+pub const SCHEMA_VERSION: &str = "ulab-gap-report/15";
 
 /// What the diagnosis concluded about the log as a whole.
 #[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq)]
@@ -266,6 +271,7 @@ fn rig_violated(
             contradicted_units: vec![],
             named_off_limit_only: false,
             splits: vec![],
+            ceilings_in_log: vec![],
         })
         .collect();
     Report {

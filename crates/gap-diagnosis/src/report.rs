@@ -187,6 +187,25 @@ pub fn markdown(r: &Report) -> String {
             crate::diagnose::MAX_FRACTION_ABOVE * 100.0,
         );
     }
+    let in_log: Vec<String> = r
+        .effects
+        .iter()
+        .flat_map(|e| &e.ceilings_in_log)
+        .map(|c| {
+            format!(
+                "{} at {:.2} of its limit ({} samples held, {:.2} followed below)",
+                c.joint, c.scale, c.pinned, c.follow
+            )
+        })
+        .collect();
+    if !in_log.is_empty() {
+        s += &format!(
+            "\nTorque ceilings the log shows (the logged torque held at a plateau below the nominal limit while the \
+             PD law of the log's command asked for over {}x it; named whatever share of the gap they cut): {}.\n",
+            crate::diagnose::DEMAND_OVER,
+            in_log.join(", ")
+        );
+    }
     s += &splits_section(r);
     s += &ambiguous_section(r);
     s += &identifiability_section(r);

@@ -10,7 +10,8 @@
 //! on one elbow, a weak gain on one shoulder, armature on one leg; and an encoder offset on one hip) is named first,
 //! on that joint, at its size; both effects of a pair are named; a no-effect log names nothing; and the numerics
 //! stage says which stepping the log was made with (1 ms steps and PD at 1 kHz, or the diagnosing one); a friction
-//! proportional to the load (outside the library) names nothing, where a viscous damping on the same joint is named.
+//! proportional to the load (outside the library) names nothing, where a viscous damping on the same joint is named;
+//! a torque ceiling (a plain clip in the plant) is named from the log's own torque on its joint, at its size.
 mod common;
 
 use gap_diagnosis::diagnose::{HalvesRefit, Report, SplitBy};
@@ -161,4 +162,21 @@ fn a_no_effect_log_names_nothing_and_its_stepping_is_recognised() {
     assert!(r.ranked.is_empty(), "ranked {:?}", r.ranked);
     let n = r.numerics.as_ref().expect("numerics on the rig");
     assert!(n.better_variant().is_none(), "{:?}", n.variants);
+}
+
+/// A torque ceiling (issue 14, a sparse effect): the plant's motor delivers at most 0.3 of the limit, a plain clip
+/// written in the plant's program (the diagnosis's saturation has a torque-speed line), which the chirps reach on the
+/// waist in a dozen samples and on a hip pitch in about sixty. Named from the log's own torque, on that joint, at its
+/// size; a no-effect log of the same plant shows no ceiling (`a_no_effect_log_names_nothing...`).
+#[test]
+fn a_torque_ceiling_of_another_program_s_plant_is_named_from_the_log() {
+    let Some(shared) = shared() else { return };
+    for (joint, motor) in [("torso_joint", "torso"), ("left_hip_pitch_joint", "left_hip_pitch")] {
+        let r = diagnose_plant(&shared, &format!("ceiling_{motor}"), &["--torque-scale", &format!("{joint}=0.3")]);
+        assert_eq!(r.ranked, vec![EffectKind::TorqueSaturation], "{motor}");
+        assert_named_on(&r, EffectKind::TorqueSaturation, motor, 0.3, 0.02);
+        let e = r.effects.iter().find(|e| e.kind == EffectKind::TorqueSaturation).expect("assessed");
+        let seen: Vec<&str> = e.ceilings_in_log.iter().map(|c| c.joint.as_str()).collect();
+        assert_eq!(seen, vec![motor], "{:?}", e.ceilings_in_log);
+    }
 }

@@ -12,7 +12,9 @@ use super::options::PlantKind;
 use super::replay::Ctx;
 use super::replay::Scores;
 use super::stats::{bootstrap_mean, judge, mean, total, Estimate};
-use super::torque_ceiling::{joints_above_ceiling, CEILING_MARGIN, MAX_FRACTION_ABOVE};
+use super::torque_ceiling::{
+    ceilings_in_log, joints_above_ceiling, LogCeiling, CEILING_MARGIN, DEMAND_OVER, MAX_FRACTION_ABOVE,
+};
 use crate::effects::{EffectKind, Scope};
 use crate::plant::Effects;
 use crate::GapError;
@@ -84,6 +86,11 @@ pub struct EffectResult {
     /// no library effect's does.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub splits: Vec<HalvesRefit>,
+    /// Torque saturation named from the log's own torque ([`super::torque_ceiling::ceilings_in_log`]): the
+    /// plateaus the log shows, which no fit named. Kept named beside the best combination (the evidence is the
+    /// log's, not a cut of the gap).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub ceilings_in_log: Vec<LogCeiling>,
 }
 
 /// A fitted value within this fraction of its search range from a bound (other than the no-effect value) sits at
@@ -202,6 +209,7 @@ fn not_identifiable(kind: EffectKind, any_contact: bool, baseline_metric: Estima
         contradicted_units: vec![],
         named_off_limit_only: false,
         splits: vec![],
+        ceilings_in_log: vec![],
     }
 }
 
@@ -359,15 +367,15 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
         }
         params = kept;
     }
-    let after_tot = if params.is_empty() {
+    let mut after_tot = if params.is_empty() {
         base_test_tot.clone()
     } else {
         let a = ctx.eval_many(std::slice::from_ref(&pruned), &ctx.test)?.remove(0);
         a.iter().map(|s| total(s)).collect::<Vec<f64>>()
     };
     let judged = judge(base_test_tot, &after_tot, &ctx.off_limit_test(), bootstrap, rng);
-    let (red, floor) = (judged.reduction, judged.floor);
-    let metric_after = bootstrap_mean(&after_tot, bootstrap, rng);
+    let (mut red, mut floor) = (judged.reduction, judged.floor);
+    let mut metric_after = bootstrap_mean(&after_tot, bootstrap, rng);
     let cleared = !params.is_empty() && judged.clears();
     let splits = if cleared && ctx.plant == PlantKind::Rig {
         split_refits(ctx, kind, &pruned, judged.cleared_on_part_only())?
@@ -375,8 +383,8 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
         Vec::new()
     };
     let set_aside = splits.iter().find(|s| s.set_aside);
-    let named = cleared && set_aside.is_none();
-    let note = if let Some(s) = set_aside {
+    let mut named = cleared && set_aside.is_none();
+    let mut note = if let Some(s) = set_aside {
         Some(s.note())
     } else if named {
         judged.route_note()
@@ -407,6 +415,43 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
             red.value, red.lo, floor
         ))
     };
+    // A saturation no fit named, which the log's own torque shows sample by sample (`diagnose/torque_ceiling.rs`):
+    // named at the plateaus the log shows, whatever share of the whole gap it cuts.
+    let mut in_log = Vec::new();
+    if kind == EffectKind::TorqueSaturation && !named && set_aside.is_none() {
+        let joints: Vec<(&str, f64)> =
+            ctx.model.joints.iter().map(|j| (j.motor_name.as_str(), j.torque_limit)).collect();
+        in_log = ceilings_in_log(ctx.log, &joints);
+    }
+    if !in_log.is_empty() {
+        let mut fx = null.clone();
+        for c in &in_log {
+            if let Some(j) = ctx.model.joints.iter().position(|m| m.motor_name == c.joint) {
+                kind.set(&mut fx, j, c.scale);
+            }
+        }
+        let after = ctx.eval_many(std::slice::from_ref(&fx), &ctx.test)?.remove(0);
+        after_tot = after.iter().map(|s| total(s)).collect();
+        let judged = judge(base_test_tot, &after_tot, &ctx.off_limit_test(), bootstrap, rng);
+        (red, floor) = (judged.reduction, judged.floor);
+        metric_after = bootstrap_mean(&after_tot, bootstrap, rng);
+        params = log_ceiling_params(ctx, &in_log, red.value * mean(base_test_tot));
+        pruned = fx;
+        named = true;
+        note = Some(format!(
+            "named from the log's own torque: {} held at a plateau below the nominal limit while the PD law of the \
+             log's command asked for {DEMAND_OVER} times more, and followed below it (held-out reduction {:.3}, \
+             lower bound {:.3}; the floor {:.3} does not apply to a ceiling the log shows)",
+            in_log
+                .iter()
+                .map(|c| format!("{} at {:.2} of it ({} samples)", c.joint, c.scale, c.pinned))
+                .collect::<Vec<_>>()
+                .join(", "),
+            red.value,
+            red.lo,
+            floor
+        ));
+    }
     let result = EffectResult {
         kind,
         parameter: kind.parameter().into(),
@@ -420,10 +465,55 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
         explained_by: vec![],
         worsening_units: worsening,
         contradicted_units: contradicted,
-        named_off_limit_only: named && judged.off_limit.is_some(),
+        named_off_limit_only: named && in_log.is_empty() && judged.off_limit.is_some(),
         splits,
+        ceilings_in_log: in_log,
     };
     Ok(Assessed { result, kept: pruned, totals: after_tot })
+}
+
+/// The parameters of a saturation named from the log's ceilings: a group when two or more of its joints show one
+/// (at their median scale), otherwise each joint; each credited with `per_window`, the whole held-out cut, and
+/// listed by evidence (the most samples held at a plateau first).
+fn log_ceiling_params(ctx: &Ctx<'_>, ceilings: &[LogCeiling], per_window: f64) -> Vec<FittedParam> {
+    let mut order: Vec<usize> = (0..ceilings.len()).collect();
+    order.sort_by_key(|&i| std::cmp::Reverse(ceilings[i].pinned));
+    let ceilings: Vec<LogCeiling> = order.into_iter().map(|i| ceilings[i].clone()).collect();
+    let ceilings = &ceilings[..];
+    let kind = EffectKind::TorqueSaturation;
+    let group_of = |c: &LogCeiling| {
+        ctx.model.joints.iter().position(|m| m.motor_name == c.joint).and_then(|j| ctx.groups.get(j).copied())
+    };
+    let mut params = Vec::new();
+    let mut done = vec![false; ceilings.len()];
+    for (i, c) in ceilings.iter().enumerate() {
+        if done[i] {
+            continue;
+        }
+        let g = group_of(c);
+        let members: Vec<usize> =
+            (i..ceilings.len()).filter(|&k| !done[k] && g.is_some() && group_of(&ceilings[k]) == g).collect();
+        if let (Some(g), true) = (g, members.len() >= 2) {
+            let mut scales: Vec<f64> = members.iter().map(|&k| ceilings[k].scale).collect();
+            scales.sort_by(f64::total_cmp);
+            members.iter().for_each(|&k| done[k] = true);
+            params.push(FittedParam {
+                unit: unit_name(ctx, kind, g),
+                value: report_value(kind, scales[scales.len() / 2]),
+                sd: 0.0,
+                held_out_reduction: per_window,
+            });
+        } else {
+            done[i] = true;
+            params.push(FittedParam {
+                unit: c.joint.clone(),
+                value: report_value(kind, c.scale),
+                sd: 0.0,
+                held_out_reduction: per_window,
+            });
+        }
+    }
+    params
 }
 
 /// Sets the unit of `p` (a unit of `kind`, or one joint of a group effect named on that joint) in `to` at its value

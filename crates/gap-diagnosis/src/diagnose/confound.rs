@@ -157,6 +157,7 @@ mod tests {
             contradicted_units: vec![],
             named_off_limit_only: false,
             splits: vec![],
+            ceilings_in_log: vec![],
         }
     }
 

@@ -143,7 +143,8 @@ fn abstentions(results: &[EffectResult]) -> Vec<(EffectKind, String)> {
 /// effects where there is one. One the log cannot tell apart from a member stays named, as a member of its set,
 /// unless it was named alone only away from the range limits (`named_off_limit_only`): on Rapier's seed 2, trial 2
 /// (friction and backlash on one hip roll), a gain drop of that joint named so stood in for the friction beside the
-/// backlash it could not be told from.
+/// backlash it could not be told from. A torque saturation named from the log's own torque
+/// ([`EffectResult::ceilings_in_log`]) is never explained away.
 /// Sets without a member are dropped; the others lose the effects explained away.
 pub(super) fn explain_away(sel: &mut Selection, ambiguous: &mut Vec<super::confound::AmbiguousSet>) {
     let Some(combo) = sel.best_combination.as_ref() else { return };
@@ -151,8 +152,12 @@ pub(super) fn explain_away(sel: &mut Selection, ambiguous: &mut Vec<super::confo
     let given: Vec<&str> = members.iter().map(|k| k.name()).collect();
     let off_limit_only: Vec<EffectKind> =
         sel.effects.iter().filter(|r| r.named_off_limit_only).map(|r| r.kind).collect();
+    // A ceiling the log's own torque shows is evidence of its own, not a cut of the gap that a member can take.
+    let in_log: Vec<EffectKind> =
+        sel.effects.iter().filter(|r| !r.ceilings_in_log.is_empty()).map(|r| r.kind).collect();
     let kept = |k: EffectKind| {
         members.contains(&k)
+            || in_log.contains(&k)
             || (!off_limit_only.contains(&k) && ambiguous.iter().any(|s| members.iter().any(|&m| s.links(k, m))))
     };
     let away: Vec<EffectKind> = sel.ranked.iter().copied().filter(|&k| !kept(k)).collect();
@@ -300,6 +305,7 @@ mod tests {
             contradicted_units: vec![],
             named_off_limit_only: false,
             splits: vec![],
+            ceilings_in_log: vec![],
         }
     }
 

@@ -8,9 +8,17 @@
 //! every joint of the group, and a joint that really carries more contradicts it there only: the ceiling is taken
 //! off the contradicted joints and the unit kept on the others (Rapier seed 1's trial 6: a hip roll's saturation,
 //! fitted on the whole left leg at 0.38, which the ankle pitch exceeds in 14 % of the samples).
+//!
+//! The other way round, the log can show a ceiling that no fit names ([`ceilings_in_log`]): a saturation the motion
+//! reaches in a few windows cuts too little of the whole held-out gap to clear a floor (Rapier seed 10's trial 2, a
+//! right knee at 0.49 of its limit beside a right-leg friction), yet in those windows the delivered torque sits
+//! at one level below the nominal limit while the PD law of the log's own command and state asks for more, and
+//! below that level the drive follows the PD law. Neither a gain drop nor a latency nor the nominal clamp looks so.
 use super::replay::Ctx;
 use crate::effects::EffectKind;
+use crate::log::{Command, Measurement, RobotLog};
 use crate::plant::Effects;
+use serde::{Deserialize, Serialize};
 
 /// A logged torque counts against the ceiling only beyond this multiple of it (noise, a fitted value a little low).
 pub const CEILING_MARGIN: f64 = 1.1;
@@ -34,4 +42,139 @@ pub(super) fn joints_above_ceiling(ctx: &Ctx<'_>, fx: &Effects) -> Vec<usize> {
             above as f64 / n > MAX_FRACTION_ABOVE
         })
         .collect()
+}
+
+/// The logged torque counts as held at a plateau when within this fraction of it (sensor noise, the torque-speed
+/// line's first few percent).
+pub const PLATEAU_BAND: f64 = 0.10;
+/// ... while the PD law the log's own command and state imply asks for at least this multiple of the plateau.
+pub const DEMAND_OVER: f64 = 1.15;
+/// A plateau needs at least this many such samples (20 ms at the robot's 500 Hz), and is taken as the
+/// `MIN_PINNED`-th largest logged |torque| so that a noise spike does not set it.
+pub const MIN_PINNED: usize = 10;
+/// A plateau at this fraction of the nominal torque limit or above is the nominal clamp, which the diagnosing
+/// plant models already.
+pub const MAX_SCALE_IN_LOG: f64 = 0.9;
+/// Below the plateau the drive must follow the PD law: the median of logged over demanded torque, over the samples
+/// whose demand is between half the plateau and [`FOLLOW_BELOW`] of it, within this distance of 1. A gain drop
+/// (the drive delivers a fixed fraction of every demand) or a command latency (the demand read off the newest
+/// command is not the one applied) fails it, so neither is taken for a ceiling.
+pub const FOLLOW_TOL: f64 = 0.1;
+/// The upper end of the demands over which the drive's following is checked, as a fraction of the plateau.
+pub const FOLLOW_BELOW: f64 = 0.9;
+/// The following is judged on no fewer samples than this.
+pub const MIN_FOLLOW: usize = 20;
+
+/// A torque ceiling the log shows on one joint: its logged torque (`tau_est`, what the drive delivered) held at a
+/// plateau below the nominal limit while the PD law of the log's own command and state asked for more (issue 14,
+/// a sparse effect: a saturation that the motion reaches in a few windows cuts little of the whole gap and clears no
+/// floor, yet the log shows it sample by sample).
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct LogCeiling {
+    /// The joint (motor name).
+    pub joint: String,
+    /// The plateau as a fraction of the joint's nominal torque limit.
+    pub scale: f64,
+    /// Samples held at the plateau while the PD law asked for more than [`DEMAND_OVER`] times it.
+    pub pinned: usize,
+    /// Median of logged over demanded torque below the plateau (≈ 1: the drive follows the PD law there).
+    pub follow: f64,
+}
+
+/// The ceilings the log shows ([`LogCeiling`]), one per joint at most, in joint order. `joints` gives each
+/// joint's name and nominal torque limit, in the log's joint order. Reads the log only: no simulation, no fit.
+pub fn ceilings_in_log(log: &RobotLog, joints: &[(&str, f64)]) -> Vec<LogCeiling> {
+    // The PD demand of the command in force at each state, and the logged torque, per joint.
+    let pairs: Vec<(&Measurement, &Command)> = log
+        .states
+        .iter()
+        .filter_map(|s| log.command_at(s.t).and_then(|i| log.commands.get(i)).map(|c| (s, c)))
+        .collect();
+    let mut out = Vec::new();
+    for (j, &(name, limit)) in joints.iter().enumerate() {
+        let samples: Vec<(f64, f64)> = pairs
+            .iter()
+            .filter_map(|(s, c)| {
+                let demand = c.tau.get(j)?
+                    + c.kp.get(j)? * (c.q.get(j)? - s.q.get(j)?)
+                    + c.kd.get(j)? * (c.dq.get(j)? - s.dq.get(j)?);
+                Some((demand, *s.tau.get(j)?))
+            })
+            .filter(|(d, t)| d.is_finite() && t.is_finite())
+            .collect();
+        if let Some(c) = plateau(&samples, limit) {
+            out.push(LogCeiling { joint: name.to_string(), ..c });
+        }
+    }
+    out
+}
+
+/// The plateau of one joint's (demand, logged torque) samples, if the log shows one below [`MAX_SCALE_IN_LOG`]
+/// of `limit` (the name left empty).
+fn plateau(samples: &[(f64, f64)], limit: f64) -> Option<LogCeiling> {
+    if !(limit > 0.0) || samples.len() < MIN_PINNED {
+        return None;
+    }
+    let mut mags: Vec<f64> = samples.iter().map(|(_, t)| t.abs()).collect();
+    mags.sort_by(f64::total_cmp);
+    let c = mags[mags.len() - MIN_PINNED];
+    if !(c > 0.0) || c > MAX_SCALE_IN_LOG * limit {
+        return None;
+    }
+    let pinned = samples
+        .iter()
+        .filter(|(d, t)| t.abs() >= (1.0 - PLATEAU_BAND) * c && d.abs() >= DEMAND_OVER * c && d.signum() == t.signum())
+        .count();
+    if pinned < MIN_PINNED {
+        return None;
+    }
+    let mut ratios: Vec<f64> =
+        samples.iter().filter(|(d, _)| d.abs() >= 0.5 * c && d.abs() <= FOLLOW_BELOW * c).map(|(d, t)| t / d).collect();
+    if ratios.len() < MIN_FOLLOW {
+        return None;
+    }
+    ratios.sort_by(f64::total_cmp);
+    let follow = ratios[ratios.len() / 2];
+    if (follow - 1.0).abs() > FOLLOW_TOL {
+        return None;
+    }
+    Some(LogCeiling { joint: String::new(), scale: c / limit, pinned, follow })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// (demand, logged torque) of a joint driven by a slow sine of demand `amp`, delivered through `drive`.
+    fn samples(amp: f64, drive: impl Fn(f64) -> f64) -> Vec<(f64, f64)> {
+        (0..5000)
+            .map(|i| {
+                let d = amp * (i as f64 * 0.004).sin();
+                (d, drive(d))
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_ceiling_below_the_limit_is_seen_at_its_level() {
+        // A 300 N·m knee driven to 215 N·m of demand, delivered up to 147 N·m (0.49 of the limit).
+        let c = plateau(&samples(215.0, |d| d.clamp(-147.0, 147.0)), 300.0).expect("a ceiling");
+        assert!((c.scale - 0.49).abs() < 0.005, "{c:?}");
+        assert!(c.pinned >= MIN_PINNED && (c.follow - 1.0).abs() < 1e-9, "{c:?}");
+    }
+
+    #[test]
+    fn the_nominal_clamp_a_gain_drop_and_a_joint_that_never_saturates_show_none() {
+        // The nominal clamp: a plateau at the limit itself.
+        assert!(plateau(&samples(300.0, |d| d.clamp(-200.0, 200.0)), 200.0).is_none());
+        // A gain drop: every demand delivered at 0.8, no plateau.
+        assert!(plateau(&samples(150.0, |d| 0.8 * d), 300.0).is_none());
+        // A gain drop and a ceiling: the drive does not follow the PD law below the plateau.
+        assert!(plateau(&samples(215.0, |d| (0.8 * d).clamp(-120.0, 120.0)), 300.0).is_none());
+        // Nothing: delivered as demanded.
+        assert!(plateau(&samples(150.0, |d| d), 300.0).is_none());
+        // Too few samples, and a limit that is not one.
+        assert!(plateau(&samples(215.0, |d| d.clamp(-147.0, 147.0))[..5], 300.0).is_none());
+        assert!(plateau(&samples(215.0, |d| d.clamp(-147.0, 147.0)), f64::NAN).is_none());
+    }
 }
