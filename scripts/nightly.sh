@@ -3,11 +3,12 @@
 #   - PhysX (the `physx` feature: its vendored SDK takes ~7 min of two cores to build): the engine's own tests
 #     against the reference and MuJoCo, `ulab model check/inspect`, and Unitree's SDK clients (Python SDK on
 #     Cyclone 11, C on Cyclone 0.10.2) driving `ulab sim --engine physx`;
-#   - the gap diagnosis on every single effect (`effects_found`, ~25 s a case; CI runs four) and on every stored
-#     benchmark trial (~2 min a case; CI runs three);
+#   - the gap diagnosis on every single effect and every stored benchmark trial (`effects_found`, 1–4 min a case;
+#     CI runs the no-effect control and one benchmark trial), and the Python plant's single-joint and load-friction
+#     logs (CI runs its control, pair and ceiling);
 #   - the control of the planted cheat (a gait optimised in MuJoCo transfers; CI runs the cheat itself);
 #   - every fuzz target, `engine_divergence` included (a release build of three engines with coverage).
-# Run after scripts/test.sh on the same checkout (it reuses its set-up); ~30 min on 2 cores.
+# Run after scripts/test.sh on the same checkout (it reuses its set-up); ~60–90 min on 2 cores.
 #   ULAB_FUZZ_SECONDS (default 60) per fuzz target.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -26,6 +27,8 @@ cargo test --locked -p ulab --features ulab/physx --test model_cli --test sim_sd
 phase "physx through ulab"
 cargo test --locked -p gap-bench --test effects_found -- --include-ignored || status=$?
 phase "effects_found"
+cargo test --locked -p gap-diagnosis --test python_plant -- --include-ignored || status=$?
+phase "python plant"
 cargo test --locked -p engine-diff --test planted_cheat -- --ignored a_gait_optimised_in_mujoco_transfers || status=$?
 phase "planted cheat control"
 bash scripts/fuzz.sh smoke-all "${ULAB_FUZZ_SECONDS:-60}" || status=$?

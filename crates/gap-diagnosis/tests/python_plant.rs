@@ -78,6 +78,7 @@ fn assert_named_on(r: &Report, kind: EffectKind, unit: &str, value: f64, tol: f6
 }
 
 #[test]
+#[ignore = "nightly (scripts/nightly.sh): CI keeps the control, the pair and the ceiling (issue 21: the CI time budget)"]
 fn single_joint_effects_of_another_program_s_plant_are_named_on_their_joint() {
     let Some(shared) = shared() else { return };
     // Dry friction (MuJoCo's frictionloss, a hard Coulomb law; the library's is smooth with stiction) on one elbow.
@@ -103,6 +104,7 @@ fn single_joint_effects_of_another_program_s_plant_are_named_on_their_joint() {
 }
 
 #[test]
+#[ignore = "nightly (scripts/nightly.sh): CI keeps the control, the pair and the ceiling (issue 21: the CI time budget)"]
 fn a_friction_that_grows_with_the_load_is_not_named_as_one_of_the_library() {
     let Some(shared) = shared() else { return };
     // 0.15 times the motor torque's magnitude against the motion of one elbow: outside the library. Damping,
