@@ -440,7 +440,7 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
         named = true;
         note = Some(format!(
             "named from the log's own torque: {} held at a plateau below the nominal limit while the PD law of the \
-             log's command asked for {DEMAND_OVER} times more, and followed below it (held-out reduction {:.3}, \
+             log's command asked for over {DEMAND_OVER}x it, and followed below it (held-out reduction {:.3}, \
              lower bound {:.3}; the floor {:.3} does not apply to a ceiling the log shows)",
             in_log
                 .iter()
@@ -476,10 +476,8 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
 /// (at their median scale), otherwise each joint; each credited with `per_window`, the whole held-out cut, and
 /// listed by evidence (the most samples held at a plateau first).
 fn log_ceiling_params(ctx: &Ctx<'_>, ceilings: &[LogCeiling], per_window: f64) -> Vec<FittedParam> {
-    let mut order: Vec<usize> = (0..ceilings.len()).collect();
-    order.sort_by_key(|&i| std::cmp::Reverse(ceilings[i].pinned));
-    let ceilings: Vec<LogCeiling> = order.into_iter().map(|i| ceilings[i].clone()).collect();
-    let ceilings = &ceilings[..];
+    let mut ceilings: Vec<&LogCeiling> = ceilings.iter().collect();
+    ceilings.sort_by_key(|c| std::cmp::Reverse(c.pinned));
     let kind = EffectKind::TorqueSaturation;
     let group_of = |c: &LogCeiling| {
         ctx.model.joints.iter().position(|m| m.motor_name == c.joint).and_then(|j| ctx.groups.get(j).copied())
@@ -492,7 +490,7 @@ fn log_ceiling_params(ctx: &Ctx<'_>, ceilings: &[LogCeiling], per_window: f64) -
         }
         let g = group_of(c);
         let members: Vec<usize> =
-            (i..ceilings.len()).filter(|&k| !done[k] && g.is_some() && group_of(&ceilings[k]) == g).collect();
+            (i..ceilings.len()).filter(|&k| !done[k] && g.is_some() && group_of(ceilings[k]) == g).collect();
         if let (Some(g), true) = (g, members.len() >= 2) {
             let mut scales: Vec<f64> = members.iter().map(|&k| ceilings[k].scale).collect();
             scales.sort_by(f64::total_cmp);
