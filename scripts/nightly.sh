@@ -29,6 +29,8 @@ cargo test --locked -p gap-bench --test effects_found -- --include-ignored || st
 phase "effects_found"
 cargo test --locked -p gap-diagnosis --test python_plant -- --include-ignored || status=$?
 phase "python plant"
+cargo test --locked -p gap-bench --test policy_trials --test floating_diagnose -- --include-ignored || status=$?
+phase "policy trials, floating diagnosis"
 cargo test --locked -p engine-diff --test planted_cheat -- --ignored a_gait_optimised_in_mujoco_transfers || status=$?
 phase "planted cheat control"
 bash scripts/fuzz.sh smoke-all "${ULAB_FUZZ_SECONDS:-60}" || status=$?

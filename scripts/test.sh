@@ -3,7 +3,7 @@
 # every test of the workspace (unit, golden-byte, property, snapshot, fuzz-regression, engine,
 # DDS interop), then builds the protocol fuzz targets on stable and runs each briefly. What does not fit CI's
 # time budget (PhysX, the other gap-effect cases, the engine fuzz target) runs in scripts/nightly.sh.
-#   ULAB_FUZZ_SECONDS=0 skips the fuzz smoke run (default 20 s per target).
+#   ULAB_FUZZ_SECONDS=0 skips the fuzz smoke run (default 10 s per target; the nightly run fuzzes for longer).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # Wall time of each phase, printed so that a CI log shows where its time budget goes.
@@ -34,8 +34,8 @@ if compgen -G "target/tmp/ci-demo/*.mp4" > /dev/null; then
   echo "test.sh: CI demo videos:"
   ls -l target/tmp/ci-demo/*.mp4
 fi
-if [ "${ULAB_FUZZ_SECONDS:-20}" != 0 ]; then
-  bash scripts/fuzz.sh smoke "${ULAB_FUZZ_SECONDS:-20}" || status=$?
+if [ "${ULAB_FUZZ_SECONDS:-10}" != 0 ]; then
+  bash scripts/fuzz.sh smoke "${ULAB_FUZZ_SECONDS:-10}" || status=$?
   phase "fuzz smoke"
 fi
 exit "$status"
