@@ -6,6 +6,8 @@
 #   - the gap diagnosis on every single effect and every stored benchmark trial (`effects_found`, 1–4 min a case;
 #     CI runs the no-effect control and one benchmark trial), and the Python plant's single-joint and load-friction
 #     logs (CI runs its control, pair and ceiling);
+#   - a policy-driven benchmark trial whose saturation the logged torque contradicts (`policy_trials`) and the
+#     walking plant's contact stiffness (`floating_diagnose`; CI runs its leg damping, control and fallen windows);
 #   - the control of the planted cheat (a gait optimised in MuJoCo transfers; CI runs the cheat itself);
 #   - every fuzz target, `engine_divergence` included (a release build of three engines with coverage).
 # Run after scripts/test.sh on the same checkout (it reuses its set-up); ~60–90 min on 2 cores.

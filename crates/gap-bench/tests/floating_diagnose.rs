@@ -90,7 +90,7 @@ fn walking_leg_damping_is_named() {
 /// (b) A softer ground (contact time constant 0.04 s instead of MuJoCo's 0.02 s): contact stiffness named first,
 /// fitted softer than the model.
 #[test]
-#[ignore = "nightly (CI time, issue 21): CI keeps the leg damping and the no-effect control of the walking plant"]
+#[ignore = "nightly (scripts/nightly.sh): CI keeps the walking leg damping, the control and the fallen windows"]
 fn walking_contact_stiffness_is_named() {
     if !shared_set() {
         return;

@@ -84,7 +84,7 @@ fn policy_driven_log_moves_the_legs_and_the_diagnosis_finds_leg_damping() {
 /// over a quarter of the samples, which a saturation cannot let happen: it is contradicted and not named, and both
 /// injected effects lead the ranking.
 #[test]
-#[ignore = "nightly (CI time, issue 21): one 24-trial benchmark's policy-driven trial, ~4 min of one core"]
+#[ignore = "nightly (scripts/nightly.sh): ~4 min of one core; CI keeps the policy-driven leg damping"]
 fn a_torque_saturation_the_logged_torque_exceeds_is_not_named() {
     let Some(lstm) = lstm_spec() else { return };
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../robots/h1_2/policies/gepetto_demo_rsl.toml");
