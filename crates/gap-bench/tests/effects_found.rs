@@ -369,3 +369,30 @@ fn no_effect_in_an_independent_engine_no_confident_attribution() {
     let r = run_in(rapier, INDEPENDENT_DURATION, Effects::none(m.nj()), 12);
     assert!(r.ranked.is_empty(), "named on a no-effect Rapier log: {:?}", r.ranked);
 }
+
+/// Issue 14: pairs whose second effect the first masks (blind misses of the Rapier benchmark's seeds 15 and 16,
+/// `ulab gap bench --reference-engine rapier_multibody --trials 24 --seed S --duration 15`, trials 22 and 18):
+/// fitted alone, a left-knee damping under the left leg's armature, and a right-shoulder-roll friction under the
+/// right arm's link mass, cut no unit's residual by the unit floor, so they were never offered to the selection.
+/// Refitted on one joint with the first effect applied (`diagnose/unmask.rs`), each is named second, on its joint,
+/// near its value; nothing else is named.
+#[test]
+#[ignore = "nightly (scripts/nightly.sh): CI keeps the no-effect control and one benchmark trial"]
+fn a_second_effect_masked_by_the_first_is_named_on_its_joint() {
+    for (seed, i, first, second, joint, value) in [
+        (15, 22, EffectKind::Armature, EffectKind::Damping, "left_knee", 1.52),
+        (16, 18, EffectKind::LinkMass, EffectKind::Friction, "right_shoulder_roll", 2.22),
+    ] {
+        let (score, report) = benchmark_trial(diff_physics::EngineKind::RapierMultibody, 24, 0, seed, i);
+        let mut injected: Vec<EffectKind> = score.injected.iter().map(|i| i.kind).collect();
+        injected.sort_by_key(|k| k.name());
+        let mut want = vec![first, second];
+        want.sort_by_key(|k| k.name());
+        assert_eq!(injected, want, "seed {seed} trial {i}: {:?}", score.injected);
+        assert_eq!(report.ranked, vec![first, second], "seed {seed} trial {i}: {:?}", report.abstentions);
+        let e = report.effects.iter().find(|e| e.kind == second).expect("second effect");
+        assert_eq!(e.params.len(), 1, "seed {seed} trial {i}: {:?}", e.params);
+        assert_eq!(e.params[0].unit, joint);
+        assert!((e.params[0].value - value).abs() < 0.25 * value, "seed {seed} trial {i}: {:?}", e.params);
+    }
+}

@@ -6,7 +6,7 @@
 //! below it, so each can be read (and tested) without those above. `options` (what is asked) and `stats` (means,
 //! bootstrap, noise floor) are the leaves; `windows` picks the windows, `replay` replays and scores them,
 //! `breakdown` says where the gap lies, `fit` fits one effect, `assess` judges each effect alone, `select` builds
-//! the best combination, `confound` says which named effects the log cannot tell apart, `identify` says which
+//! the best combination (with `unmask`, which refits the effects a first one masked), `confound` says which named effects the log cannot tell apart, `identify` says which
 //! effects this log could reveal at all, `numerics` how much of the gap the integrator, timestep or PD rate alone could make,
 //! and `remainder` says what is left (per window, robustly, and where). One
 //! RNG is threaded through the stages in a fixed order, so a seed fixes the report.
@@ -31,6 +31,7 @@ mod replay;
 mod select;
 mod stats;
 mod torque_ceiling;
+mod unmask;
 mod windows;
 
 pub use assess::{EffectResult, FittedParam, MIN_WINDOWS_OFF_LIMIT, SINGLE_JOINT_CANDIDATES, UNIT_FLOOR_FRAC};
@@ -187,6 +188,8 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
         assessment.candidates.iter().map(|c| (c.kind, c.fx.clone())).collect();
     let mut selection = select::select(&ctx, assessment, &baseline, &mut rng)?;
     // Which named effects the log cannot tell apart.
+    let fitted: Vec<(EffectKind, crate::plant::Effects)> =
+        fitted.into_iter().chain(selection.unmasked.iter().cloned()).collect();
     let named: Vec<(EffectKind, crate::plant::Effects)> =
         selection.ranked.iter().filter_map(|k| fitted.iter().find(|(f, _)| f == k).cloned()).collect();
     let mut ambiguous = confound::ambiguous_sets(&ctx, &named, &baseline.test_tot, &mut rng)?;

@@ -245,7 +245,7 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
     let mut params = Vec::new();
     let mut limit_only = Vec::new();
     let single =
-        if kind.scope() == Scope::Group { Some(single_joints(ctx, kind, &baseline.train, rng)?) } else { None };
+        if kind.scope() == Scope::Group { Some(single_joints(ctx, kind, &null, &baseline.train, rng)?) } else { None };
     let (lo, hi, v0) = kind.range();
     for (u, cols) in units.iter().enumerate() {
         let Some(after) = sets.iter().position(|m| m[u]).and_then(|k| after_sets.get(k)) else { continue };
@@ -534,7 +534,7 @@ fn copy_param(
 
 /// Whether a unit's held-out cuts keep it.
 #[derive(Debug, Clone, Copy, PartialEq)]
-enum UnitVerdict {
+pub(super) enum UnitVerdict {
     /// Kept, with its mean held-out cut of its own residual.
     Kept(f64),
     /// It cuts its own residual only in windows where one of its joints reaches a range limit.
@@ -547,7 +547,7 @@ enum UnitVerdict {
 /// limits ([`off_limit`]), or, failing that, when it clears over the windows away from its limits alone (at least
 /// [`MIN_WINDOWS_OFF_LIMIT`] of them): simulators model limits differently, and in a log from another engine a few
 /// windows at a limit can hide an effect the other windows show.
-fn judge_unit(
+pub(super) fn judge_unit(
     ctx: &Ctx<'_>,
     kind: EffectKind,
     cols: &[usize],
@@ -609,11 +609,11 @@ fn off_limit(ctx: &Ctx<'_>, kind: EffectKind, cols: &[usize], before: &[f64], di
 }
 
 /// A group-scope effect fitted on one joint per group, at its fitted value, and the held-out scores with all of
-/// them applied.
-struct SingleJoints {
-    joints: Vec<usize>,
-    values: Vec<f64>,
-    after: Scores,
+/// them applied (on top of the effects the fit started from).
+pub(super) struct SingleJoints {
+    pub joints: Vec<usize>,
+    pub values: Vec<f64>,
+    pub after: Scores,
 }
 
 /// How many joints of each group are tried for a single-joint effect: the ones carrying most of the group's
@@ -625,9 +625,10 @@ pub const SINGLE_JOINT_CANDIDATES: usize = 3;
 /// [`SINGLE_JOINT_CANDIDATES`] carrying most of its training residual, in turn), and the one that leaves the
 /// group's training residual smallest is kept, so that a friction on one elbow is named on the elbow instead of
 /// diluted over the arm (or missed, when spreading it over the arm fits worse than nothing).
-fn single_joints(
+pub(super) fn single_joints(
     ctx: &Ctx<'_>,
     kind: EffectKind,
+    base: &Effects,
     base_train: &Scores,
     rng: &mut impl Rng,
 ) -> Result<SingleJoints, GapError> {
@@ -648,14 +649,14 @@ fn single_joints(
         if k > 0 && !ranked.iter().any(|js| js.len() > k) {
             break;
         }
-        let fit = fit_one_joint_per_group(ctx, kind, &try_joints, base_train, rng)?;
+        let fit = fit_one_joint_per_group(ctx, kind, &try_joints, base, base_train, rng)?;
         for g in 0..joints.len() {
             if fit.scores[g] < best[g] {
                 (best[g], joints[g], values[g]) = (fit.scores[g], try_joints[g], fit.values[g]);
             }
         }
     }
-    let mut fx = Effects::none(ctx.nj());
+    let mut fx = base.clone();
     for (&j, &v) in joints.iter().zip(&values) {
         kind.set(&mut fx, j, v);
     }

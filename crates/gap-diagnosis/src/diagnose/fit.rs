@@ -127,17 +127,17 @@ pub(super) fn fit_one_joint_per_group(
     ctx: &Ctx<'_>,
     kind: EffectKind,
     joints: &[usize],
+    base: &Effects,
     base_train: &Scores,
     rng: &mut impl Rng,
 ) -> Result<UnitFit, GapError> {
-    let null = Effects::none(ctx.nj());
     let mask = vec![true; units_of(ctx, kind).len()];
     let setter = |fx: &mut Effects, u: usize, v: f64| {
         if let Some(&j) = joints.get(u) {
             kind.set(fx, j, v)
         }
     };
-    fit_units(ctx, kind, &null, base_train, rng, &mask, &setter)
+    fit_units(ctx, kind, base, base_train, rng, &mask, &setter)
 }
 
 /// Grid search then lockstep golden-section refinement of the units in `mask` (the others stay at no effect);

@@ -42,6 +42,8 @@ pub(super) struct Selection {
     pub best_combination: Option<Combination>,
     /// The best combination's effects (None: nothing named).
     pub combo_fx: Option<Effects>,
+    /// The effect added once masking was lifted ([`super::unmask`]), its kept units alone.
+    pub unmasked: Vec<(EffectKind, Effects)>,
 }
 
 /// An effect added to the best combination after the first.
@@ -83,6 +85,7 @@ pub(super) fn select(
     let null = Effects::none(ctx.nj());
     let mut best_combination = None;
     let mut combo_fx = None;
+    let mut unmasked = Vec::new();
     if !ranked.is_empty() {
         let get = |k: EffectKind| candidates.iter().find(|c| c.kind == k).map(|c| c.fx.clone());
         let first = ranked[0];
@@ -117,6 +120,31 @@ pub(super) fn select(
             members.push(kind);
             cur = trial.totals;
         }
+        if members.len() < MAX_COMBINATION {
+            if let Some(u) = super::unmask::unmask(ctx, &results, &members, &combo, &cur, &off_limit)? {
+                let route = Some(format!(
+                    "alone it cut no unit's own residual by the unit floor; refitted with the effects before it \
+                     applied, it cuts what they leave on {} by that floor{}",
+                    u.params.iter().map(|p| p.unit.as_str()).collect::<Vec<_>>().join(", "),
+                    u.judged.route_note().map(|t| format!("; {t}")).unwrap_or_default()
+                ));
+                let per_window = (cur.iter().sum::<f64>() - u.totals.iter().sum::<f64>()) / cur.len().max(1) as f64;
+                let mut params = u.params;
+                params.iter_mut().for_each(|p| p.held_out_reduction = per_window);
+                added.push(Conditional {
+                    kind: u.kind,
+                    gain: u.judged.reduction,
+                    floor: u.judged.floor,
+                    metric_after: u.metric_after,
+                    params: Some(params),
+                    route,
+                });
+                unmasked.push((u.kind, u.alone));
+                combo = u.fx;
+                members.push(u.kind);
+                cur = u.totals;
+            }
+        }
         name_conditionals(&mut results, &members, added);
         sort_results(&mut results);
         let named: Vec<EffectKind> = results.iter().filter(|r| r.named).map(|r| r.kind).collect();
@@ -128,7 +156,7 @@ pub(super) fn select(
         combo_fx = Some(combo);
     }
     let abstentions = abstentions(&results);
-    Ok(Selection { effects: results, ranked, abstentions, best_combination, combo_fx })
+    Ok(Selection { effects: results, ranked, abstentions, best_combination, combo_fx, unmasked })
 }
 
 /// Every effect not named, with its reason.
@@ -329,6 +357,7 @@ mod tests {
             abstentions: vec![(GainScale, "below the floor".into())],
             best_combination: Some(Combination { effects: vec![Friction, Latency], metric_after: est, reduction: est }),
             combo_fx: None,
+            unmasked: vec![],
         };
         let set = |e: Vec<EffectKind>| AmbiguousSet { effects: e, cosine: 0.9, gap_difference: 0.0, at_bound: vec![] };
         let mut sets = vec![set(vec![Friction, Damping, Armature]), set(vec![Armature, Backlash])];
@@ -353,6 +382,7 @@ mod tests {
             abstentions: vec![(GainScale, "below the floor".into())],
             best_combination: None,
             combo_fx: None,
+            unmasked: vec![],
         };
         let mut no_sets = vec![];
         explain_away(&mut none, &mut no_sets);
@@ -376,6 +406,7 @@ mod tests {
                 abstentions: vec![(Damping, "below the floor".into())],
                 best_combination: Some(Combination { effects: vec![Backlash], metric_after: est, reduction: est }),
                 combo_fx: None,
+                unmasked: vec![],
             };
             let mut sets = vec![set(vec![Backlash, GainScale])];
             explain_away(&mut sel, &mut sets);

@@ -1,0 +1,220 @@
+//! Masked effects: a second effect whose units' own residual the first effect swamps cuts none of them by the unit
+//! floor when fitted alone (a knee damping under a whole leg's armature, a shoulder friction under its arm's link
+//! mass), so it never becomes a candidate of the conditional selection ([`super::select`]). Once the selection
+//! stops, each such effect is refitted with the combination applied, and its units are judged by the same unit test
+//! as alone ([`super::assess::judge_unit`]) but against the residual the combination leaves; the best one with a
+//! kept unit is offered to the selection, which adds it only when it clears that residual's own noise floor. Rig
+//! only (the floating plant's fits are several times dearer), and one effect per diagnosis: every refit is a full
+//! fit. Its draws come from a stream of its own, so the other stages draw as they did without it.
+use super::assess::{judge_unit, single_joints, EffectResult, FittedParam, UnitVerdict, SINGLE_JOINT_FRAC};
+use super::fit::{fit_kind, report_value, set_unit, unit_name, unit_value, units_of, RESOLUTION_FRAC};
+use super::options::PlantKind;
+use super::replay::Ctx;
+use super::stats::{bootstrap_mean, judge, total, Estimate, Judged};
+use crate::effects::{EffectKind, Scope};
+use crate::plant::Effects;
+use crate::GapError;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+/// The stream of this stage's draws ("unmask").
+const UNMASK_STREAM: u64 = 0x756e_6d61_736b;
+
+/// An effect that keeps a unit only once the combination is applied.
+pub(super) struct Unmasked {
+    pub kind: EffectKind,
+    /// The combination with its kept units added.
+    pub fx: Effects,
+    /// Its kept units alone (for the ambiguity stage).
+    pub alone: Effects,
+    /// Held-out gap metric per window with it added.
+    pub totals: Vec<f64>,
+    pub metric_after: Estimate,
+    /// Its kept units, each with its mean held-out cut of the residual the combination leaves there.
+    pub params: Vec<FittedParam>,
+    /// How it cut the residual the combination leaves (it cleared that residual's noise floor).
+    pub judged: Judged,
+}
+
+/// Which effects may be masked: on the rig, the replayed effects (not the IMU's closed-form fits, nor a torque
+/// saturation, which has routes of its own from the log's torque) that kept no unit alone, were not set aside by a
+/// split and are not in the combination.
+fn masked_kinds(plant: PlantKind, results: &[EffectResult], members: &[EffectKind]) -> Vec<EffectKind> {
+    if plant != PlantKind::Rig {
+        return Vec::new();
+    }
+    results
+        .iter()
+        .filter(|r| {
+            r.kind.identifiable_suspended()
+                && r.kind.scope() != Scope::Imu
+                && r.kind != EffectKind::TorqueSaturation
+                && !members.contains(&r.kind)
+                && !r.named
+                && r.params.is_empty()
+                && r.set_aside_by_split().is_none()
+        })
+        .map(|r| r.kind)
+        .collect()
+}
+
+/// The masked effect that, refitted with `combo` applied, leaves the smallest held-out residual among those that
+/// keep a unit against the residual `combo` leaves, when it cuts that residual (`cur`, per held-out window) beyond
+/// its noise floor as the selection judges (`off_limit`: the held-out windows away from the range limits); `None`
+/// when none does.
+pub(super) fn unmask(
+    ctx: &Ctx<'_>,
+    results: &[EffectResult],
+    members: &[EffectKind],
+    combo: &Effects,
+    cur: &[f64],
+    off_limit: &[bool],
+) -> Result<Option<Unmasked>, GapError> {
+    let kinds = masked_kinds(ctx.plant, results, members);
+    if kinds.is_empty() {
+        return Ok(None);
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(UNMASK_STREAM ^ ctx.opts.seed);
+    let combo_train = ctx.eval_many(std::slice::from_ref(combo), &ctx.train)?.remove(0);
+    let combo_test = ctx.eval_many(std::slice::from_ref(combo), &ctx.test)?.remove(0);
+    let mut fits = Vec::with_capacity(kinds.len());
+    let mut singles = Vec::with_capacity(kinds.len());
+    for &kind in &kinds {
+        fits.push(fit_kind(ctx, kind, combo, &combo_train, &mut rng)?);
+        // A masked effect is often on one joint (a knee's damping under the leg's armature): fitted on the group
+        // alone it spreads over joints that do not want it.
+        singles.push(if kind.scope() == Scope::Group {
+            Some(single_joints(ctx, kind, combo, &combo_train, &mut rng)?)
+        } else {
+            None
+        });
+    }
+    let fitted: Vec<Effects> = fits.iter().map(|f| f.fx.clone()).collect();
+    let after_all = ctx.eval_many(&fitted, &ctx.test)?;
+    let mut offers = Vec::new();
+    for (((&kind, fit), after), single) in kinds.iter().zip(&fits).zip(&after_all).zip(&singles) {
+        let (lo, hi, v0) = kind.range();
+        let resolved = |v: f64| (v - v0).abs() >= RESOLUTION_FRAC * (hi - lo);
+        let mut with = combo.clone();
+        let mut alone = Effects::none(ctx.nj());
+        let mut params = Vec::new();
+        for (u, cols) in units_of(ctx, kind).iter().enumerate() {
+            let unit_sum = |s: &Vec<f64>| cols.iter().filter_map(|&c| s.get(c)).sum::<f64>();
+            let before: Vec<f64> = combo_test.iter().map(unit_sum).collect();
+            let value = unit_value(kind, &fit.fx, ctx, u);
+            let group = if resolved(value) {
+                let diffs: Vec<f64> = before.iter().zip(after).map(|(b, a)| b - unit_sum(a)).collect();
+                judge_unit(ctx, kind, cols, &before, &diffs, &mut rng)
+            } else {
+                UnitVerdict::Not
+            };
+            let joint = match single {
+                Some(sj) if cols.len() >= 2 && sj.values.get(u).is_some_and(|&v| resolved(v)) => {
+                    let diffs: Vec<f64> = before.iter().zip(&sj.after).map(|(b, a)| b - unit_sum(a)).collect();
+                    Some((sj.joints[u], sj.values[u], judge_unit(ctx, kind, cols, &before, &diffs, &mut rng)))
+                }
+                _ => None,
+            };
+            // As alone: the single joint when it cuts nearly as much as the group, or it alone clears.
+            let group_cut = match group {
+                UnitVerdict::Kept(d) => Some(d),
+                _ => None,
+            };
+            match joint {
+                Some((j, v, UnitVerdict::Kept(cut))) if group_cut.is_none_or(|d| cut >= SINGLE_JOINT_FRAC * d) => {
+                    kind.set(&mut with, j, v);
+                    kind.set(&mut alone, j, v);
+                    params.push(FittedParam {
+                        unit: ctx.model.joints[j].motor_name.clone(),
+                        value: report_value(kind, v),
+                        sd: report_value(kind, fit.sds.get(u).copied().unwrap_or(0.0)),
+                        held_out_reduction: cut,
+                    });
+                }
+                _ => {
+                    if let Some(cut) = group_cut {
+                        set_unit(kind, &mut with, ctx, u, value);
+                        set_unit(kind, &mut alone, ctx, u, value);
+                        params.push(FittedParam {
+                            unit: unit_name(ctx, kind, u),
+                            value: report_value(kind, value),
+                            sd: report_value(kind, fit.sds.get(u).copied().unwrap_or(0.0)),
+                            held_out_reduction: cut,
+                        });
+                    }
+                }
+            }
+        }
+        if !params.is_empty() {
+            offers.push((kind, with, alone, params));
+        }
+    }
+    if offers.is_empty() {
+        return Ok(None);
+    }
+    let cfgs: Vec<Effects> = offers.iter().map(|o| o.1.clone()).collect();
+    let totals: Vec<Vec<f64>> =
+        ctx.eval_many(&cfgs, &ctx.test)?.iter().map(|r| r.iter().map(|s| total(s)).collect()).collect();
+    let Some(((kind, fx, alone, params), totals)) =
+        offers.into_iter().zip(totals).min_by(|a, b| a.1.iter().sum::<f64>().total_cmp(&b.1.iter().sum::<f64>()))
+    else {
+        return Ok(None);
+    };
+    let judged = judge(cur, &totals, off_limit, ctx.opts.bootstrap, &mut rng);
+    if !judged.clears() {
+        return Ok(None);
+    }
+    let metric_after = bootstrap_mean(&totals, ctx.opts.bootstrap, &mut rng);
+    Ok(Some(Unmasked { kind, fx, alone, totals, metric_after, params, judged }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagnose::stats::Estimate;
+
+    fn result(kind: EffectKind, named: bool, kept_unit: bool) -> EffectResult {
+        let est = Estimate { value: 0.1, lo: 0.05, hi: 0.15 };
+        EffectResult {
+            kind,
+            parameter: String::new(),
+            scope: kind.scope(),
+            named,
+            reduction: est,
+            metric_after: est,
+            noise_floor: 0.03,
+            params: if kept_unit {
+                vec![FittedParam { unit: "left_leg".into(), value: 1.0, sd: 0.1, held_out_reduction: 1.0 }]
+            } else {
+                vec![]
+            },
+            note: None,
+            explained_by: vec![],
+            worsening_units: vec![],
+            contradicted_units: vec![],
+            named_off_limit_only: false,
+            splits: vec![],
+            ceilings_in_log: vec![],
+        }
+    }
+
+    /// Only effects that kept no unit alone are refitted (the others were candidates already), never a member, an
+    /// IMU effect, a torque saturation or a ground-contact effect on the rig, and nothing on the floating base.
+    #[test]
+    fn only_effects_that_kept_no_unit_alone_are_refitted_on_the_rig() {
+        use EffectKind::*;
+        let results = vec![
+            result(Armature, true, true),
+            result(Damping, false, false),
+            result(Friction, false, true),
+            result(TorqueSaturation, false, false),
+            result(Latency, false, false),
+            result(ImuBias, false, false),
+            result(ContactFriction, false, false),
+            result(LinkCom, false, false),
+        ];
+        assert_eq!(masked_kinds(PlantKind::Rig, &results, &[Armature]), vec![Damping, Latency, LinkCom]);
+        assert_eq!(masked_kinds(PlantKind::Rig, &results, &[Armature, Latency]), vec![Damping, LinkCom]);
+        assert!(masked_kinds(PlantKind::Floating, &results, &[Armature]).is_empty());
+    }
+}
