@@ -116,6 +116,31 @@ impl EffectResult {
     }
 }
 
+#[cfg(test)]
+impl EffectResult {
+    /// A result with no units, no note and no split, for the selection stages' tests.
+    pub(super) fn for_test(kind: EffectKind, named: bool, reduction: f64) -> Self {
+        let est = |value: f64| Estimate { value, lo: value - 0.01, hi: value + 0.01 };
+        EffectResult {
+            kind,
+            parameter: String::new(),
+            scope: kind.scope(),
+            named,
+            reduction: est(reduction),
+            metric_after: est(1.0),
+            noise_floor: 0.03,
+            params: vec![],
+            note: None,
+            explained_by: vec![],
+            worsening_units: vec![],
+            contradicted_units: vec![],
+            named_off_limit_only: false,
+            splits: vec![],
+            ceilings_in_log: vec![],
+        }
+    }
+}
+
 /// A fitted effect that cut some unit's own held-out residual: a candidate of the forward selection.
 pub(super) struct Candidate {
     pub kind: EffectKind,

@@ -317,24 +317,7 @@ mod tests {
     use super::*;
 
     fn result(kind: EffectKind, named: bool, reduction: f64) -> EffectResult {
-        let est = |value: f64| Estimate { value, lo: value - 0.01, hi: value + 0.01 };
-        EffectResult {
-            kind,
-            parameter: String::new(),
-            scope: kind.scope(),
-            named,
-            reduction: est(reduction),
-            metric_after: est(1.0),
-            noise_floor: 0.03,
-            params: vec![],
-            note: None,
-            explained_by: vec![],
-            worsening_units: vec![],
-            contradicted_units: vec![],
-            named_off_limit_only: false,
-            splits: vec![],
-            ceilings_in_log: vec![],
-        }
+        EffectResult::for_test(kind, named, reduction)
     }
 
     #[test]

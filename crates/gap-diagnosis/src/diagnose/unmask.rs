@@ -171,31 +171,13 @@ pub(super) fn unmask(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::diagnose::stats::Estimate;
 
     fn result(kind: EffectKind, named: bool, kept_unit: bool) -> EffectResult {
-        let est = Estimate { value: 0.1, lo: 0.05, hi: 0.15 };
-        EffectResult {
-            kind,
-            parameter: String::new(),
-            scope: kind.scope(),
-            named,
-            reduction: est,
-            metric_after: est,
-            noise_floor: 0.03,
-            params: if kept_unit {
-                vec![FittedParam { unit: "left_leg".into(), value: 1.0, sd: 0.1, held_out_reduction: 1.0 }]
-            } else {
-                vec![]
-            },
-            note: None,
-            explained_by: vec![],
-            worsening_units: vec![],
-            contradicted_units: vec![],
-            named_off_limit_only: false,
-            splits: vec![],
-            ceilings_in_log: vec![],
+        let mut r = EffectResult::for_test(kind, named, 0.1);
+        if kept_unit {
+            r.params = vec![FittedParam { unit: "left_leg".into(), value: 1.0, sd: 0.1, held_out_reduction: 1.0 }];
         }
+        r
     }
 
     /// Only effects that kept no unit alone are refitted (the others were candidates already), never a member, an
