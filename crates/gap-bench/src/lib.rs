@@ -647,6 +647,27 @@ pub fn trial_salt(seed: u64, i: usize) -> [u8; 16] {
     salt
 }
 
+/// The reference plant of rig trial `i` (its hidden effects drawn) and its labels: what [`run_trial`] generates
+/// and seals (trials from `opts.trials` on hide an out-of-library effect).
+pub fn trial_config(model: &RobotModel, i: usize, opts: &BenchOptions) -> (RealConfig, Labels) {
+    let (effects, labels, out_of_library) = if i >= opts.trials {
+        let (o, labels) = draw_out_of_library_trial(model, i, opts.seed);
+        (Effects::none(model.nj()), labels, Some(o))
+    } else {
+        let (fx, labels) = draw_trial(model, i, opts.seed);
+        (fx, labels, None)
+    };
+    let cfg = RealConfig {
+        effects,
+        seed: opts.seed.wrapping_mul(31).wrapping_add(i as u64),
+        engine: opts.reference.clone(),
+        motion: opts.motion,
+        out_of_library,
+        ..RealConfig::new(model, opts.duration, 0)
+    };
+    (cfg, labels)
+}
+
 /// Runs one trial end to end (generate, seal, diagnose, open, score). The caller may write the log with
 /// `on_log` (e.g. as MCAP, so the diagnosis reads it through the same path as a recorded log).
 pub fn run_trial(
@@ -655,25 +676,10 @@ pub fn run_trial(
     opts: &BenchOptions,
     on_log: &mut dyn FnMut(usize, &RobotLog) -> Result<RobotLog, GapError>,
 ) -> Result<(Seal, TrialScore, Report), GapError> {
-    let ool = i >= opts.trials;
-    let (fx, labels, out_of_library) = if ool {
-        let (o, labels) = draw_out_of_library_trial(model, i, opts.seed);
-        (Effects::none(model.nj()), labels, Some(o))
-    } else {
-        let (fx, labels) = draw_trial(model, i, opts.seed);
-        (fx, labels, None)
-    };
+    let (cfg, labels) = trial_config(model, i, opts);
     let (sealed, text) = seal(&labels, &trial_salt(opts.seed, i))?;
     drop(labels);
-    let cfg = RealConfig {
-        effects: fx,
-        seed: opts.seed.wrapping_mul(31).wrapping_add(i as u64),
-        engine: opts.reference.clone(),
-        motion: opts.motion,
-        out_of_library,
-        ..RealConfig::new(model, opts.duration, 0)
-    };
-    let input = if ool { None } else { trial_policy(i, opts) };
+    let input = if i >= opts.trials { None } else { trial_policy(i, opts) };
     let log = generate_log_with(model, &cfg, input.as_ref())?;
     let log = on_log(i, &log)?;
     let report = diagnose(model, &log, &opts.diagnose)?;
@@ -1107,12 +1113,22 @@ mod misattribution_tests {
         // Controls are scored by their own row.
         assert_eq!(misattributed(&[], &[Friction], &[]), 0);
         // Armature above the injected damping, but the report says it cannot tell them apart: not confident.
-        let set =
-            AmbiguousSet { effects: vec![Armature, Damping], cosine: 0.95, gap_difference: 0.01, at_bound: vec![] };
+        let set = AmbiguousSet {
+            effects: vec![Armature, Damping],
+            cosine: 0.95,
+            gap_difference: 0.01,
+            at_bound: vec![],
+            reason: Default::default(),
+        };
         assert_eq!(misattributed(&[Damping], &[Armature, Damping], std::slice::from_ref(&set)), 0);
         // A set that does not hold the injected effect does not excuse it.
-        let other =
-            AmbiguousSet { effects: vec![Armature, Friction], cosine: 0.95, gap_difference: 0.01, at_bound: vec![] };
+        let other = AmbiguousSet {
+            effects: vec![Armature, Friction],
+            cosine: 0.95,
+            gap_difference: 0.01,
+            at_bound: vec![],
+            reason: Default::default(),
+        };
         assert_eq!(misattributed(&[Damping], &[Armature, Friction, Damping], &[other]), 2);
     }
 

@@ -36,7 +36,7 @@ mod windows;
 
 pub use assess::{EffectResult, FittedParam, MIN_WINDOWS_OFF_LIMIT, SINGLE_JOINT_CANDIDATES, UNIT_FLOOR_FRAC};
 pub use breakdown::Share;
-pub use confound::{leading_set, AmbiguousSet, AMBIGUOUS_COSINE};
+pub use confound::{leading_set, Ambiguity, AmbiguousSet, AMBIGUOUS_COSINE};
 pub use fit::RESOLUTION_FRAC;
 pub use halves::{HalvesRefit, SplitBy, LOAD_CHECKED, MIN_SPLIT_RATIO, SCALE_RATIO, SPEED_CHECKED};
 pub use identify::{Identifiability, UnitSignal};
@@ -193,6 +193,7 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
     let named: Vec<(EffectKind, crate::plant::Effects)> =
         selection.ranked.iter().filter_map(|k| fitted.iter().find(|(f, _)| f == k).cloned()).collect();
     let mut ambiguous = confound::ambiguous_sets(&ctx, &named, &baseline.test_tot, &mut rng)?;
+    ambiguous.append(&mut selection.equal_cut);
     confound::mark_range_edges(&mut ambiguous, &selection.effects);
     // Named effects that add nothing once the best combination is in, and that the log can tell apart from its
     // members, are not named.

@@ -303,7 +303,7 @@ fn ambiguous_section(r: &Report) -> String {
         return String::new();
     }
     let mut s = format!(
-        "\n## Effects this log cannot tell apart\n\nEach set's effects, fitted alone, change the predicted measurements of the held-out windows in nearly the same direction (|cosine| at least {:.2}) and leave held-out gaps that the log cannot rank (their difference is under the noise floor, or its 95 % interval holds 0): their order in the ranking is not evidence for one over the other.\n\n| effects (rank order) | smallest cosine magnitude | largest gap difference (of the baseline) | fitted at the edge of its range | motion that would reveal each |\n|---|---|---|---|---|\n",
+        "\n## Effects this log cannot tell apart\n\nA *collinear* set's effects, fitted alone, change the predicted measurements of the held-out windows in nearly the same direction (|cosine| at least {:.2}) and leave held-out gaps that the log cannot rank (their difference is under the noise floor, or its 95 % interval holds 0): their order in the ranking is not evidence for one over the other. An *equal-cut* set is a masked effect named after the others and the masked effects that, refitted with those others applied, each cut what they leave on the same limb beyond its floor by a cut the log cannot rank against it: only the first is named, the others are as likely (cosine and gap difference given the effects before them, the difference relative to what those leave).\n\n| effects (rank order) | why | smallest cosine magnitude | largest gap difference | fitted at the edge of its range | motion that would reveal each |\n|---|---|---|---|---|---|\n",
         crate::diagnose::AMBIGUOUS_COSINE
     );
     for set in &r.ambiguous {
@@ -311,8 +311,12 @@ fn ambiguous_section(r: &Report) -> String {
         let how: Vec<String> = set.effects.iter().map(|k| format!("{}: {}", k.name(), k.revealed_by())).collect();
         let edge: Vec<&str> = set.at_bound.iter().map(|k| k.name()).collect();
         s += &format!(
-            "| {} | {:.3} | {:.1} % | {} | {} |\n",
+            "| {} | {} | {:.3} | {:.1} % | {} | {} |\n",
             n.join(", "),
+            match set.reason {
+                crate::diagnose::Ambiguity::Collinear => "collinear",
+                crate::diagnose::Ambiguity::EqualCut => "equal cut",
+            },
             set.cosine,
             100.0 * set.gap_difference,
             if edge.is_empty() { "—".to_string() } else { edge.join(", ") },

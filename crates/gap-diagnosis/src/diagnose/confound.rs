@@ -30,6 +30,24 @@ pub struct AmbiguousSet {
     /// Members whose fit sits at the edge of its search range ([`EffectResult::at_search_bound`]).
     #[serde(default)]
     pub at_bound: Vec<EffectKind>,
+    /// Why the log cannot tell them apart.
+    #[serde(default)]
+    pub reason: Ambiguity,
+}
+
+/// Why the effects of an [`AmbiguousSet`] cannot be told apart.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Ambiguity {
+    /// Named effects whose prediction changes, each alone, are nearly collinear (|cosine| at least
+    /// [`AMBIGUOUS_COSINE`]) and whose held-out gaps the log cannot rank (`diagnose/confound.rs`).
+    #[default]
+    Collinear,
+    /// A masked effect (`diagnose/unmask.rs`) and its rivals: each, refitted with the combination before it applied,
+    /// cuts what that combination leaves on the same limb beyond its noise floor, and the log cannot rank their cuts
+    /// (here `cosine` compares their changes given the combination and `gap_difference` is relative to the residual
+    /// the combination leaves). The first is named; the others are not, but are as likely.
+    EqualCut,
 }
 
 impl AmbiguousSet {
@@ -95,6 +113,7 @@ pub(super) fn ambiguous_sets(
                 cosine: weakest[root],
                 gap_difference: widest[root],
                 at_bound: Vec::new(),
+                reason: Ambiguity::Collinear,
             });
         }
     }
@@ -113,7 +132,7 @@ pub(super) fn mark_range_edges(sets: &mut [AmbiguousSet], effects: &[EffectResul
 }
 
 /// Cosine of two vectors (0 when either is zero).
-fn cosine(a: &[f64], b: &[f64]) -> f64 {
+pub(super) fn cosine(a: &[f64], b: &[f64]) -> f64 {
     let dot: f64 = a.iter().zip(b).map(|(x, y)| x * y).sum();
     let na: f64 = a.iter().map(|x| x * x).sum::<f64>().sqrt();
     let nb: f64 = b.iter().map(|x| x * x).sum::<f64>().sqrt();
@@ -167,7 +186,13 @@ mod tests {
         // Encoder offset range ±0.1 rad: 0.097 is at the edge; link COM range ±0.08 m: 0.06 is inside.
         let effects = [named(EncoderOffset, 0.097), named(LinkCom, 0.06), named(Friction, 3.95)];
         assert!(effects[0].at_search_bound() && !effects[1].at_search_bound() && effects[2].at_search_bound());
-        let set = |e: Vec<EffectKind>| AmbiguousSet { effects: e, cosine: 0.9, gap_difference: 0.0, at_bound: vec![] };
+        let set = |e: Vec<EffectKind>| AmbiguousSet {
+            effects: e,
+            cosine: 0.9,
+            gap_difference: 0.0,
+            at_bound: vec![],
+            reason: Ambiguity::Collinear,
+        };
         let mut sets = vec![set(vec![EncoderOffset, LinkCom])];
         mark_range_edges(&mut sets, &effects);
         assert_eq!(sets[0].effects, vec![EncoderOffset, LinkCom]);

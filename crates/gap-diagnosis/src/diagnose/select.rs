@@ -8,6 +8,7 @@
 //! against the whole initial gap.
 use super::assess::{sort_results, Assessment, Candidate, EffectResult, FittedParam};
 use super::breakdown::Baseline;
+use super::confound::{Ambiguity, AmbiguousSet};
 use super::fit::{fit_kind, report_value, set_unit, unit_name, unit_value, units_of, RESOLUTION_FRAC};
 use super::replay::{Ctx, Scores};
 use super::stats::{bootstrap_mean, bootstrap_ratio, judge, total, Estimate};
@@ -44,6 +45,8 @@ pub(super) struct Selection {
     pub combo_fx: Option<Effects>,
     /// The effect added once masking was lifted ([`super::unmask`]), its kept units alone.
     pub unmasked: Vec<(EffectKind, Effects)>,
+    /// That effect and the masked effects the log cannot rank against it ([`super::unmask::Rival`]).
+    pub equal_cut: Vec<AmbiguousSet>,
 }
 
 /// An effect added to the best combination after the first.
@@ -86,6 +89,7 @@ pub(super) fn select(
     let mut best_combination = None;
     let mut combo_fx = None;
     let mut unmasked = Vec::new();
+    let mut equal_cut = Vec::new();
     if !ranked.is_empty() {
         let get = |k: EffectKind| candidates.iter().find(|c| c.kind == k).map(|c| c.fx.clone());
         let first = ranked[0];
@@ -139,6 +143,9 @@ pub(super) fn select(
                     params: Some(params),
                     route,
                 });
+                if !u.rivals.is_empty() {
+                    equal_cut.push(rival_set(&mut results, u.kind, &u.rivals));
+                }
                 unmasked.push((u.kind, u.alone));
                 combo = u.fx;
                 members.push(u.kind);
@@ -156,7 +163,33 @@ pub(super) fn select(
         combo_fx = Some(combo);
     }
     let abstentions = abstentions(&results);
-    Ok(Selection { effects: results, ranked, abstentions, best_combination, combo_fx, unmasked })
+    Ok(Selection { effects: results, ranked, abstentions, best_combination, combo_fx, unmasked, equal_cut })
+}
+
+/// The set of a masked effect `offered` and its `rivals`; each rival's result says where it cut what the
+/// combination leaves and keeps those units as its parameters (it stays unnamed).
+fn rival_set(results: &mut [EffectResult], offered: EffectKind, rivals: &[super::unmask::Rival]) -> AmbiguousSet {
+    for rival in rivals {
+        if let Some(r) = results.iter_mut().find(|r| r.kind == rival.kind) {
+            r.params = rival.params.clone();
+            r.note = Some(format!(
+                "not named, but as likely as {}: alone it cut no unit's own residual by the unit floor; refitted with \
+                 the effects before it applied, it cuts what they leave on {} beyond that residual's floor, and the \
+                 log cannot rank its cut against that of {} (held-out gaps {:.1} % apart, of that residual)",
+                offered.name(),
+                rival.params.iter().map(|p| p.unit.as_str()).collect::<Vec<_>>().join(", "),
+                offered.name(),
+                100.0 * rival.gap_difference
+            ));
+        }
+    }
+    AmbiguousSet {
+        effects: std::iter::once(offered).chain(rivals.iter().map(|r| r.kind)).collect(),
+        cosine: rivals.iter().map(|r| r.cosine).fold(1.0, f64::min),
+        gap_difference: rivals.iter().map(|r| r.gap_difference).fold(0.0, f64::max),
+        at_bound: Vec::new(),
+        reason: Ambiguity::EqualCut,
+    }
 }
 
 /// Every effect not named, with its reason.
@@ -174,7 +207,7 @@ fn abstentions(results: &[EffectResult]) -> Vec<(EffectKind, String)> {
 /// backlash it could not be told from. A torque saturation named from the log's own torque
 /// ([`EffectResult::ceilings_in_log`]) is never explained away.
 /// Sets without a member are dropped; the others lose the effects explained away.
-pub(super) fn explain_away(sel: &mut Selection, ambiguous: &mut Vec<super::confound::AmbiguousSet>) {
+pub(super) fn explain_away(sel: &mut Selection, ambiguous: &mut Vec<AmbiguousSet>) {
     let Some(combo) = sel.best_combination.as_ref() else { return };
     let members = &combo.effects;
     let given: Vec<&str> = members.iter().map(|k| k.name()).collect();
@@ -313,7 +346,6 @@ fn name_conditionals(results: &mut [EffectResult], members: &[EffectKind], added
 
 #[cfg(test)]
 mod tests {
-    use super::super::confound::AmbiguousSet;
     use super::*;
 
     fn result(kind: EffectKind, named: bool, reduction: f64) -> EffectResult {
@@ -341,8 +373,15 @@ mod tests {
             best_combination: Some(Combination { effects: vec![Friction, Latency], metric_after: est, reduction: est }),
             combo_fx: None,
             unmasked: vec![],
+            equal_cut: vec![],
         };
-        let set = |e: Vec<EffectKind>| AmbiguousSet { effects: e, cosine: 0.9, gap_difference: 0.0, at_bound: vec![] };
+        let set = |e: Vec<EffectKind>| AmbiguousSet {
+            effects: e,
+            cosine: 0.9,
+            gap_difference: 0.0,
+            at_bound: vec![],
+            reason: Default::default(),
+        };
         let mut sets = vec![set(vec![Friction, Damping, Armature]), set(vec![Armature, Backlash])];
         explain_away(&mut sel, &mut sets);
         // Armature is in a set with friction, so it stays; backlash shares a set only with armature.
@@ -366,6 +405,7 @@ mod tests {
             best_combination: None,
             combo_fx: None,
             unmasked: vec![],
+            equal_cut: vec![],
         };
         let mut no_sets = vec![];
         explain_away(&mut none, &mut no_sets);
@@ -379,7 +419,13 @@ mod tests {
     fn an_effect_named_only_away_from_the_limits_is_not_kept_by_its_ambiguous_set() {
         use EffectKind::{Backlash, Damping, GainScale};
         let est = Estimate { value: 0.05, lo: 0.01, hi: 0.1 };
-        let set = |e: Vec<EffectKind>| AmbiguousSet { effects: e, cosine: 0.9, gap_difference: 0.0, at_bound: vec![] };
+        let set = |e: Vec<EffectKind>| AmbiguousSet {
+            effects: e,
+            cosine: 0.9,
+            gap_difference: 0.0,
+            at_bound: vec![],
+            reason: Default::default(),
+        };
         for off_limit_only in [true, false] {
             let mut gain = result(GainScale, true, 0.03);
             gain.named_off_limit_only = off_limit_only;
@@ -390,6 +436,7 @@ mod tests {
                 best_combination: Some(Combination { effects: vec![Backlash], metric_after: est, reduction: est }),
                 combo_fx: None,
                 unmasked: vec![],
+                equal_cut: vec![],
             };
             let mut sets = vec![set(vec![Backlash, GainScale])];
             explain_away(&mut sel, &mut sets);
@@ -403,5 +450,43 @@ mod tests {
                 assert_eq!(sets, vec![set(vec![Backlash, GainScale])]);
             }
         }
+    }
+
+    /// A masked effect's rivals stay unnamed, say where they cut and as likely as which, and form one equal-cut
+    /// set with it that the scoring reads as "cannot be ranked" and explain-away leaves as it is.
+    #[test]
+    fn a_masked_effects_rivals_form_an_equal_cut_set_and_stay_unnamed() {
+        use super::super::unmask::Rival;
+        use EffectKind::{Armature, LinkCom, LinkMass};
+        let est = Estimate { value: 0.9, lo: 0.85, hi: 0.95 };
+        let kept = |unit: &str| vec![FittedParam { unit: unit.into(), value: 0.07, sd: 0.01, held_out_reduction: 0.8 }];
+        let rival = Rival { kind: LinkCom, params: kept("right_shoulder_roll"), cosine: 0.4, gap_difference: 0.02 };
+        let mut results = vec![result(Armature, true, 0.9), result(LinkMass, false, 0.0), result(LinkCom, false, 0.0)];
+        let set = rival_set(&mut results, LinkMass, std::slice::from_ref(&rival));
+        assert_eq!(set.effects, vec![LinkMass, LinkCom]);
+        assert_eq!((set.reason, set.cosine, set.gap_difference), (Ambiguity::EqualCut, 0.4, 0.02));
+        let com = results.iter().find(|r| r.kind == LinkCom).expect("link_com");
+        assert!(!com.named && com.params == rival.params);
+        assert!(com
+            .note
+            .as_deref()
+            .is_some_and(|n| n.contains("as likely as link_mass") && n.contains("right_shoulder_roll")));
+        // The masked effect is named given armature; its rival is not in the ranking, and the set survives.
+        let mut sel = Selection {
+            effects: results,
+            ranked: vec![Armature, LinkMass],
+            abstentions: vec![],
+            best_combination: Some(Combination {
+                effects: vec![Armature, LinkMass],
+                metric_after: est,
+                reduction: est,
+            }),
+            combo_fx: None,
+            unmasked: vec![],
+            equal_cut: vec![],
+        };
+        let mut sets = vec![set.clone()];
+        explain_away(&mut sel, &mut sets);
+        assert_eq!((sel.ranked, sets), (vec![Armature, LinkMass], vec![set]));
     }
 }

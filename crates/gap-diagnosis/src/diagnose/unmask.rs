@@ -7,10 +7,11 @@
 //! only (the floating plant's fits are several times dearer), and one effect per diagnosis: every refit is a full
 //! fit. Its draws come from a stream of its own, so the other stages draw as they did without it.
 use super::assess::{judge_unit, single_joints, EffectResult, FittedParam, UnitVerdict, SINGLE_JOINT_FRAC};
+use super::confound::cosine;
 use super::fit::{fit_kind, report_value, set_unit, unit_name, unit_value, units_of, RESOLUTION_FRAC};
 use super::options::PlantKind;
 use super::replay::Ctx;
-use super::stats::{bootstrap_mean, judge, total, Estimate, Judged};
+use super::stats::{bootstrap_mean, judge, mean, noise_floor, total, trim_order, Estimate, Judged};
 use crate::effects::{EffectKind, Scope};
 use crate::plant::Effects;
 use crate::GapError;
@@ -34,6 +35,34 @@ pub(super) struct Unmasked {
     pub params: Vec<FittedParam>,
     /// How it cut the residual the combination leaves (it cleared that residual's noise floor).
     pub judged: Judged,
+    /// The other masked effects the log cannot rank against it ([`rivals`]).
+    pub rivals: Vec<Rival>,
+}
+
+/// A masked effect that, refitted with the combination applied, also clears the remaining residual's floor on the
+/// same limb as the one offered, by a cut the log cannot rank against it: the report puts the two in one
+/// [`super::confound::AmbiguousSet`] ([`super::confound::Ambiguity::EqualCut`]). On Rapier's seed 17, trial 22 a
+/// heavier right shoulder-yaw link was offered for a COM shift of the right shoulder-roll link that cut what the
+/// arm's armature left as much; named alone, it was a confident misattribution.
+pub(super) struct Rival {
+    pub kind: EffectKind,
+    /// Its kept units.
+    pub params: Vec<FittedParam>,
+    /// |cosine| of its change of the held-out predictions (from the combination's) with the offered effect's.
+    pub cosine: f64,
+    /// |mean difference| of the two held-out gaps per window, relative to the residual the combination leaves (on
+    /// the windows the offered effect was named on).
+    pub gap_difference: f64,
+}
+
+/// One masked effect refitted with the combination applied that kept a unit.
+struct Offer {
+    kind: EffectKind,
+    with: Effects,
+    alone: Effects,
+    params: Vec<FittedParam>,
+    /// The limbs ([`crate::plant::GROUPS`]) of its kept units.
+    limbs: Vec<usize>,
 }
 
 /// Which effects may be masked: on the rig, the replayed effects (not the IMU's closed-form fits, nor a torque
@@ -98,6 +127,7 @@ pub(super) fn unmask(
         let mut with = combo.clone();
         let mut alone = Effects::none(ctx.nj());
         let mut params = Vec::new();
+        let mut limbs = Vec::new();
         for (u, cols) in units_of(ctx, kind).iter().enumerate() {
             let unit_sum = |s: &Vec<f64>| cols.iter().filter_map(|&c| s.get(c)).sum::<f64>();
             let before: Vec<f64> = combo_test.iter().map(unit_sum).collect();
@@ -124,6 +154,7 @@ pub(super) fn unmask(
                 Some((j, v, UnitVerdict::Kept(cut))) if group_cut.is_none_or(|d| cut >= SINGLE_JOINT_FRAC * d) => {
                     kind.set(&mut with, j, v);
                     kind.set(&mut alone, j, v);
+                    limbs.push(ctx.groups[j]);
                     params.push(FittedParam {
                         unit: ctx.model.joints[j].motor_name.clone(),
                         value: report_value(kind, v),
@@ -135,6 +166,7 @@ pub(super) fn unmask(
                     if let Some(cut) = group_cut {
                         set_unit(kind, &mut with, ctx, u, value);
                         set_unit(kind, &mut alone, ctx, u, value);
+                        limbs.extend(cols.iter().filter_map(|&c| ctx.groups.get(c).copied()));
                         params.push(FittedParam {
                             unit: unit_name(ctx, kind, u),
                             value: report_value(kind, value),
@@ -146,26 +178,102 @@ pub(super) fn unmask(
             }
         }
         if !params.is_empty() {
-            offers.push((kind, with, alone, params));
+            limbs.sort_unstable();
+            limbs.dedup();
+            offers.push(Offer { kind, with, alone, params, limbs });
         }
     }
     if offers.is_empty() {
         return Ok(None);
     }
-    let cfgs: Vec<Effects> = offers.iter().map(|o| o.1.clone()).collect();
+    let cfgs: Vec<Effects> = offers.iter().map(|o| o.with.clone()).collect();
     let totals: Vec<Vec<f64>> =
         ctx.eval_many(&cfgs, &ctx.test)?.iter().map(|r| r.iter().map(|s| total(s)).collect()).collect();
-    let Some(((kind, fx, alone, params), totals)) =
-        offers.into_iter().zip(totals).min_by(|a, b| a.1.iter().sum::<f64>().total_cmp(&b.1.iter().sum::<f64>()))
-    else {
+    let sums: Vec<f64> = totals.iter().map(|t| t.iter().sum::<f64>()).collect();
+    let Some(best) = (0..offers.len()).min_by(|&a, &b| sums[a].total_cmp(&sums[b])) else {
         return Ok(None);
     };
-    let judged = judge(cur, &totals, off_limit, ctx.opts.bootstrap, &mut rng);
+    let judged = judge(cur, &totals[best], off_limit, ctx.opts.bootstrap, &mut rng);
     if !judged.clears() {
         return Ok(None);
     }
-    let metric_after = bootstrap_mean(&totals, ctx.opts.bootstrap, &mut rng);
-    Ok(Some(Unmasked { kind, fx, alone, totals, metric_after, params, judged }))
+    let metric_after = bootstrap_mean(&totals[best], ctx.opts.bootstrap, &mut rng);
+    let rivals = rivals(ctx, combo, &offers, &totals, best, &judged, cur, off_limit, &mut rng)?;
+    let mut totals = totals;
+    let Offer { kind, with: fx, alone, params, .. } = offers.swap_remove(best);
+    let totals = totals.swap_remove(best);
+    Ok(Some(Unmasked { kind, fx, alone, totals, metric_after, params, judged, rivals }))
+}
+
+/// The held-out windows an effect judged `judged` was named on: every one when it cleared there, else those left
+/// after trimming ([`trim_order`]) or those away from the range limits, as the route it cleared by.
+fn named_on(judged: &Judged, cur: &[f64], off_limit: &[bool]) -> Vec<usize> {
+    if judged.reduction.lo > judged.floor {
+        (0..cur.len()).collect()
+    } else if judged.trimmed.is_some() {
+        let (order, n_trim) = trim_order(cur);
+        let mut kept: Vec<usize> = order[n_trim..].to_vec();
+        kept.sort_unstable();
+        kept
+    } else {
+        (0..cur.len()).filter(|&w| off_limit.get(w).copied().unwrap_or(false)).collect()
+    }
+}
+
+/// The offers other than `best` that share a limb with it, clear the floor of the residual `combo` leaves (`cur`)
+/// themselves, and whose held-out gap the log cannot rank against `best`'s: on the windows `best` was named on
+/// ([`named_on`]), the paired difference's
+/// 95 % interval holds 0 or its size is under the noise floor of that residual. Draws after every other draw of the
+/// stage, so the offered effect is judged as before.
+#[allow(clippy::too_many_arguments)]
+fn rivals(
+    ctx: &Ctx<'_>,
+    combo: &Effects,
+    offers: &[Offer],
+    totals: &[Vec<f64>],
+    best: usize,
+    judged: &Judged,
+    cur: &[f64],
+    off_limit: &[bool],
+    rng: &mut ChaCha8Rng,
+) -> Result<Vec<Rival>, GapError> {
+    let boot = ctx.opts.bootstrap;
+    let shares_limb = |o: &Offer| o.limbs.iter().any(|l| offers[best].limbs.contains(l));
+    let mut close = Vec::new();
+    let windows = named_on(judged, cur, off_limit);
+    for (i, o) in offers.iter().enumerate() {
+        if i == best || !shares_limb(o) || !judge(cur, &totals[i], off_limit, boot, rng).clears() {
+            continue;
+        }
+        let diffs: Vec<f64> = windows.iter().map(|&w| totals[i][w] - totals[best][w]).collect();
+        let left: Vec<f64> = windows.iter().map(|&w| cur[w]).collect();
+        let d = bootstrap_mean(&diffs, boot, rng);
+        let rel = d.value.abs() / mean(&left).max(1e-300);
+        if (d.lo > 0.0 || d.hi < 0.0) && rel >= noise_floor(&left) {
+            continue;
+        }
+        close.push((i, rel));
+    }
+    if close.is_empty() {
+        return Ok(Vec::new());
+    }
+    let from = ctx.predictions(combo, &ctx.test)?;
+    let change = |fx: &Effects| -> Result<Vec<f64>, GapError> {
+        let with = ctx.predictions(fx, &ctx.test)?;
+        Ok(from.iter().zip(&with).flat_map(|(a, b)| ctx.normalised_change(a, b)).collect())
+    };
+    let best_change = change(&offers[best].with)?;
+    close
+        .into_iter()
+        .map(|(i, rel)| {
+            Ok(Rival {
+                kind: offers[i].kind,
+                params: offers[i].params.clone(),
+                cosine: cosine(&best_change, &change(&offers[i].with)?).abs(),
+                gap_difference: rel,
+            })
+        })
+        .collect()
 }
 
 #[cfg(test)]
