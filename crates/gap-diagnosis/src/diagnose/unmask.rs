@@ -5,7 +5,8 @@
 //! as alone ([`super::assess::judge_unit`]) but against the residual the combination leaves; the best one with a
 //! kept unit is offered to the selection, which adds it only when it clears that residual's own noise floor. Rig
 //! only (the floating plant's fits are several times dearer), and one effect per diagnosis: every refit is a full
-//! fit. Its draws come from a stream of its own, so the other stages draw as they did without it.
+//! fit. Its draws come from a stream of its own, so the other stages draw as they did without it. Another masked
+//! effect on the same limb whose cut the log cannot rank against the offered one is reported with it ([`Rival`]).
 use super::assess::{judge_unit, single_joints, EffectResult, FittedParam, UnitVerdict, SINGLE_JOINT_FRAC};
 use super::confound::cosine;
 use super::fit::{fit_kind, report_value, set_unit, unit_name, unit_value, units_of, RESOLUTION_FRAC};
@@ -41,9 +42,10 @@ pub(super) struct Unmasked {
 
 /// A masked effect that, refitted with the combination applied, also clears the remaining residual's floor on the
 /// same limb as the one offered, by a cut the log cannot rank against it: the report puts the two in one
-/// [`super::confound::AmbiguousSet`] ([`super::confound::Ambiguity::EqualCut`]). On Rapier's seed 17, trial 22 a
-/// heavier right shoulder-yaw link was offered for a COM shift of the right shoulder-roll link that cut what the
-/// arm's armature left as much; named alone, it was a confident misattribution.
+/// [`super::confound::AmbiguousSet`] ([`super::confound::Ambiguity::EqualCut`]). Written for Rapier's seed 17,
+/// trial 22 (a shoulder-yaw link mass offered and named for the injected COM shift of the shoulder-roll link, both
+/// cutting what the arm's armature leaves), where it does not fire: on the windows the mass was named on it cuts
+/// measurably more (BENCHMARKS.md, "A masked effect's rivals").
 pub(super) struct Rival {
     pub kind: EffectKind,
     /// Its kept units.
@@ -222,9 +224,8 @@ fn named_on(judged: &Judged, cur: &[f64], off_limit: &[bool]) -> Vec<usize> {
 
 /// The offers other than `best` that share a limb with it, clear the floor of the residual `combo` leaves (`cur`)
 /// themselves, and whose held-out gap the log cannot rank against `best`'s: on the windows `best` was named on
-/// ([`named_on`]), the paired difference's
-/// 95 % interval holds 0 or its size is under the noise floor of that residual. Draws after every other draw of the
-/// stage, so the offered effect is judged as before.
+/// ([`named_on`]), the paired difference's 95 % interval holds 0 or its size is under the noise floor of that
+/// residual there. Draws after every other draw of the stage, so the offered effect is judged as before.
 #[allow(clippy::too_many_arguments)]
 fn rivals(
     ctx: &Ctx<'_>,
