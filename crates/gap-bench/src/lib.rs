@@ -1113,22 +1113,17 @@ mod misattribution_tests {
         // Controls are scored by their own row.
         assert_eq!(misattributed(&[], &[Friction], &[]), 0);
         // Armature above the injected damping, but the report says it cannot tell them apart: not confident.
-        let set = AmbiguousSet {
-            effects: vec![Armature, Damping],
+        let set_of = |effects: Vec<gap_diagnosis::effects::EffectKind>| AmbiguousSet {
+            effects,
             cosine: 0.95,
             gap_difference: 0.01,
             at_bound: vec![],
             reason: Default::default(),
         };
+        let set = set_of(vec![Armature, Damping]);
         assert_eq!(misattributed(&[Damping], &[Armature, Damping], std::slice::from_ref(&set)), 0);
         // A set that does not hold the injected effect does not excuse it.
-        let other = AmbiguousSet {
-            effects: vec![Armature, Friction],
-            cosine: 0.95,
-            gap_difference: 0.01,
-            at_bound: vec![],
-            reason: Default::default(),
-        };
+        let other = set_of(vec![Armature, Friction]);
         assert_eq!(misattributed(&[Damping], &[Armature, Friction, Damping], &[other]), 2);
     }
 

@@ -155,29 +155,14 @@ mod tests {
     use super::*;
 
     fn named(kind: EffectKind, value: f64) -> EffectResult {
-        let zero = super::super::stats::Estimate { value: 0.0, lo: 0.0, hi: 0.0 };
-        EffectResult {
-            kind,
-            parameter: String::new(),
-            scope: kind.scope(),
-            named: true,
-            reduction: zero,
-            metric_after: zero,
-            noise_floor: 0.0,
-            params: vec![super::super::assess::FittedParam {
-                unit: "right_elbow".into(),
-                value,
-                sd: 0.0,
-                held_out_reduction: 0.0,
-            }],
-            note: None,
-            explained_by: vec![],
-            worsening_units: vec![],
-            contradicted_units: vec![],
-            named_off_limit_only: false,
-            splits: vec![],
-            ceilings_in_log: vec![],
-        }
+        let mut r = EffectResult::for_test(kind, true, 0.0);
+        r.params = vec![super::super::assess::FittedParam {
+            unit: "right_elbow".into(),
+            value,
+            sd: 0.0,
+            held_out_reduction: 0.0,
+        }];
+        r
     }
 
     #[test]
