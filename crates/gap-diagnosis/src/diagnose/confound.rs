@@ -57,6 +57,14 @@ impl AmbiguousSet {
     }
 }
 
+#[cfg(test)]
+impl AmbiguousSet {
+    /// A collinear set of `effects` for the tests of the stages that read sets.
+    pub(super) fn for_test(effects: Vec<EffectKind>) -> Self {
+        AmbiguousSet { effects, cosine: 0.9, gap_difference: 0.0, at_bound: vec![], reason: Ambiguity::Collinear }
+    }
+}
+
 /// The ambiguous sets among `named` (rank order, each with its fitted effect alone). IMU effects act on the IMU
 /// reading only, which no joint effect predicts, and are not compared.
 pub(super) fn ambiguous_sets(
@@ -171,13 +179,7 @@ mod tests {
         // Encoder offset range ±0.1 rad: 0.097 is at the edge; link COM range ±0.08 m: 0.06 is inside.
         let effects = [named(EncoderOffset, 0.097), named(LinkCom, 0.06), named(Friction, 3.95)];
         assert!(effects[0].at_search_bound() && !effects[1].at_search_bound() && effects[2].at_search_bound());
-        let set = |e: Vec<EffectKind>| AmbiguousSet {
-            effects: e,
-            cosine: 0.9,
-            gap_difference: 0.0,
-            at_bound: vec![],
-            reason: Ambiguity::Collinear,
-        };
+        let set = AmbiguousSet::for_test;
         let mut sets = vec![set(vec![EncoderOffset, LinkCom])];
         mark_range_edges(&mut sets, &effects);
         assert_eq!(sets[0].effects, vec![EncoderOffset, LinkCom]);

@@ -375,13 +375,7 @@ mod tests {
             unmasked: vec![],
             equal_cut: vec![],
         };
-        let set = |e: Vec<EffectKind>| AmbiguousSet {
-            effects: e,
-            cosine: 0.9,
-            gap_difference: 0.0,
-            at_bound: vec![],
-            reason: Default::default(),
-        };
+        let set = AmbiguousSet::for_test;
         let mut sets = vec![set(vec![Friction, Damping, Armature]), set(vec![Armature, Backlash])];
         explain_away(&mut sel, &mut sets);
         // Armature is in a set with friction, so it stays; backlash shares a set only with armature.
@@ -419,13 +413,7 @@ mod tests {
     fn an_effect_named_only_away_from_the_limits_is_not_kept_by_its_ambiguous_set() {
         use EffectKind::{Backlash, Damping, GainScale};
         let est = Estimate { value: 0.05, lo: 0.01, hi: 0.1 };
-        let set = |e: Vec<EffectKind>| AmbiguousSet {
-            effects: e,
-            cosine: 0.9,
-            gap_difference: 0.0,
-            at_bound: vec![],
-            reason: Default::default(),
-        };
+        let set = AmbiguousSet::for_test;
         for off_limit_only in [true, false] {
             let mut gain = result(GainScale, true, 0.03);
             gain.named_off_limit_only = off_limit_only;

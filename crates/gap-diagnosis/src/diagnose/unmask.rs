@@ -189,7 +189,7 @@ pub(super) fn unmask(
         return Ok(None);
     }
     let cfgs: Vec<Effects> = offers.iter().map(|o| o.with.clone()).collect();
-    let totals: Vec<Vec<f64>> =
+    let mut totals: Vec<Vec<f64>> =
         ctx.eval_many(&cfgs, &ctx.test)?.iter().map(|r| r.iter().map(|s| total(s)).collect()).collect();
     let sums: Vec<f64> = totals.iter().map(|t| t.iter().sum::<f64>()).collect();
     let Some(best) = (0..offers.len()).min_by(|&a, &b| sums[a].total_cmp(&sums[b])) else {
@@ -201,7 +201,6 @@ pub(super) fn unmask(
     }
     let metric_after = bootstrap_mean(&totals[best], ctx.opts.bootstrap, &mut rng);
     let rivals = rivals(ctx, combo, &offers, &totals, best, &judged, cur, off_limit, &mut rng)?;
-    let mut totals = totals;
     let Offer { kind, with: fx, alone, params, .. } = offers.swap_remove(best);
     let totals = totals.swap_remove(best);
     Ok(Some(Unmasked { kind, fx, alone, totals, metric_after, params, judged, rivals }))
