@@ -258,26 +258,8 @@ fn rig_violated(
     let zero = Estimate { value: 0.0, lo: 0.0, hi: 0.0 };
     let why = format!("not diagnosed: {}", rig.message);
     let kinds: Vec<EffectKind> = opts.kinds.clone().unwrap_or_else(|| EffectKind::ALL.to_vec());
-    let effects: Vec<EffectResult> = kinds
-        .iter()
-        .map(|&kind| EffectResult {
-            kind,
-            parameter: kind.parameter().into(),
-            scope: kind.scope(),
-            named: false,
-            reduction: zero,
-            metric_after: zero,
-            noise_floor: 0.0,
-            params: vec![],
-            note: Some(why.clone()),
-            explained_by: vec![],
-            worsening_units: vec![],
-            contradicted_units: vec![],
-            named_off_limit_only: false,
-            splits: vec![],
-            ceilings_in_log: vec![],
-        })
-        .collect();
+    let effects: Vec<EffectResult> =
+        kinds.iter().map(|&kind| EffectResult::not_fitted(kind, zero, why.clone())).collect();
     Report {
         schema_version: SCHEMA_VERSION.into(),
         outcome: Outcome::RigAssumptionViolated,

@@ -121,16 +121,25 @@ impl EffectResult {
     /// A result with no units, no note and no split, for the selection stages' tests.
     pub(super) fn for_test(kind: EffectKind, named: bool, reduction: f64) -> Self {
         let est = |value: f64| Estimate { value, lo: value - 0.01, hi: value + 0.01 };
+        let mut r = EffectResult::not_fitted(kind, est(1.0), String::new());
+        (r.named, r.reduction, r.noise_floor, r.note) = (named, est(reduction), 0.03, None);
+        r
+    }
+}
+
+impl EffectResult {
+    /// An effect that was not fitted, with why (`metric_after`: the held-out gap as it stands without it).
+    pub(super) fn not_fitted(kind: EffectKind, metric_after: Estimate, why: String) -> Self {
         EffectResult {
             kind,
-            parameter: String::new(),
+            parameter: kind.parameter().into(),
             scope: kind.scope(),
-            named,
-            reduction: est(reduction),
-            metric_after: est(1.0),
-            noise_floor: 0.03,
+            named: false,
+            reduction: Estimate { value: 0.0, lo: 0.0, hi: 0.0 },
+            metric_after,
+            noise_floor: 0.0,
             params: vec![],
-            note: None,
+            note: Some(why),
             explained_by: vec![],
             worsening_units: vec![],
             contradicted_units: vec![],
@@ -219,23 +228,7 @@ fn not_identifiable(kind: EffectKind, any_contact: bool, baseline_metric: Estima
     } else {
         "not identifiable: no foot contact in this log".to_string()
     };
-    EffectResult {
-        kind,
-        parameter: kind.parameter().into(),
-        scope: kind.scope(),
-        named: false,
-        reduction: Estimate { value: 0.0, lo: 0.0, hi: 0.0 },
-        metric_after: baseline_metric,
-        noise_floor: 0.0,
-        params: vec![],
-        note: Some(note),
-        explained_by: vec![],
-        worsening_units: vec![],
-        contradicted_units: vec![],
-        named_off_limit_only: false,
-        splits: vec![],
-        ceilings_in_log: vec![],
-    }
+    EffectResult::not_fitted(kind, baseline_metric, note)
 }
 
 /// Fits `kind` on the training windows, keeps the units whose own held-out residual it cuts, and judges the kept
