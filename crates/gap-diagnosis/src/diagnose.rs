@@ -83,7 +83,10 @@ pub use crate::noise::{TIMING_HI, TIMING_LO};
 /// value cuts the heavy half's gap at least as much per unit of load as the light half's.
 /// `/15`: a torque saturation no fit named may be named from the log's own torque and carries `ceilings_in_log`
 /// (per joint: `joint`, `scale`, `pinned`, `follow`); it is never explained away.
-pub const SCHEMA_VERSION: &str = "ulab-gap-report/15";
+/// `/16`: an ambiguous set carries `reason` (`collinear`, or `equal_cut`: a masked effect and rivals that cut as much
+/// on the same limb), and the report carries `stages` (the wall time of each stage, `stage` and `s`). Both are
+/// optional when read: a `/15` report still reads.
+pub const SCHEMA_VERSION: &str = "ulab-gap-report/16";
 
 /// What the diagnosis concluded about the log as a whole.
 #[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq)]
@@ -163,12 +166,41 @@ pub struct Report {
     /// gap (a baseline mismatch of numerics).
     #[serde(default)]
     pub numerics: Option<Numerics>,
+    /// Wall time of each stage, in order (where a long diagnosis spends its time; what `--effects` can save).
+    #[serde(default)]
+    pub stages: Vec<StageTime>,
     pub elapsed_s: f64,
+}
+
+/// The wall time one stage of [`diagnose()`] took.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StageTime {
+    pub stage: String,
+    pub s: f64,
+}
+
+/// Laps of the diagnosis's stages.
+struct Laps {
+    last: std::time::Instant,
+    done: Vec<StageTime>,
+}
+
+impl Laps {
+    fn start() -> Self {
+        Self { last: std::time::Instant::now(), done: Vec::new() }
+    }
+    /// Ends stage `stage` now.
+    fn lap(&mut self, stage: &str) {
+        let now = std::time::Instant::now();
+        self.done.push(StageTime { stage: stage.into(), s: (now - self.last).as_secs_f64() });
+        self.last = now;
+    }
 }
 
 /// Runs the diagnosis of `log` against `model` in the chosen engine.
 pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> Result<Report, GapError> {
     let t_start = std::time::Instant::now();
+    let mut laps = Laps::start();
     log.validate(model.nj())?;
     let rig = rig_check::check(model, log)?;
     let Some(plant) = opts.plant.resolve(rig.suspended) else {
@@ -178,15 +210,19 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
     let windows = windows::cut(model, log, opts, plant)?;
     let tally = windows.tally;
     let ctx = replay::Ctx::new(model, log, opts, plant, windows);
+    laps.lap("rig check and windows");
     // Where: the baseline residual over every window; its held-out part is what every effect must beat.
     let breakdown = breakdown::breakdown(&ctx)?;
     let baseline = breakdown::Baseline::split(&ctx, &breakdown.scores, opts.bootstrap, &mut rng);
+    laps.lap("breakdown");
     // Which: every effect alone, then the best combination given the effects already in.
     let kinds: Vec<EffectKind> = opts.kinds.clone().unwrap_or_else(|| EffectKind::ALL.to_vec());
     let assessment = assess::assess(&ctx, kinds.clone(), &baseline, breakdown.any_contact, &mut rng)?;
+    laps.lap("each effect alone");
     let fitted: Vec<(EffectKind, crate::plant::Effects)> =
         assessment.candidates.iter().map(|c| (c.kind, c.fx.clone())).collect();
     let mut selection = select::select(&ctx, assessment, &baseline, &mut rng)?;
+    laps.lap("selection");
     // Which named effects the log cannot tell apart.
     let fitted: Vec<(EffectKind, crate::plant::Effects)> =
         fitted.into_iter().chain(selection.unmasked.iter().cloned()).collect();
@@ -198,9 +234,11 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
     // Named effects that add nothing once the best combination is in, and that the log can tell apart from its
     // members, are not named.
     select::explain_away(&mut selection, &mut ambiguous);
+    laps.lap("ambiguous sets");
     let ranked = selection.ranked;
     // Whether the log could show each effect at all: an abstention on an effect it cannot reveal says so.
     let identifiability = identify::identify(&ctx, &breakdown.scores, &kinds)?;
+    laps.lap("identifiability");
     let mut abstentions = selection.abstentions;
     for (kind, why) in &mut abstentions {
         if let Some(note) = identifiability.iter().find(|i| i.kind == *kind).and_then(identify::not_identifiable_note) {
@@ -210,8 +248,10 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
     }
     // How much of the gap the simulator's own numerics could make.
     let numerics = numerics::numerics(&ctx, &baseline.test_tot, &mut rng)?;
+    laps.lap("numerics");
     // What is left: per window, robustly, and where.
     let rest = remainder::remainder(&ctx, &breakdown.scores, &baseline, selection.combo_fx.as_ref())?;
+    laps.lap("remainder");
     Ok(Report {
         schema_version: SCHEMA_VERSION.into(),
         outcome: Outcome::Diagnosed,
@@ -242,6 +282,7 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
         identifiability,
         ambiguous,
         numerics,
+        stages: laps.done,
         elapsed_s: t_start.elapsed().as_secs_f64(),
     })
 }
@@ -290,6 +331,7 @@ fn rig_violated(
         identifiability: vec![],
         ambiguous: vec![],
         numerics: None,
+        stages: vec![],
         elapsed_s: t_start.elapsed().as_secs_f64(),
     }
 }

@@ -211,7 +211,9 @@ pub fn markdown(r: &Report) -> String {
     s += &identifiability_section(r);
     s += &numerics_section(r);
     s += &remainder_section(r);
-    s += &format!("\nDiagnosis time: {:.1} s. Plots: `by_joint.svg`, `effects.svg`.\n", r.elapsed_s);
+    let stages: Vec<String> = r.stages.iter().map(|t| format!("{} {:.1} s", t.stage, t.s)).collect();
+    let stages = if stages.is_empty() { String::new() } else { format!(" ({})", stages.join(", ")) };
+    s += &format!("\nDiagnosis time: {:.1} s{stages}. Plots: `by_joint.svg`, `effects.svg`.\n", r.elapsed_s);
     s
 }
 

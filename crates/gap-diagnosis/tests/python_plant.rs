@@ -78,7 +78,7 @@ fn assert_named_on(r: &Report, kind: EffectKind, unit: &str, value: f64, tol: f6
 }
 
 #[test]
-#[ignore = "nightly (scripts/nightly.sh): CI keeps the control, the pair and the ceiling (issue 21: the CI time budget)"]
+#[ignore = "nightly (scripts/nightly.sh): CI keeps the control, the pair and the waist's ceiling (issue 21: the CI time budget)"]
 fn single_joint_effects_of_another_program_s_plant_are_named_on_their_joint() {
     let Some(shared) = shared() else { return };
     // Dry friction (MuJoCo's frictionloss, a hard Coulomb law; the library's is smooth with stiction) on one elbow.
@@ -104,7 +104,7 @@ fn single_joint_effects_of_another_program_s_plant_are_named_on_their_joint() {
 }
 
 #[test]
-#[ignore = "nightly (scripts/nightly.sh): CI keeps the control, the pair and the ceiling (issue 21: the CI time budget)"]
+#[ignore = "nightly (scripts/nightly.sh): CI keeps the control, the pair and the waist's ceiling (issue 21: the CI time budget)"]
 fn a_friction_that_grows_with_the_load_is_not_named_as_one_of_the_library() {
     let Some(shared) = shared() else { return };
     // 0.15 times the motor torque's magnitude against the motion of one elbow: outside the library. Damping,
@@ -153,17 +153,24 @@ fn a_no_effect_log_names_nothing_and_its_stepping_is_recognised() {
     let n = r.numerics.as_ref().expect("numerics on the rig");
     let best = n.better_variant().map(|v| (v.engine.as_str(), v.timestep_ms, v.pd_period_ms));
     assert_eq!(best, Some(("mujoco", 1.0, 1.0)), "{:?}", n.variants);
-    // 1 ms steps, PD held for 2 ms: the timestep alone.
-    let r = diagnose_plant(&shared, "control_1ms_pd2ms", &["--pd-every", "2"]);
-    assert!(r.ranked.is_empty(), "ranked {:?}", r.ranked);
-    let n = r.numerics.as_ref().expect("numerics on the rig");
-    let best = n.better_variant().map(|v| (v.engine.as_str(), v.timestep_ms, v.pd_period_ms));
-    assert_eq!(best, Some(("mujoco", 1.0, 2.0)), "{:?}", n.variants);
     // The diagnosing stepping (one 2 ms step, implicitfast): no variant fits better.
     let r = diagnose_plant(&shared, "control_2ms", &["--timestep", "0.002"]);
     assert!(r.ranked.is_empty(), "ranked {:?}", r.ranked);
     let n = r.numerics.as_ref().expect("numerics on the rig");
     assert!(n.better_variant().is_none(), "{:?}", n.variants);
+}
+
+/// 1 ms steps with the PD law held for 2 ms: the numerics stage tells the timestep alone from the timestep and the
+/// PD rate (`a_no_effect_log_names_nothing...` has the two other steppings).
+#[test]
+#[ignore = "nightly (scripts/nightly.sh): CI keeps the 1 ms and 2 ms steppings (issue 21: the CI time budget)"]
+fn a_no_effect_log_with_the_pd_law_held_for_two_steps_is_recognised() {
+    let Some(shared) = shared() else { return };
+    let r = diagnose_plant(&shared, "control_1ms_pd2ms", &["--pd-every", "2"]);
+    assert!(r.ranked.is_empty(), "ranked {:?}", r.ranked);
+    let n = r.numerics.as_ref().expect("numerics on the rig");
+    let best = n.better_variant().map(|v| (v.engine.as_str(), v.timestep_ms, v.pd_period_ms));
+    assert_eq!(best, Some(("mujoco", 1.0, 2.0)), "{:?}", n.variants);
 }
 
 /// A torque ceiling (issue 14, a sparse effect): the plant's motor delivers at most 0.3 of the limit, a plain clip
@@ -173,12 +180,24 @@ fn a_no_effect_log_names_nothing_and_its_stepping_is_recognised() {
 #[test]
 fn a_torque_ceiling_of_another_program_s_plant_is_named_from_the_log() {
     let Some(shared) = shared() else { return };
-    for (joint, motor) in [("torso_joint", "torso"), ("left_hip_pitch_joint", "left_hip_pitch")] {
-        let r = diagnose_plant(&shared, &format!("ceiling_{motor}"), &["--torque-scale", &format!("{joint}=0.3")]);
-        assert_eq!(r.ranked, vec![EffectKind::TorqueSaturation], "{motor}");
-        assert_named_on(&r, EffectKind::TorqueSaturation, motor, 0.3, 0.02);
-        let e = r.effects.iter().find(|e| e.kind == EffectKind::TorqueSaturation).expect("assessed");
-        let seen: Vec<&str> = e.ceilings_in_log.iter().map(|c| c.joint.as_str()).collect();
-        assert_eq!(seen, vec![motor], "{:?}", e.ceilings_in_log);
-    }
+    ceiling_is_named(&shared, "torso_joint", "torso");
+}
+
+/// The same on a hip pitch, which the chirps hold at the ceiling for about sixty samples.
+#[test]
+#[ignore = "nightly (scripts/nightly.sh): CI keeps the waist's ceiling (issue 21: the CI time budget)"]
+fn a_torque_ceiling_on_a_hip_of_another_program_s_plant_is_named_from_the_log() {
+    let Some(shared) = shared() else { return };
+    ceiling_is_named(&shared, "left_hip_pitch_joint", "left_hip_pitch");
+}
+
+/// A plant whose `joint` delivers at most 0.3 of its torque limit: the saturation alone is named, on `motor`, at
+/// that size, and the log shows that ceiling on that joint only.
+fn ceiling_is_named(shared: &str, joint: &str, motor: &str) {
+    let r = diagnose_plant(shared, &format!("ceiling_{motor}"), &["--torque-scale", &format!("{joint}=0.3")]);
+    assert_eq!(r.ranked, vec![EffectKind::TorqueSaturation], "{motor}");
+    assert_named_on(&r, EffectKind::TorqueSaturation, motor, 0.3, 0.02);
+    let e = r.effects.iter().find(|e| e.kind == EffectKind::TorqueSaturation).expect("assessed");
+    let seen: Vec<&str> = e.ceilings_in_log.iter().map(|c| c.joint.as_str()).collect();
+    assert_eq!(seen, vec![motor], "{:?}", e.ceilings_in_log);
 }

@@ -78,7 +78,18 @@ fn simulated_log_is_a_recording_and_diagnose_finds_the_effect() {
     assert_eq!(r["ranked"][0], "damping", "ranked {}", r["ranked"]);
     // Safety net for refactoring the diagnosis (issue 18): the whole report of this seeded log, 3 digits.
     // (the per-window list is checked below rather than pinned: one entry per window.)
-    insta::assert_json_snapshot!("rig_report", pinned(&r, 3, &["elapsed_s", "window_residuals"]));
+    insta::assert_json_snapshot!("rig_report", pinned(&r, 3, &["elapsed_s", "stages", "window_residuals"]));
+    // Each stage's wall time, in pipeline order; together they are the diagnosis's time (the report's own clock).
+    let stages: Vec<(&str, f64)> = r["stages"]
+        .as_array()
+        .map(|a| a.iter().filter_map(|t| Some((t["stage"].as_str()?, t["s"].as_f64()?))).collect())
+        .unwrap_or_default();
+    let names: Vec<&str> = stages.iter().map(|(n, _)| *n).collect();
+    let pipeline = ["rig check and windows", "breakdown", "each effect alone", "selection", "ambiguous sets"];
+    let rest = ["identifiability", "numerics", "remainder"];
+    assert_eq!(names, pipeline.iter().chain(&rest).copied().collect::<Vec<_>>(), "{}", r["stages"]);
+    let (sum, elapsed) = (stages.iter().map(|(_, s)| s).sum::<f64>(), r["elapsed_s"].as_f64().unwrap_or(0.0));
+    assert!(stages.iter().all(|(_, s)| *s >= 0.0) && sum <= elapsed && sum >= 0.9 * elapsed, "{sum} vs {elapsed}");
     // Every window is listed once; the held-out ones give the report's held-out metrics both before (the baseline,
     // computed by the breakdown stage) and after (the best combination, computed by the selection stage).
     let windows = r["window_residuals"].as_array().cloned().unwrap_or_default();
@@ -136,7 +147,8 @@ fn simulated_log_is_a_recording_and_diagnose_finds_the_effect() {
         "damping on left_arm found but reported not identifiable: {damping_left_arm}"
     );
 
-    // The same log through `ulab log export` (CSV pair) gives the same verdict.
+    // The same log through `ulab log export` (CSV pair) gives the same verdict and the same damping: asked about
+    // damping alone (`--effects`, which also keeps this second diagnosis short).
     let csv = d.join("csv");
     let (code, out, err) =
         ulab(&["log", "export", log.to_str().unwrap_or(""), "--format", "csv", "--out", csv.to_str().unwrap_or("")]);
@@ -152,10 +164,27 @@ fn simulated_log_is_a_recording_and_diagnose_finds_the_effect() {
         "json",
         "--block",
         "0.5",
+        "--effects",
+        "damping",
     ]);
     assert_eq!(code, Some(0), "diagnose (csv) failed:\n{}\n{err}", tail(&out));
-    let r: serde_json::Value = serde_json::from_str(&out).expect("JSON report on stdout");
-    assert_eq!(r["ranked"][0], "damping", "ranked {}", r["ranked"]);
+    let c: serde_json::Value = serde_json::from_str(&out).expect("JSON report on stdout");
+    assert_eq!(c["ranked"], serde_json::json!(["damping"]), "ranked {}", c["ranked"]);
+    let kinds: Vec<&str> =
+        c["effects"].as_array().map(|a| a.iter().filter_map(|e| e["kind"].as_str()).collect()).unwrap_or_default();
+    assert_eq!(kinds, vec!["damping"], "only the effect asked about is assessed");
+    let damping = |r: &serde_json::Value| -> Vec<(String, f64)> {
+        let e = r["effects"].as_array().and_then(|a| a.iter().find(|e| e["kind"] == "damping").cloned());
+        let ps = e.and_then(|e| e["params"].as_array().cloned()).unwrap_or_default();
+        ps.iter()
+            .map(|p| (p["unit"].as_str().unwrap_or("").to_string(), p["value"].as_f64().unwrap_or(f64::NAN)))
+            .collect()
+    };
+    let (from_csv, from_mcap) = (damping(&c), damping(&r));
+    assert_eq!(from_csv.len(), from_mcap.len(), "{from_csv:?} vs {from_mcap:?}");
+    for ((u, v), (w, x)) in from_csv.iter().zip(&from_mcap) {
+        assert!(u == w && (v - x).abs() <= 0.05 * x.abs(), "{from_csv:?} vs {from_mcap:?}");
+    }
 }
 
 #[test]
@@ -224,6 +253,19 @@ fn bad_input_fails_cleanly() {
     ]);
     assert_eq!(code, Some(2));
     assert!(err.contains("engine"), "{err}");
+    // An unknown effect kind is named with the kinds there are, before any log is read.
+    let (code, _, err) = ulab(&[
+        "gap",
+        "diagnose",
+        "--log",
+        junk.to_str().unwrap_or(""),
+        "--effects",
+        "damping,stiction",
+        "--out",
+        d.join("o").to_str().unwrap_or(""),
+    ]);
+    assert_eq!(code, Some(2));
+    assert!(err.contains("`stiction`") && err.contains("link_com"), "{err}");
     let (code, _, err) = ulab(&[
         "gap",
         "simulate",
@@ -296,7 +338,7 @@ fn walking_log_is_diagnosed_on_the_floating_base() {
     );
     assert_eq!(r["windows_down"], 0);
     assert_eq!(r["ranked"][0], injected[0]["kind"], "ranked {} for {injected}", r["ranked"]);
-    insta::assert_json_snapshot!("floating_report", pinned(&r, 3, &["elapsed_s", "window_residuals"]));
+    insta::assert_json_snapshot!("floating_report", pinned(&r, 3, &["elapsed_s", "stages", "window_residuals"]));
 
     let (code, _, err) = ulab(&[
         "gap",
