@@ -79,8 +79,9 @@ pub enum PlantKind {
 
 impl PlantKind {
     /// Default window cap. A floating-base window (ground contact, a base estimate per start) costs about three
-    /// rig windows, so its cap is lower; both keep a 60 s log within a minute on 2 cores, and both are above
-    /// what a short log holds (a 6 s log at 0.1 s windows has at most 60).
+    /// rig windows, so its cap is lower; both are above what a short log holds (a 6 s log at 0.1 s windows has at
+    /// most 60). The cost grows with the windows: a 60 s rig log at this cap took 254 s on 2 cores on 2026-11-28, over
+    /// the one-minute target (BENCHMARKS.md, "Where a diagnosis spends its time").
     pub fn default_max_windows(self) -> usize {
         match self {
             PlantKind::Rig => 300,
