@@ -41,7 +41,7 @@ pub use fit::RESOLUTION_FRAC;
 pub use halves::{HalvesRefit, SplitBy, LOAD_CHECKED, MIN_SPLIT_RATIO, SCALE_RATIO, SPEED_CHECKED};
 pub use identify::{Identifiability, UnitSignal};
 pub use numerics::{Numerics, NumericsVariant, INTEGRATORS, STEPPINGS};
-pub use options::{DiagnoseOptions, PlantChoice, PlantKind, FLOATING_MAX_WINDOWS};
+pub use options::{DiagnoseOptions, PlantChoice, PlantKind, FLOATING_MAX_WINDOWS, RIG_MAX_WINDOWS};
 pub use remainder::{
     RobustGap, Unexplained, WindowFlag, WindowResidual, FAST_FRAC, SATURATED_FRAC, UNEXPLAINED_FACTOR,
 };

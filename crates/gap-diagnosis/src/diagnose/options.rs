@@ -8,6 +8,9 @@ use serde::{Deserialize, Serialize};
 /// Default window cap on the floating base ([`PlantKind::default_max_windows`]).
 pub const FLOATING_MAX_WINDOWS: usize = 120;
 
+/// Default window cap on the suspension rig ([`PlantKind::default_max_windows`]).
+pub const RIG_MAX_WINDOWS: usize = 64;
+
 /// Options of a diagnosis.
 #[derive(Debug, Clone)]
 pub struct DiagnoseOptions {
@@ -78,13 +81,15 @@ pub enum PlantKind {
 }
 
 impl PlantKind {
-    /// Default window cap. A floating-base window (ground contact, a base estimate per start) costs about three
-    /// rig windows, so its cap is lower; both are above what a short log holds (a 6 s log at 0.1 s windows has at
-    /// most 60). The cost grows with the windows: a 60 s rig log at this cap took 254 s on 2 cores on 2026-11-28, over
-    /// the one-minute target (BENCHMARKS.md, "Where a diagnosis spends its time").
+    /// Default window cap, which sets a diagnosis's cost: every candidate fit replays its training windows (85 % of
+    /// the time is MuJoCo's step, nearly all of it unique replays), so the time grows with the windows. On the rig
+    /// 64 windows (32 training, 32 held-out; a 6 s log holds fewer) diagnose a 60 s log in about 71 s on 2 cores
+    /// where 300 took 254 s, and on Rapier's seed 18 lost no trial that 300 found and named one more single effect
+    /// first (BENCHMARKS.md, "How many windows"). A floating-base window (ground contact, a base estimate per start) costs
+    /// about three rig windows, so its cap is 120 of them.
     pub fn default_max_windows(self) -> usize {
         match self {
-            PlantKind::Rig => 300,
+            PlantKind::Rig => RIG_MAX_WINDOWS,
             PlantKind::Floating => FLOATING_MAX_WINDOWS,
         }
     }

@@ -237,3 +237,68 @@ fn split(log: &RobotLog, starts: &[usize], block_s: f64) -> Result<Split, GapErr
     }
     Ok(Split { train, test })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::super::options::RIG_MAX_WINDOWS;
+    use super::*;
+    use crate::log::{Command, Measurement};
+
+    /// A still robot logged for `seconds`: states at 500 Hz, commands at 50 Hz (the benchmark's rates).
+    fn still_log(model: &RobotModel, seconds: f64) -> RobotLog {
+        let (nj, q) = (model.nj(), model.default_q());
+        let states = (0..=(seconds * 500.0).round() as usize)
+            .map(|k| Measurement {
+                t: k as f64 * 0.002,
+                q: q.clone(),
+                dq: vec![0.0; nj],
+                tau: vec![0.0; nj],
+                quat: [1.0, 0.0, 0.0, 0.0],
+                gyro: [0.0; 3],
+                acc: [0.0; 3],
+            })
+            .collect();
+        let commands = (0..=(seconds * 50.0).round() as usize)
+            .map(|k| Command {
+                t: k as f64 * 0.02,
+                q: q.clone(),
+                dq: vec![0.0; nj],
+                kp: vec![100.0; nj],
+                kd: vec![2.0; nj],
+                tau: vec![0.0; nj],
+            })
+            .collect();
+        RobotLog { commands, states }
+    }
+
+    fn model() -> RobotModel {
+        robot_model::builtin("h1_2").expect("model")
+    }
+
+    #[test]
+    fn a_long_rig_log_is_cut_into_the_default_cap_spread_over_all_of_it() {
+        let m = model();
+        let log = still_log(&m, 60.0);
+        let w = cut(&m, &log, &DiagnoseOptions::default(), PlantKind::Rig).expect("windows");
+        assert_eq!(w.starts.len(), RIG_MAX_WINDOWS);
+        assert_eq!(w.len, 50, "0.1 s windows of 2 ms states");
+        let t: Vec<f64> = w.starts.iter().map(|&s| log.states[s].t).collect();
+        assert!(t[0] < 1.0 && t[t.len() - 1] > 58.0, "first {} s, last {} s", t[0], t[t.len() - 1]);
+        let mean_gap = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
+        assert!(t.windows(2).all(|p| p[1] - p[0] > 0.5 * mean_gap && p[1] - p[0] < 1.5 * mean_gap), "{t:?}");
+        let (a, b) = (w.train.len(), w.test.len());
+        assert_eq!(a + b, RIG_MAX_WINDOWS);
+        assert!(a.abs_diff(b) <= 8, "{a} training, {b} held-out");
+    }
+
+    #[test]
+    fn a_short_log_keeps_its_windows_and_the_option_overrides_the_cap() {
+        let m = model();
+        let short = cut(&m, &still_log(&m, 6.0), &DiagnoseOptions::default(), PlantKind::Rig).expect("windows");
+        // Every non-overlapping 0.1 s window after the first 50 ms: 59 of a 6 s log.
+        assert!((55..RIG_MAX_WINDOWS).contains(&short.starts.len()), "{}", short.starts.len());
+        let opts = DiagnoseOptions { max_windows: Some(300), ..DiagnoseOptions::default() };
+        let long = cut(&m, &still_log(&m, 60.0), &opts, PlantKind::Rig).expect("windows");
+        assert_eq!(long.starts.len(), 300);
+    }
+}

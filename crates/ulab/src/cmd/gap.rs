@@ -74,7 +74,8 @@ struct DiagnoseArgs {
     /// Window length (s).
     #[arg(long, default_value_t = 0.1)]
     window: f64,
-    /// At most this many windows [default: 300 on the rig, 120 on the floating base].
+    /// At most this many windows, spread over the log [default: 64 on the rig, 120 on the floating base]; the time of a
+    /// diagnosis grows with them.
     #[arg(long)]
     max_windows: Option<usize>,
     /// Training and held-out segments alternate every this many seconds.
