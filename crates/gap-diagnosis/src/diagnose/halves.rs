@@ -100,7 +100,8 @@ pub struct HalvesRefit {
     pub low: f64,
     pub high: f64,
     /// The scale of the kept values that fits each half best (1: the value fitted on every training window), with
-    /// a 95 % bootstrap interval over the half's windows.
+    /// a 95 % bootstrap interval over the half's windows; at most the scale that reaches the search range's bound
+    /// (the scales past it replay the bound).
     pub scale_low: Estimate,
     pub scale_high: Estimate,
     /// The mean cut per window of each half's gap (on the effect's columns, in the gap metric's units) by the
@@ -234,13 +235,14 @@ pub(super) fn split_refits(
         return Ok(Vec::new());
     }
     let cols: Vec<usize> = (0..ctx.nj()).filter(|&c| joints.iter().any(|&j| ctx.groups[j] == ctx.groups[c])).collect();
-    let (lo, hi, _) = kind.range();
-    let cfgs: Vec<Effects> = SCALES
+    let grid = scale_grid(kind, kept, &joints);
+    let scales: Vec<f64> = grid.iter().map(|(s, _)| *s).collect();
+    let cfgs: Vec<Effects> = grid
         .iter()
-        .map(|&s| {
+        .map(|(_, values)| {
             let mut fx = kept.clone();
-            for &j in &joints {
-                kind.set(&mut fx, j, (v0 + s * (kind.get(kept, j) - v0)).clamp(lo, hi));
+            for (&j, &v) in joints.iter().zip(values) {
+                kind.set(&mut fx, j, v);
             }
             fx
         })
@@ -255,15 +257,42 @@ pub(super) fn split_refits(
                 .collect()
         })
         .collect();
-    Ok(splits.into_iter().filter_map(|by| split_on(ctx, kind, &joints, &per_window, by, cleared_on_part)).collect())
+    Ok(splits
+        .into_iter()
+        .filter_map(|by| split_on(ctx, kind, &joints, &scales, &per_window, by, cleared_on_part))
+        .collect())
+}
+
+/// The [`SCALES`] of the kept values of `joints` as they are replayed, each with its joints' values: a scaled
+/// value beyond the search range is the range's bound, so the scales past the one that reaches it replay the same
+/// effect. They are dropped and the bound is tried at its own scale (the mean over the joints of the scale each
+/// reaches), so a half that wants the most the range allows says that, not the next grid scale: on Rapier seed 18
+/// trial 25, a right-leg damping fitted at 2.34 (range up to 4.0) whose slow half "wanted 2.25x", the vertex of three
+/// scales that all replayed 4.0 (1.71x), was set aside as a dry friction fitted as damping. The first
+/// [`FITTED`]` + 1` scales lie between no effect and the fitted value, inside the range, and are always kept.
+fn scale_grid(kind: EffectKind, kept: &Effects, joints: &[usize]) -> Vec<(f64, Vec<f64>)> {
+    let (lo, hi, v0) = kind.range();
+    let mut grid: Vec<(f64, Vec<f64>)> = Vec::with_capacity(SCALES.len());
+    for &s in &SCALES {
+        let values: Vec<f64> = joints.iter().map(|&j| (v0 + s * (kind.get(kept, j) - v0)).clamp(lo, hi)).collect();
+        if grid.last().is_some_and(|(_, last)| *last == values) {
+            continue;
+        }
+        let reached = joints.iter().zip(&values).map(|(&j, v)| (v - v0) / (kind.get(kept, j) - v0)).sum::<f64>()
+            / joints.len().max(1) as f64;
+        grid.push((reached, values));
+    }
+    grid
 }
 
 /// The split of the training windows at the median of `by` over `joints`, each half's best scale from `per_window`
 /// (`None` when a half has fewer than 4 windows).
+#[allow(clippy::too_many_arguments)]
 fn split_on(
     ctx: &Ctx<'_>,
     kind: EffectKind,
     joints: &[usize],
+    scales: &[f64],
     per_window: &[Vec<f64>],
     by: SplitBy,
     cleared_on_part: bool,
@@ -278,8 +307,8 @@ fn split_on(
     let (q_low, q_high) = (mean_of(&low), mean_of(&high));
     // Each split draws its resamples from the same fresh stream.
     let mut rng = ChaCha8Rng::seed_from_u64(SPLIT_STREAM);
-    let scale_low = half_scale(per_window, &low, &mut rng);
-    let scale_high = half_scale(per_window, &high, &mut rng);
+    let scale_low = half_scale(scales, per_window, &low, &mut rng);
+    let scale_high = half_scale(scales, per_window, &high, &mut rng);
     // Drawn after the scales, so that the scales' draws stay as they were before the cuts were added.
     let cut_low = half_cut(per_window, &low, &mut rng);
     let cut_high = half_cut(per_window, &high, &mut rng);
@@ -353,9 +382,9 @@ fn contradicts(q_low: f64, q_high: f64, more: &Estimate, less: &Estimate, cleare
 
 /// The best scale on the windows `idx` (indices into `per_window`), with a percentile interval over resamples of
 /// those windows.
-fn half_scale(per_window: &[Vec<f64>], idx: &[usize], rng: &mut impl Rng) -> Estimate {
+fn half_scale(scales: &[f64], per_window: &[Vec<f64>], idx: &[usize], rng: &mut impl Rng) -> Estimate {
     let curve = |pick: &mut dyn Iterator<Item = usize>| -> Vec<f64> {
-        let mut f = vec![0.0; SCALES.len()];
+        let mut f = vec![0.0; scales.len()];
         for i in pick {
             if let Some(w) = per_window.get(i) {
                 f.iter_mut().zip(w).for_each(|(a, b)| *a += b);
@@ -363,9 +392,9 @@ fn half_scale(per_window: &[Vec<f64>], idx: &[usize], rng: &mut impl Rng) -> Est
         }
         f
     };
-    let value = best_scale(&curve(&mut idx.iter().copied()));
+    let value = best_scale(scales, &curve(&mut idx.iter().copied()));
     let draws: Vec<f64> = (0..RESAMPLES)
-        .map(|_| best_scale(&curve(&mut (0..idx.len()).map(|_| idx[rng.gen_range(0..idx.len())]))))
+        .map(|_| best_scale(scales, &curve(&mut (0..idx.len()).map(|_| idx[rng.gen_range(0..idx.len())]))))
         .collect();
     percentile_interval(value, draws)
 }
@@ -395,13 +424,15 @@ fn window_mean(ctx: &Ctx<'_>, joints: &[usize], w: usize, by: SplitBy) -> f64 {
     }
 }
 
-/// The scale at the minimum of `f` over [`SCALES`], refined by a parabola through the minimum and its neighbours.
-fn best_scale(f: &[f64]) -> f64 {
-    let Some((k, _)) = f.iter().enumerate().min_by(|a, b| a.1.total_cmp(b.1)) else { return 1.0 };
-    if k == 0 || k + 1 >= f.len() {
-        return SCALES[k];
+/// The scale at the minimum of `f` over `scales` (increasing), refined by a parabola through the minimum and its
+/// neighbours.
+fn best_scale(scales: &[f64], f: &[f64]) -> f64 {
+    let n = f.len().min(scales.len());
+    let Some((k, _)) = f[..n].iter().enumerate().min_by(|a, b| a.1.total_cmp(b.1)) else { return 1.0 };
+    if k == 0 || k + 1 >= n {
+        return scales[k];
     }
-    let (x0, x1, x2) = (SCALES[k - 1], SCALES[k], SCALES[k + 1]);
+    let (x0, x1, x2) = (scales[k - 1], scales[k], scales[k + 1]);
     let (y0, y1, y2) = (f[k - 1], f[k], f[k + 1]);
     // Vertex of the parabola through three points with uneven spacing.
     let den = (x0 - x1) * (x0 - x2) * (x1 - x2);
@@ -464,6 +495,34 @@ mod tests {
         assert!(cut_keeps_pace_with_load(0.041, 0.309, &e(2.75, 0.20, 4.48), &e(128.24, 99.46, 161.23)));
     }
 
+    /// Seed 18 trial 25's right-leg damping (2.342, range up to 4.0): the scales past 1.71x all replay 4.0, so the
+    /// grid stops there, and a slow half whose gap falls all the way to the bound wants 1.71x — not twice the fast
+    /// half's 1.02x, so no contradiction; a damping far from the bound keeps every scale.
+    #[test]
+    fn scales_past_the_search_bound_are_the_bound() {
+        let nj = 27;
+        let mut kept = Effects::none(nj);
+        let knee = 9;
+        EffectKind::Damping.set(&mut kept, knee, 2.342);
+        let grid = scale_grid(EffectKind::Damping, &kept, &[knee]);
+        let scales: Vec<f64> = grid.iter().map(|g| g.0).collect();
+        assert_eq!(scales.len(), 8, "{scales:?}");
+        assert_eq!(&scales[..7], &SCALES[..7]);
+        assert!((scales[7] - 4.0 / 2.342).abs() < 1e-9, "{scales:?}");
+        assert_eq!(grid[7].1, vec![4.0]);
+        let falling: Vec<f64> = scales.iter().map(|s| 10.0 - s).collect();
+        let slow = best_scale(&scales, &falling);
+        assert!((slow - 4.0 / 2.342).abs() < 1e-9, "{slow}");
+        let e = |value: f64| Estimate { value, lo: value, hi: value };
+        assert!(!contradicts(0.01, 1.66, &e(slow), &e(1.02), false));
+        // With the grid as it was (every scale, the bound replayed from 2x on) the same half "wanted" 2.25x.
+        let replayed: Vec<f64> = SCALES.iter().map(|s| 10.0 - (s * 2.342).min(4.0) / 2.342).collect();
+        assert!((best_scale(&SCALES, &replayed) - 2.25).abs() < 1e-9);
+        assert!(contradicts(0.01, 1.66, &e(2.25), &e(1.02), false));
+        EffectKind::Damping.set(&mut kept, knee, 0.5);
+        assert_eq!(scale_grid(EffectKind::Damping, &kept, &[knee]).iter().map(|g| g.0).collect::<Vec<_>>(), SCALES);
+    }
+
     #[test]
     fn the_scale_grid_holds_no_effect_and_the_fitted_value_where_the_cuts_read_them() {
         assert_eq!((SCALES[NO_EFFECT], SCALES[FITTED]), (0.0, 1.0));
@@ -473,11 +532,11 @@ mod tests {
     fn the_best_scale_is_the_vertex_of_a_parabola_through_the_grid_minimum() {
         // f(s) = (s - 1.7)^2 sampled on the grid: the vertex is found exactly between uneven grid points.
         let f: Vec<f64> = SCALES.iter().map(|s| (s - 1.7) * (s - 1.7)).collect();
-        assert!((best_scale(&f) - 1.7).abs() < 1e-9, "{}", best_scale(&f));
+        assert!((best_scale(&SCALES, &f) - 1.7).abs() < 1e-9, "{}", best_scale(&SCALES, &f));
         // A minimum at the grid's end is that end.
         let g: Vec<f64> = SCALES.iter().map(|s| -s).collect();
-        assert_eq!(best_scale(&g), 6.0);
+        assert_eq!(best_scale(&SCALES, &g), 6.0);
         let h: Vec<f64> = SCALES.to_vec();
-        assert_eq!(best_scale(&h), 0.0);
+        assert_eq!(best_scale(&SCALES, &h), 0.0);
     }
 }
