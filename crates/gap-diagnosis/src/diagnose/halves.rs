@@ -269,7 +269,7 @@ pub(super) fn split_refits(
 /// reaches), so a half that wants the most the range allows says that, not the next grid scale: on Rapier seed 18
 /// trial 25, a right-leg damping fitted at 2.34 (range up to 4.0) whose slow half "wanted 2.25x", the vertex of three
 /// scales that all replayed 4.0 (1.71x), was set aside as a dry friction fitted as damping. The first
-/// [`FITTED`]` + 1` scales lie between no effect and the fitted value, inside the range, and are always kept.
+/// `FITTED + 1` scales lie between no effect and the fitted value, inside the range, and are always kept.
 fn scale_grid(kind: EffectKind, kept: &Effects, joints: &[usize]) -> Vec<(f64, Vec<f64>)> {
     let (lo, hi, v0) = kind.range();
     let mut grid: Vec<(f64, Vec<f64>)> = Vec::with_capacity(SCALES.len());
@@ -502,9 +502,9 @@ mod tests {
     fn scales_past_the_search_bound_are_the_bound() {
         let nj = 27;
         let mut kept = Effects::none(nj);
-        let knee = 9;
-        EffectKind::Damping.set(&mut kept, knee, 2.342);
-        let grid = scale_grid(EffectKind::Damping, &kept, &[knee]);
+        let joint = 9;
+        EffectKind::Damping.set(&mut kept, joint, 2.342);
+        let grid = scale_grid(EffectKind::Damping, &kept, &[joint]);
         let scales: Vec<f64> = grid.iter().map(|g| g.0).collect();
         assert_eq!(scales.len(), 8, "{scales:?}");
         assert_eq!(&scales[..7], &SCALES[..7]);
@@ -519,8 +519,8 @@ mod tests {
         let replayed: Vec<f64> = SCALES.iter().map(|s| 10.0 - (s * 2.342).min(4.0) / 2.342).collect();
         assert!((best_scale(&SCALES, &replayed) - 2.25).abs() < 1e-9);
         assert!(contradicts(0.01, 1.66, &e(2.25), &e(1.02), false));
-        EffectKind::Damping.set(&mut kept, knee, 0.5);
-        assert_eq!(scale_grid(EffectKind::Damping, &kept, &[knee]).iter().map(|g| g.0).collect::<Vec<_>>(), SCALES);
+        EffectKind::Damping.set(&mut kept, joint, 0.5);
+        assert_eq!(scale_grid(EffectKind::Damping, &kept, &[joint]).iter().map(|g| g.0).collect::<Vec<_>>(), SCALES);
     }
 
     #[test]
