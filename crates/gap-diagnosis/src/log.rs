@@ -392,3 +392,20 @@ impl<T: unitree_idl::IdlStruct> Zeroed for T {
         T::zeroed()
     }
 }
+
+/// `n` states of a robot holding its default pose, 2 ms apart (a test fixture for the stages that read states).
+#[cfg(test)]
+pub(crate) fn still_states(model: &RobotModel, n: usize) -> Vec<Measurement> {
+    let q = model.default_q();
+    (0..n)
+        .map(|k| Measurement {
+            t: k as f64 * 0.002,
+            q: q.clone(),
+            dq: vec![0.0; model.nj()],
+            tau: vec![0.0; model.nj()],
+            quat: [1.0, 0.0, 0.0, 0.0],
+            gyro: [0.0; 3],
+            acc: [0.0; 3],
+        })
+        .collect()
+}

@@ -238,18 +238,7 @@ mod tests {
     }
 
     fn still(model: &RobotModel, n: usize) -> Vec<Measurement> {
-        let q = model.default_q();
-        (0..n)
-            .map(|k| Measurement {
-                t: k as f64 * 0.002,
-                q: q.clone(),
-                dq: vec![0.0; model.nj()],
-                tau: vec![0.0; model.nj()],
-                quat: [1.0, 0.0, 0.0, 0.0],
-                gyro: [0.0; 3],
-                acc: [0.0; 3],
-            })
-            .collect()
+        crate::log::still_states(model, n)
     }
 
     #[test]

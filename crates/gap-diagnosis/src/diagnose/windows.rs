@@ -242,22 +242,12 @@ fn split(log: &RobotLog, starts: &[usize], block_s: f64) -> Result<Split, GapErr
 mod tests {
     use super::super::options::RIG_MAX_WINDOWS;
     use super::*;
-    use crate::log::{Command, Measurement};
+    use crate::log::Command;
 
     /// A still robot logged for `seconds`: states at 500 Hz, commands at 50 Hz (the benchmark's rates).
     fn still_log(model: &RobotModel, seconds: f64) -> RobotLog {
         let (nj, q) = (model.nj(), model.default_q());
-        let states = (0..=(seconds * 500.0).round() as usize)
-            .map(|k| Measurement {
-                t: k as f64 * 0.002,
-                q: q.clone(),
-                dq: vec![0.0; nj],
-                tau: vec![0.0; nj],
-                quat: [1.0, 0.0, 0.0, 0.0],
-                gyro: [0.0; 3],
-                acc: [0.0; 3],
-            })
-            .collect();
+        let states = crate::log::still_states(model, (seconds * 500.0).round() as usize + 1);
         let commands = (0..=(seconds * 50.0).round() as usize)
             .map(|k| Command {
                 t: k as f64 * 0.02,
