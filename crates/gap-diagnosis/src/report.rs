@@ -289,7 +289,7 @@ fn splits_section(r: &Report) -> String {
          effect cleared the floor only on part of the held-out windows (verdict marked \"cleared on part\"). A \
          friction or a backlash split by speed is judged by what its fitted value cuts of each half's gap instead \
          (a Coulomb torque keeps its size at speed, a dead band its width): set aside when it cuts the slow \
-         half's {r:.1}x as much as the fast half's, intervals apart. A backlash whose scales grow with the load \
+         half's {r:.1}x as much as the fast half's, intervals apart (again, not when it cleared on part). A backlash whose scales grow with the load \
          is set aside only when its fitted value also cuts the heavy half's gap at least as much per unit of load \
          as the light half's: a band is lost at every reversal, so it cuts the light windows' gap too, where a \
          torque growing with the load is nothing there.\n\n| effect | split by | low half | \
