@@ -361,7 +361,7 @@ fn a_torque_ripple_fitted_as_a_dead_band_that_fades_with_speed_is_not_named() {
 /// reversal at any load, so it cuts the light half's gap too (39 per window at 0.5 % of the limit, 118 at 14 %),
 /// where a friction growing with the load cuts nothing there: kept, the two injected effects are named and nothing
 /// else. On the default 64 windows the two are named and nothing else, without the split contradicting the band;
-/// the split is checked on the 300 windows it was written for.
+/// on the 300 windows it was written for, the split keeps the band and its fitted value cuts the light half's gap.
 #[test]
 #[ignore = "nightly (scripts/nightly.sh): CI keeps the no-effect control and one benchmark trial"]
 fn a_leg_dead_band_that_wants_a_wider_band_under_load_is_still_named() {
@@ -376,7 +376,10 @@ fn a_leg_dead_band_that_wants_a_wider_band_under_load_is_still_named() {
     assert_eq!(report.ranked.len(), 2, "ranked {:?}", report.ranked);
     let e = report.effects.iter().find(|e| e.kind == EffectKind::Backlash).expect("backlash assessed");
     let by_load = e.splits.iter().find(|s| s.by == SplitBy::Load).expect("a load split");
-    assert!(by_load.scales_contradict() && by_load.load_paced && !by_load.set_aside, "{by_load:?}");
+    // Since the split's bound fix (`81b9c95`) the heavy half wants 1.28x (the band's range bound), not 1.75x, so
+    // the scales no longer contradict the band even here; the load-paced rule keeps its unit test
+    // (`a_dead_band_whose_cut_grows_more_slowly_than_the_load_is_kept`, on this trial's numbers).
+    assert!(by_load.load_paced && !by_load.set_aside, "{by_load:?}");
     assert!(by_load.cut_low.lo > 0.0, "{by_load:?}");
 }
 
