@@ -22,7 +22,8 @@
 //!   at speed, fitted as "stiction") and is not named.
 //! - by load, dead band: its width is a gap in the gears, not a torque, yet on both independent engines a true dead
 //!   band on a leg wants a wider one in the heavily loaded windows (DART seed 8 trial 6: 0.75x light, 1.75x heavy,
-//!   intervals apart; Rapier's same draw 1.98x). What tells it from a friction growing with the load fitted as a
+//!   intervals apart, before the scale grid stopped at the range bound; 1.28x, the bound, since; Rapier's same
+//!   draw 1.98x). What tells it from a friction growing with the load fitted as a
 //!   band is what its fitted value cuts: a band is lost at every reversal at any load, so it cuts the light half's
 //!   gap too, and its cut grows more slowly than the load (DART: 3x the cut for 28x the load), while a torque that
 //!   grows with the load is nothing in the light windows (the Python plant's elbow load friction: a cut of -0.01 at
