@@ -34,11 +34,14 @@ mod torque_ceiling;
 mod unmask;
 mod windows;
 
-pub use assess::{EffectResult, FittedParam, MIN_WINDOWS_OFF_LIMIT, SINGLE_JOINT_CANDIDATES, UNIT_FLOOR_FRAC};
+pub use assess::{
+    pinned_at_bound, EffectResult, FittedParam, MIN_WINDOWS_OFF_LIMIT, PINNED_FRAC, SINGLE_JOINT_CANDIDATES,
+    UNIT_FLOOR_FRAC,
+};
 pub use breakdown::Share;
 pub use confound::{leading_set, Ambiguity, AmbiguousSet, AMBIGUOUS_COSINE};
 pub use fit::RESOLUTION_FRAC;
-pub use halves::{HalvesRefit, SplitBy, LOAD_CHECKED, MIN_SPLIT_RATIO, SCALE_RATIO, SPEED_CHECKED};
+pub use halves::{HalvesRefit, SplitBy, LOAD_CHECKED, MIN_SPLIT_RATIO, POWER_CHECKED, SCALE_RATIO, SPEED_CHECKED};
 pub use identify::{Identifiability, UnitSignal};
 pub use numerics::{Numerics, NumericsVariant, INTEGRATORS, STEPPINGS};
 pub use options::{DiagnoseOptions, PlantChoice, PlantKind, FLOATING_MAX_WINDOWS, RIG_MAX_WINDOWS};
@@ -86,7 +89,10 @@ pub use crate::noise::{TIMING_HI, TIMING_LO};
 /// `/16`: an ambiguous set carries `reason` (`collinear`, or `equal_cut`: a masked effect and rivals that cut as much
 /// on the same limb), and the report carries `stages` (the wall time of each stage, `stage` and `s`). Both are
 /// optional when read: a `/15` report still reads.
-pub const SCHEMA_VERSION: &str = "ulab-gap-report/16";
+/// `/17`: a gain scale's splits include one `by` `power` (the braking share of its joints' mechanical power: not named
+/// when the driving half wants 2x the braking half's change of gain), and an effect may carry `pinned_units` (units
+/// whose fit stopped at the bound of the search range, dropped before it was judged again). Both optional when read.
+pub const SCHEMA_VERSION: &str = "ulab-gap-report/17";
 
 /// What the diagnosis concluded about the log as a whole.
 #[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq)]

@@ -178,6 +178,14 @@ pub fn markdown(r: &Report) -> String {
              smaller: a value fitted against a mismatch elsewhere): {dropped}.\n"
         );
     }
+    let pinned = listed(|e| &e.pinned_units);
+    if !pinned.is_empty() {
+        s += &format!(
+            "\nUnits dropped from a fit alone at the bound of its search range (the fit wanted more than the \
+             library allows: a stand-in for another effect, or one larger than the range; the effect may still be \
+             named refitted given the effects before it, inside the range): {pinned}.\n"
+        );
+    }
     let contradicted = listed(|e| &e.contradicted_units);
     if !contradicted.is_empty() {
         s += &format!(
@@ -218,7 +226,7 @@ pub fn markdown(r: &Report) -> String {
 }
 
 /// Each friction-like effect that cleared the floor, refitted on the halves of the training windows by load and
-/// (damping, friction) by speed.
+/// by speed, and each gain scale by the braking share of its joints' power.
 fn splits_section(r: &Report) -> String {
     use crate::diagnose::SplitBy;
     let rows: Vec<String> = r
@@ -259,6 +267,12 @@ fn splits_section(r: &Report) -> String {
                     |x| format!("{x:.2} rad/s"),
                     if l.set_aside { "falls with speed: not named" } else { "holds at both speeds" }.to_string(),
                 ),
+                SplitBy::Power => (
+                    "power",
+                    |x| format!("{:.0} % braking", x * 100.0),
+                    if l.set_aside { "weaker only while driving: not named" } else { "holds driving and braking" }
+                        .to_string(),
+                ),
             };
             let (low, high) =
                 if l.by_cut { (cut(&l.cut_low), cut(&l.cut_high)) } else { (est(&l.scale_low), est(&l.scale_high)) };
@@ -292,7 +306,10 @@ fn splits_section(r: &Report) -> String {
          half's {r:.1}x as much as the fast half's, intervals apart (again, not when it cleared on part). A backlash whose scales grow with the load \
          is set aside only when its fitted value also cuts the heavy half's gap at least as much per unit of load \
          as the light half's: a band is lost at every reversal, so it cuts the light windows' gap too, where a \
-         torque growing with the load is nothing there.\n\n| effect | split by | low half | \
+         torque growing with the load is nothing there. A gain scale is refitted on the half of the training windows \
+         where its joints' motors mostly drive them and the half where they mostly brake (power: the braking share \
+         of torque x velocity): a gain acts alike on both, a friction fitted as a weaker gain wants it only while \
+         driving; a driving-half scale at least {r:.1}x the braking-half one sets it aside as above.\n\n| effect | split by | low half | \
          scale there | high half | scale there | verdict |\n|---|---|---|---|---|---|---|\n{}",
         rows.concat(),
         r = crate::diagnose::SCALE_RATIO,

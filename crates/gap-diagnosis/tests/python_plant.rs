@@ -54,6 +54,18 @@ fn diagnose_plant(shared: &str, name: &str, args: &[&str]) -> Report {
         })
         .collect();
     eprintln!("{name}: ranked {:?}; named {summary:?}", r.ranked);
+    for e in &r.effects {
+        for l in &e.splits {
+            eprintln!(
+                "{name}: {} split by {:?}: {:.2}x / {:.2}x, set aside {}",
+                e.kind.name(),
+                l.by,
+                l.scale_low.value,
+                l.scale_high.value,
+                l.set_aside
+            );
+        }
+    }
     r
 }
 
@@ -95,6 +107,10 @@ fn single_joint_effects_of_another_program_s_plant_are_named_on_their_joint() {
     // A weak gain on one shoulder (kp and kd at 60 %).
     let r = diagnose_plant(&shared, "gain", &["--gain-scale", "left_shoulder_pitch_joint=0.6"]);
     assert_named_first(&r, EffectKind::GainScale, "left_shoulder_pitch", 0.6, 0.06);
+    // A gain scales the torque that drives the joint and the torque that brakes it alike: refitted on the windows
+    // where the shoulder's motor mostly drives it and on those where it mostly brakes, it wants its size on both.
+    let l = split(&r, EffectKind::GainScale, SplitBy::Power);
+    assert!(!l.set_aside && (l.scale_high.value - l.scale_low.value).abs() < 0.3, "{l:?}");
     // Armature 0.1 -> 0.25 kg m^2 on one knee: the library's armature is a multiple of the model's.
     let r = diagnose_plant(&shared, "armature", &["--extra-armature", "left_knee_joint=0.15"]);
     assert_named_first(&r, EffectKind::Armature, "left_knee", 2.5, 0.4);

@@ -33,6 +33,13 @@
 //!   however fast the joint turns; the benchmark's own backlashes cut the slow half's gap 0.01 to 0.97 times as
 //!   much as the fast half's, while the two torque ripples on ankle pitches of Rapier seeds 5 and 6, named a
 //!   backlash, cut the slow half's 2.3 and 11 times as much.
+//! - by power, gain scale: a gain scale multiplies the motor's torque whichever way the joint moves, so it wants
+//!   one size whether the motor drives the joint (torque and velocity of one sign) or brakes it. A friction opposes
+//!   the motion: it takes from the torque that drives and adds to the torque that brakes, so fitted as a gain
+//!   scale it wants a weaker gain in the driving windows and none (or a stronger one) in the braking windows. Split
+//!   on the braking share of the joints' mechanical power ([`SplitBy::Power`]), a gain scale whose driving half
+//!   wants [`SCALE_RATIO`] times the braking half's change of gain is set aside (Rapier seed 19's out-of-library
+//!   trial 43: a torso friction growing with the load, named a gain scale of 0.89).
 //!
 //! Checked on a plant of another program (`tests/python_plant.rs`: a load-proportional friction on an elbow names
 //! nothing, a viscous damping and a dry friction there want their fitted size on both halves) and on the Rapier and
@@ -68,6 +75,9 @@ pub const LOAD_CHECKED: [EffectKind; 3] = [EffectKind::Damping, EffectKind::Fric
 /// The kinds whose torque must not fade with speed: a damping's scale that falls with speed, or a friction or dead
 /// band that cuts only the slow windows' gap, contradicts them.
 pub const SPEED_CHECKED: [EffectKind; 3] = [EffectKind::Damping, EffectKind::Friction, EffectKind::Backlash];
+/// The kinds whose size cannot depend on whether the motor drives or brakes the joint, and that a friction can
+/// stand in for.
+pub const POWER_CHECKED: [EffectKind; 1] = [EffectKind::GainScale];
 /// Where the scale of no effect and the fitted scale sit in [`SCALES`].
 const NO_EFFECT: usize = 0;
 const FITTED: usize = 4;
@@ -82,6 +92,10 @@ pub enum SplitBy {
     /// larger scale, a friction or a dead band when its fitted value cuts the slow half's gap far more than the fast
     /// half's.
     Speed,
+    /// Braking share of the mechanical power of the effect's joints (the sum of -torque x velocity over the samples
+    /// where it is positive, over the sum of |torque x velocity|); a gain scale is set aside when the driving half
+    /// (the low one) wants [`SCALE_RATIO`] times the braking half's scale.
+    Power,
 }
 
 impl SplitBy {
@@ -89,6 +103,7 @@ impl SplitBy {
         match self {
             SplitBy::Load => &LOAD_CHECKED,
             SplitBy::Speed => &SPEED_CHECKED,
+            SplitBy::Power => &POWER_CHECKED,
         }
     }
 }
@@ -98,7 +113,7 @@ impl SplitBy {
 pub struct HalvesRefit {
     pub by: SplitBy,
     /// Mean of the quantity split on over the low and over the high half (load: fraction of the torque limit;
-    /// speed: rad/s).
+    /// speed: rad/s; power: braking share).
     pub low: f64,
     pub high: f64,
     /// The scale of the kept values that fits each half best (1: the value fitted on every training window), with
@@ -147,11 +162,12 @@ impl HalvesRefit {
     /// Whether the halves' scales alone contradict the effect (the test of a split judged on scales; for a dead
     /// band split by load, [`Self::load_paced`] asks more before it is set aside).
     pub fn scales_contradict(&self) -> bool {
-        // The half that must not want more: the heavy one (a library effect's size does not grow with the load) or
-        // the slow one (a damping's torque grows with speed, so its scale must not fall with it).
+        // The half that must not want more: the heavy one (a library effect's size does not grow with the load),
+        // the slow one (a damping's torque grows with speed, so its scale must not fall with it) or the driving one
+        // (a gain scale acts alike on the torque that drives and the torque that brakes; a friction does not).
         let (more, less) = match self.by {
             SplitBy::Load => (&self.scale_high, &self.scale_low),
-            SplitBy::Speed => (&self.scale_low, &self.scale_high),
+            SplitBy::Speed | SplitBy::Power => (&self.scale_low, &self.scale_high),
         };
         contradicts(self.low, self.high, more, less, self.cleared_on_part)
     }
@@ -197,6 +213,16 @@ impl HalvesRefit {
                 self.high * 100.0,
                 est(&self.scale_high)
             ),
+            SplitBy::Power => format!(
+                "a gain scale multiplies the motor's torque whether it drives the joint or brakes it, yet refitted on \
+                 the training windows where its joints' motors mostly drive them ({:.0} % of the power braking) it \
+                 wants {} the fitted change of gain, where they mostly brake ({:.0} %) {}: a torque against the \
+                 motion (a friction, one growing with the load) fitted as a weaker gain; not named",
+                self.low * 100.0,
+                est(&self.scale_low),
+                self.high * 100.0,
+                est(&self.scale_high)
+            ),
             SplitBy::Speed => format!(
                 "its torque does not grow with speed as a damping's does: refitted on the training windows where its \
                  joints move slowest ({:.2} rad/s) it wants {} the fitted value, where they move fastest ({:.2} \
@@ -230,7 +256,7 @@ pub(super) fn split_refits(
     cleared_on_part: bool,
 ) -> Result<Vec<HalvesRefit>, GapError> {
     let splits: Vec<SplitBy> =
-        [SplitBy::Load, SplitBy::Speed].into_iter().filter(|b| b.checked().contains(&kind)).collect();
+        [SplitBy::Load, SplitBy::Speed, SplitBy::Power].into_iter().filter(|b| b.checked().contains(&kind)).collect();
     if splits.is_empty() || ctx.train.len() < 8 {
         return Ok(Vec::new());
     }
@@ -285,7 +311,8 @@ fn scale_grid(kind: EffectKind, kept: &Effects, joints: &[usize]) -> Vec<(f64, V
         }
         let reached = joints.iter().zip(&values).map(|(&j, v)| (v - v0) / (kind.get(kept, j) - v0)).sum::<f64>()
             / joints.len().max(1) as f64;
-        grid.push((reached, values));
+        // `+ 0.0` turns the -0.0 of no effect below a value under the no-effect one (a gain scale under 1) into 0.
+        grid.push((reached + 0.0, values));
     }
     grid
 }
@@ -413,8 +440,20 @@ fn half_scale(scales: &[f64], per_window: &[Vec<f64>], idx: &[usize], rng: &mut 
 }
 
 /// Mean over training window `w` of the quantity `by` of `joints`: |measured torque| / torque limit, or
-/// |measured velocity|.
+/// |measured velocity|; or, by power, the braking share of their mechanical power (0 when they do not move).
 fn window_mean(ctx: &Ctx<'_>, joints: &[usize], w: usize, by: SplitBy) -> f64 {
+    if by == SplitBy::Power {
+        let (mut braking, mut all) = (0.0, 0.0);
+        for s in ctx.window_states(w) {
+            for &j in joints {
+                if let Some(p) = s.tau.get(j).zip(s.dq.get(j)).map(|(t, v)| t * v) {
+                    braking += (-p).max(0.0);
+                    all += p.abs();
+                }
+            }
+        }
+        return if all > 0.0 { braking / all } else { 0.0 };
+    }
     let (mut acc, mut n) = (0.0, 0usize);
     for s in ctx.window_states(w) {
         for &j in joints {
@@ -423,6 +462,7 @@ fn window_mean(ctx: &Ctx<'_>, joints: &[usize], w: usize, by: SplitBy) -> f64 {
                     s.tau.get(j).zip(ctx.model.joints.get(j)).map(|(t, m)| t.abs() / m.torque_limit.max(1.0))
                 }
                 SplitBy::Speed => s.dq.get(j).map(|v| v.abs()),
+                SplitBy::Power => None,
             };
             if let Some(v) = v {
                 acc += v;
@@ -477,6 +517,34 @@ mod tests {
         // Apart in scale and interval: set aside either way.
         let (slow, fast) = (e(6.0, 3.12, 6.0), e(1.03, 0.88, 1.33));
         assert!(contradicts(0.016, 1.964, &slow, &fast, false));
+    }
+
+    /// The power split's scales of seed 19's out-of-library trial 43 (a torso friction growing with the load,
+    /// fitted as a gain scale of 0.89: the driving half wants the fitted change of gain, the braking half none) and
+    /// of the true gain scale of 1.31 on a shoulder yaw in its trial 34 (1.41x and 1.00x): only the first
+    /// contradicts a gain scale.
+    #[test]
+    fn a_gain_scale_that_only_the_driving_windows_want_is_set_aside() {
+        let e = |value, lo, hi| Estimate { value, lo, hi };
+        let split = |low, high, scale_low, scale_high, cleared_on_part| HalvesRefit {
+            by: SplitBy::Power,
+            low,
+            high,
+            scale_low,
+            scale_high,
+            cut_low: e(0.0, 0.0, 0.0),
+            cut_high: e(0.0, 0.0, 0.0),
+            cleared_on_part,
+            set_aside: false,
+            by_cut: false,
+            load_paced: false,
+        };
+        let friction = split(0.23, 0.69, e(1.09, 0.80, 1.18), e(0.0, 0.0, 0.26), true);
+        assert!(friction.scales_contradict());
+        assert!(friction.note().contains("fitted as a weaker gain"), "{}", friction.note());
+        assert!(!split(0.28, 0.75, e(1.41, 1.23, 1.76), e(1.00, 0.86, 1.22), false).scales_contradict());
+        // The same halves the other way round (the braking half wanting more) do not contradict a gain scale.
+        assert!(!split(0.23, 0.69, e(0.0, 0.0, 0.26), e(1.09, 0.80, 1.18), true).scales_contradict());
     }
 
     /// The cuts of Rapier's seed-6 out-of-library trial 0 (a torque ripple on the right knee, fitted as a friction

@@ -312,8 +312,19 @@ fn best_trial(
             }
         }
     }
-    let Some((index, _)) =
-        tots.iter().enumerate().min_by(|a, b| a.1.iter().sum::<f64>().total_cmp(&b.1.iter().sum::<f64>()))
+    // A candidate whose fit alone stopped at the bound of its range joins only as a refit inside the range.
+    let at_bound = |k: EffectKind| candidates.iter().any(|c| c.kind == k && c.at_bound);
+    let allowed = |i: usize| {
+        !at_bound(cands[i])
+            || refit_params[i]
+                .as_ref()
+                .is_some_and(|ps| ps.iter().all(|p| !super::assess::pinned_at_bound(cands[i], p.value)))
+    };
+    let Some((index, _)) = tots
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| allowed(*i))
+        .min_by(|a, b| a.1.iter().sum::<f64>().total_cmp(&b.1.iter().sum::<f64>()))
     else {
         return Ok(None);
     };

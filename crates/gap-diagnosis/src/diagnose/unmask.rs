@@ -68,8 +68,8 @@ struct Offer {
 }
 
 /// Which effects may be masked: on the rig, the replayed effects (not the IMU's closed-form fits, nor a torque
-/// saturation, which has routes of its own from the log's torque) that kept no unit alone, were not set aside by a
-/// split and are not in the combination.
+/// saturation, which has routes of its own from the log's torque) that kept no unit alone (nor one dropped at the
+/// bound of its range), were not set aside by a split and are not in the combination.
 fn masked_kinds(plant: PlantKind, results: &[EffectResult], members: &[EffectKind]) -> Vec<EffectKind> {
     if plant != PlantKind::Rig {
         return Vec::new();
@@ -83,6 +83,7 @@ fn masked_kinds(plant: PlantKind, results: &[EffectResult], members: &[EffectKin
                 && !members.contains(&r.kind)
                 && !r.named
                 && r.params.is_empty()
+                && r.pinned_units.is_empty()
                 && r.set_aside_by_split().is_none()
         })
         .map(|r| r.kind)
