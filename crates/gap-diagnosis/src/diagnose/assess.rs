@@ -11,7 +11,7 @@ use super::halves::{split_refits, HalvesRefit};
 use super::options::PlantKind;
 use super::replay::Ctx;
 use super::replay::Scores;
-use super::stats::{bootstrap_mean, judge, mean, total, Estimate};
+use super::stats::{bootstrap_mean, judge, mean, total, Estimate, Judged};
 use super::torque_ceiling::{
     ceilings_in_log, joints_above_ceiling, LogCeiling, CEILING_MARGIN, DEMAND_OVER, MAX_FRACTION_ABOVE,
 };
@@ -410,21 +410,7 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
         }
         params = kept;
     }
-    let mut after_tot = if params.is_empty() {
-        base_test_tot.clone()
-    } else {
-        let a = ctx.eval_many(std::slice::from_ref(&pruned), &ctx.test)?.remove(0);
-        a.iter().map(|s| total(s)).collect::<Vec<f64>>()
-    };
-    let mut judged = judge(base_test_tot, &after_tot, &ctx.off_limit_test(), bootstrap, rng);
-    let (mut red, mut floor) = (judged.reduction, judged.floor);
-    let mut metric_after = bootstrap_mean(&after_tot, bootstrap, rng);
-    let mut cleared = !params.is_empty() && judged.clears();
-    let mut splits = if cleared && ctx.plant == PlantKind::Rig {
-        split_refits(ctx, kind, &pruned, judged.cleared_on_part_only())?
-    } else {
-        Vec::new()
-    };
+    let mut fit_judged = judge_fit(ctx, kind, &params, &pruned, base_test_tot, rng)?;
     // A unit whose fit stopped at the bound of the search range (away from the no-effect value) wanted more than the
     // library allows: not an estimate, and on the benchmark's logs the mark of an effect standing in for another (a
     // torque ripple fitted as a dead band of 0.06 rad, an armature of 4.0 on a hip whose torque limit saturated).
@@ -434,8 +420,8 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
     // fits 0.010 (Rapier seed 18's policy trial 6).
     let mut pinned = Vec::new();
     let mut whole_fit = None;
-    if cleared
-        && splits.iter().all(|s| !s.set_aside)
+    if fit_judged.cleared
+        && fit_judged.splits.iter().all(|s| !s.set_aside)
         && kind.scope() != Scope::Imu
         && params.iter().any(|p| pinned_at_bound(kind, p.value))
     {
@@ -446,22 +432,10 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
         in_range.iter().for_each(|p| copy_param(ctx, kind, &units, p, &pruned, &mut fx));
         whole_fit = Some(std::mem::replace(&mut pruned, fx));
         params = in_range;
-        after_tot = if params.is_empty() {
-            base_test_tot.clone()
-        } else {
-            let a = ctx.eval_many(std::slice::from_ref(&pruned), &ctx.test)?.remove(0);
-            a.iter().map(|s| total(s)).collect::<Vec<f64>>()
-        };
-        judged = judge(base_test_tot, &after_tot, &ctx.off_limit_test(), bootstrap, rng);
-        (red, floor) = (judged.reduction, judged.floor);
-        metric_after = bootstrap_mean(&after_tot, bootstrap, rng);
-        cleared = !params.is_empty() && judged.clears();
-        splits = if cleared && ctx.plant == PlantKind::Rig {
-            split_refits(ctx, kind, &pruned, judged.cleared_on_part_only())?
-        } else {
-            Vec::new()
-        };
+        fit_judged = judge_fit(ctx, kind, &params, &pruned, base_test_tot, rng)?;
     }
+    let FitJudged { mut after_tot, judged, mut metric_after, cleared, splits } = fit_judged;
+    let (mut red, mut floor) = (judged.reduction, judged.floor);
     let set_aside = splits.iter().find(|s| s.set_aside);
     let mut named = cleared && set_aside.is_none();
     let mut note = if let Some(s) = set_aside {
@@ -566,6 +540,42 @@ fn assess_one(ctx: &Ctx<'_>, kind: EffectKind, baseline: &Baseline, rng: &mut im
         _ => pruned,
     };
     Ok(Assessed { result, kept, totals: after_tot })
+}
+
+/// The held-out judgement of one fit of an effect: its totals, the judged reduction against the floor, and the split
+/// refits of a rig log when it clears. One place for it, as a fit is judged again after units are dropped from it.
+struct FitJudged {
+    after_tot: Vec<f64>,
+    judged: Judged,
+    metric_after: Estimate,
+    cleared: bool,
+    splits: Vec<HalvesRefit>,
+}
+
+fn judge_fit(
+    ctx: &Ctx<'_>,
+    kind: EffectKind,
+    params: &[FittedParam],
+    fx: &Effects,
+    base_test_tot: &[f64],
+    rng: &mut impl Rng,
+) -> Result<FitJudged, GapError> {
+    let bootstrap = ctx.opts.bootstrap;
+    let after_tot = if params.is_empty() {
+        base_test_tot.to_vec()
+    } else {
+        let a = ctx.eval_many(std::slice::from_ref(fx), &ctx.test)?.remove(0);
+        a.iter().map(|s| total(s)).collect::<Vec<f64>>()
+    };
+    let judged = judge(base_test_tot, &after_tot, &ctx.off_limit_test(), bootstrap, rng);
+    let metric_after = bootstrap_mean(&after_tot, bootstrap, rng);
+    let cleared = !params.is_empty() && judged.clears();
+    let splits = if cleared && ctx.plant == PlantKind::Rig {
+        split_refits(ctx, kind, fx, judged.cleared_on_part_only())?
+    } else {
+        Vec::new()
+    };
+    Ok(FitJudged { after_tot, judged, metric_after, cleared, splits })
 }
 
 /// The parameters of a saturation named from the log's ceilings: a group when two or more of its joints show one
