@@ -453,3 +453,26 @@ fn a_second_effect_masked_by_the_first_is_named_on_its_joint() {
         assert!((e.params[0].value - value).abs() < 0.25 * value, "seed {seed} trial {i}: {:?}", e.params);
     }
 }
+
+/// Issue 14 item 6, found blind: trial 6 of the Rapier benchmark's seed 20 (`ulab gap bench --reference-engine
+/// rapier_multibody --trials 40 --out-of-library 6 --seed 20 --duration 15 --only 6`): 14 ms of latency and a torso
+/// link 1.575 times heavier. On the suspended rig a heavier torso shows as inertia about the vertical waist axis, as
+/// an added waist armature does. The armature kept a unit alone and the link mass did not, so given latency the
+/// armature was the only one tried and was named second: a confident misattribution. Each candidate added after the
+/// first is now checked as a masked effect's offer is: the link mass, refitted given latency, cuts what latency leaves
+/// on the torso as much as the armature does, and the two are reported as one set the log cannot order.
+#[test]
+#[ignore = "nightly (scripts/nightly.sh): CI keeps the no-effect control and one benchmark trial"]
+fn a_candidate_added_given_the_first_is_reported_with_the_masked_effect_it_cannot_be_told_from() {
+    let (score, report) = benchmark_trial(diff_physics::EngineKind::RapierMultibody, 40, 6, 20, 6);
+    let injected: Vec<EffectKind> = score.injected.iter().map(|i| i.kind).collect();
+    assert_eq!(injected, vec![EffectKind::Latency, EffectKind::LinkMass], "{:?}", score.injected);
+    assert_eq!(report.ranked.first(), Some(&EffectKind::Latency), "{:?}", report.ranked);
+    assert_eq!(score.misattributed, 0, "ranked {:?}, sets {:?}", report.ranked, report.ambiguous);
+    // Whatever stands second is in a set with the link mass, fitted on the torso.
+    for &k in report.ranked.iter().skip(1).filter(|&&k| k != EffectKind::LinkMass) {
+        assert!(report.ambiguous.iter().any(|s| s.links(k, EffectKind::LinkMass)), "{k:?}: {:?}", report.ambiguous);
+    }
+    let mass = report.effects.iter().find(|e| e.kind == EffectKind::LinkMass).expect("link mass assessed");
+    assert!(mass.params.iter().any(|p| p.unit == "torso"), "{:?}", mass.params);
+}

@@ -278,6 +278,21 @@ fn bad_input_fails_cleanly() {
     ]);
     assert_eq!(code, Some(2));
     assert!(err.contains("left_tail"), "{err}");
+    // A trial outside the bench is refused before any log is generated.
+    let (code, _, err) = ulab(&[
+        "gap",
+        "bench",
+        "--trials",
+        "3",
+        "--out-of-library",
+        "1",
+        "--only",
+        "4",
+        "--out",
+        d.join("b").to_str().unwrap_or(""),
+    ]);
+    assert_eq!(code, Some(2));
+    assert!(err.contains("--only 4") && err.contains("0 to 3"), "{err}");
 }
 
 /// A walking robot through the CLI: `ulab gap bench --floating` writes one sealed trial log of Unitree's LSTM

@@ -45,7 +45,8 @@ pub(super) struct Selection {
     pub combo_fx: Option<Effects>,
     /// The effect added once masking was lifted ([`super::unmask`]), its kept units alone.
     pub unmasked: Vec<(EffectKind, Effects)>,
-    /// That effect and the masked effects the log cannot rank against it ([`super::unmask::Rival`]).
+    /// That effect, or a candidate added after the first, and the masked effects the log cannot rank against it
+    /// ([`super::unmask::Rival`]).
     pub equal_cut: Vec<AmbiguousSet>,
 }
 
@@ -98,6 +99,9 @@ pub(super) fn select(
         let mut cur: Vec<f64> =
             named_scores.iter().find(|n| n.kind == first).map(|n| n.totals.clone()).unwrap_or_default();
         let mut added: Vec<Conditional> = Vec::new();
+        // Candidates added with masked effects the log cannot rank against them; reported once the unmask stage
+        // has run (the rivals' results change, and that stage reads them as they were).
+        let mut added_rivals: Vec<(EffectKind, Vec<super::unmask::Rival>)> = Vec::new();
         let off_limit = ctx.off_limit_test();
         while members.len() < MAX_COMBINATION {
             let cands: Vec<EffectKind> = candidates.iter().map(|c| c.kind).filter(|k| !members.contains(k)).collect();
@@ -111,13 +115,32 @@ pub(super) fn select(
             if !judged.clears() {
                 break;
             }
+            let kind = cands[trial.index];
+            let units = match &trial.params {
+                Some(ps) => ps.clone(),
+                None => results.iter().find(|r| r.kind == kind).map(|r| r.params.clone()).unwrap_or_default(),
+            };
+            let added_as = (kind, &trial.fx, units.as_slice());
+            let rivals = super::unmask::rivals_of_added(
+                ctx,
+                &results,
+                &members,
+                &combo,
+                &cur,
+                added_as,
+                &trial.totals,
+                &judged,
+                &off_limit,
+            )?;
+            if !rivals.is_empty() {
+                added_rivals.push((kind, rivals));
+            }
             let (gain, floor) = (judged.reduction, judged.floor);
             let per_window = (cur.iter().sum::<f64>() - trial.totals.iter().sum::<f64>()) / cur.len().max(1) as f64;
             let params = trial.params.take().map(|mut ps| {
                 ps.iter_mut().for_each(|p| p.held_out_reduction = per_window);
                 ps
             });
-            let kind = cands[trial.index];
             let metric_after = bootstrap_mean(&trial.totals, bootstrap, rng);
             added.push(Conditional { kind, gain, floor, metric_after, params, route: judged.route_note() });
             combo = trial.fx;
@@ -151,6 +174,9 @@ pub(super) fn select(
                 members.push(u.kind);
                 cur = u.totals;
             }
+        }
+        for (kind, rivals) in added_rivals {
+            equal_cut.push(rival_set(&mut results, kind, &rivals));
         }
         name_conditionals(&mut results, &members, added);
         sort_results(&mut results);

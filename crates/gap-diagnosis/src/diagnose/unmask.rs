@@ -7,6 +7,8 @@
 //! only (the floating plant's fits are several times dearer), and one effect per diagnosis: every refit is a full
 //! fit. Its draws come from a stream of its own, so the other stages draw as they did without it. Another masked
 //! effect on the same limb whose cut the log cannot rank against the offered one is reported with it ([`Rival`]).
+//! The same check runs on each candidate the selection adds after the first ([`rivals_of_added`]): that it kept a
+//! unit alone and a masked effect did not says nothing once another effect is in.
 use super::assess::{judge_unit, single_joints, EffectResult, FittedParam, UnitVerdict, SINGLE_JOINT_FRAC};
 use super::confound::cosine;
 use super::fit::{fit_kind, report_value, set_unit, unit_name, unit_value, units_of, RESOLUTION_FRAC};
@@ -21,6 +23,8 @@ use rand_chacha::ChaCha8Rng;
 
 /// The stream of this stage's draws ("unmask").
 const UNMASK_STREAM: u64 = 0x756e_6d61_736b;
+/// The stream of the check of an added candidate's rivals ("rivals").
+const ADDED_RIVALS_STREAM: u64 = 0x7269_7661_6c73;
 
 /// An effect that keeps a unit only once the combination is applied.
 pub(super) struct Unmasked {
@@ -107,16 +111,43 @@ pub(super) fn unmask(
         return Ok(None);
     }
     let mut rng = ChaCha8Rng::seed_from_u64(UNMASK_STREAM ^ ctx.opts.seed);
+    let (mut offers, mut totals) = offers_given(ctx, &kinds, combo, &mut rng)?;
+    let Some(best) = (0..offers.len()).min_by(|&a, &b| sum(&totals[a]).total_cmp(&sum(&totals[b]))) else {
+        return Ok(None);
+    };
+    let judged = judge(cur, &totals[best], off_limit, ctx.opts.bootstrap, &mut rng);
+    if !judged.clears() {
+        return Ok(None);
+    }
+    let metric_after = bootstrap_mean(&totals[best], ctx.opts.bootstrap, &mut rng);
+    let rivals = rivals(ctx, combo, &offers, &totals, best, &judged, cur, off_limit, &mut rng)?;
+    let Offer { kind, with: fx, alone, params, .. } = offers.swap_remove(best);
+    let totals = totals.swap_remove(best);
+    Ok(Some(Unmasked { kind, fx, alone, totals, metric_after, params, judged, rivals }))
+}
+
+fn sum(v: &[f64]) -> f64 {
+    v.iter().sum()
+}
+
+/// The masked effects `kinds` refitted with `combo` applied that keep a unit against the residual `combo` leaves,
+/// each with its held-out gap metric per window.
+fn offers_given(
+    ctx: &Ctx<'_>,
+    kinds: &[EffectKind],
+    combo: &Effects,
+    rng: &mut ChaCha8Rng,
+) -> Result<(Vec<Offer>, Vec<Vec<f64>>), GapError> {
     let combo_train = ctx.eval_many(std::slice::from_ref(combo), &ctx.train)?.remove(0);
     let combo_test = ctx.eval_many(std::slice::from_ref(combo), &ctx.test)?.remove(0);
     let mut fits = Vec::with_capacity(kinds.len());
     let mut singles = Vec::with_capacity(kinds.len());
-    for &kind in &kinds {
-        fits.push(fit_kind(ctx, kind, combo, &combo_train, &mut rng)?);
+    for &kind in kinds {
+        fits.push(fit_kind(ctx, kind, combo, &combo_train, rng)?);
         // A masked effect is often on one joint (a knee's damping under the leg's armature): fitted on the group
         // alone it spreads over joints that do not want it.
         singles.push(if kind.scope() == Scope::Group {
-            Some(single_joints(ctx, kind, combo, &combo_train, &mut rng)?)
+            Some(single_joints(ctx, kind, combo, &combo_train, rng)?)
         } else {
             None
         });
@@ -137,14 +168,14 @@ pub(super) fn unmask(
             let value = unit_value(kind, &fit.fx, ctx, u);
             let group = if resolved(value) {
                 let diffs: Vec<f64> = before.iter().zip(after).map(|(b, a)| b - unit_sum(a)).collect();
-                judge_unit(ctx, kind, cols, &before, &diffs, &mut rng)
+                judge_unit(ctx, kind, cols, &before, &diffs, rng)
             } else {
                 UnitVerdict::Not
             };
             let joint = match single {
                 Some(sj) if cols.len() >= 2 && sj.values.get(u).is_some_and(|&v| resolved(v)) => {
                     let diffs: Vec<f64> = before.iter().zip(&sj.after).map(|(b, a)| b - unit_sum(a)).collect();
-                    Some((sj.joints[u], sj.values[u], judge_unit(ctx, kind, cols, &before, &diffs, &mut rng)))
+                    Some((sj.joints[u], sj.values[u], judge_unit(ctx, kind, cols, &before, &diffs, rng)))
                 }
                 _ => None,
             };
@@ -187,24 +218,65 @@ pub(super) fn unmask(
         }
     }
     if offers.is_empty() {
-        return Ok(None);
+        return Ok((offers, Vec::new()));
     }
     let cfgs: Vec<Effects> = offers.iter().map(|o| o.with.clone()).collect();
-    let mut totals: Vec<Vec<f64>> =
+    let totals: Vec<Vec<f64>> =
         ctx.eval_many(&cfgs, &ctx.test)?.iter().map(|r| r.iter().map(|s| total(s)).collect()).collect();
-    let sums: Vec<f64> = totals.iter().map(|t| t.iter().sum::<f64>()).collect();
-    let Some(best) = (0..offers.len()).min_by(|&a, &b| sums[a].total_cmp(&sums[b])) else {
-        return Ok(None);
-    };
-    let judged = judge(cur, &totals[best], off_limit, ctx.opts.bootstrap, &mut rng);
-    if !judged.clears() {
-        return Ok(None);
+    Ok((offers, totals))
+}
+
+/// The masked effects the log cannot rank against `added`, a candidate the selection added to `combo` (the effects
+/// before it, in `members`): refitted with `combo` applied, each shares a limb with `added`'s units (`units`, as
+/// reported), clears the floor of the residual `combo` leaves (`cur`) and cuts it as much as `added` does on the
+/// windows `added` was named on (`judged`, its judgement; `with`, `combo` with it; `totals`, per window). A
+/// candidate kept a unit alone and a masked effect did not, but under another effect (a torso link mass and the
+/// waist's armature beside latency) that is no evidence for the candidate: both change the same motion. Draws from a
+/// stream of its own, so every other stage draws as it did without it.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn rivals_of_added(
+    ctx: &Ctx<'_>,
+    results: &[EffectResult],
+    members: &[EffectKind],
+    combo: &Effects,
+    cur: &[f64],
+    added: (EffectKind, &Effects, &[FittedParam]),
+    totals: &[f64],
+    judged: &Judged,
+    off_limit: &[bool],
+) -> Result<Vec<Rival>, GapError> {
+    let (kind, with, units) = added;
+    if kind.scope() == Scope::Imu {
+        return Ok(Vec::new());
     }
-    let metric_after = bootstrap_mean(&totals[best], ctx.opts.bootstrap, &mut rng);
-    let rivals = rivals(ctx, combo, &offers, &totals, best, &judged, cur, off_limit, &mut rng)?;
-    let Offer { kind, with: fx, alone, params, .. } = offers.swap_remove(best);
-    let totals = totals.swap_remove(best);
-    Ok(Some(Unmasked { kind, fx, alone, totals, metric_after, params, judged, rivals }))
+    let kinds = masked_kinds(ctx.plant, results, members);
+    let limbs = limbs_of(ctx, kind, units);
+    if kinds.is_empty() || limbs.is_empty() {
+        return Ok(Vec::new());
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(ADDED_RIVALS_STREAM ^ ctx.opts.seed);
+    let (mut offers, mut all) = offers_given(ctx, &kinds, combo, &mut rng)?;
+    offers.push(Offer { kind, with: with.clone(), alone: Effects::none(ctx.nj()), params: units.to_vec(), limbs });
+    all.push(totals.to_vec());
+    let best = offers.len() - 1;
+    rivals(ctx, combo, &offers, &all, best, judged, cur, off_limit, &mut rng)
+}
+
+/// The limbs ([`crate::plant::GROUPS`]) of the reported units of an effect: a group, link or joint of its own
+/// units, or a single joint (named by its motor) that a group effect was narrowed to.
+fn limbs_of(ctx: &Ctx<'_>, kind: EffectKind, units: &[FittedParam]) -> Vec<usize> {
+    let cols = units_of(ctx, kind);
+    let mut limbs: Vec<usize> = Vec::new();
+    for p in units {
+        if let Some(u) = (0..cols.len()).find(|&u| unit_name(ctx, kind, u) == p.unit) {
+            limbs.extend(cols[u].iter().filter_map(|&c| ctx.groups.get(c).copied()));
+        } else if let Some(j) = ctx.model.joints.iter().position(|j| j.motor_name == p.unit) {
+            limbs.extend(ctx.groups.get(j).copied());
+        }
+    }
+    limbs.sort_unstable();
+    limbs.dedup();
+    limbs
 }
 
 /// The held-out windows an effect judged `judged` was named on: every one when it cleared there, else those left

@@ -7,7 +7,8 @@
 //! - `ulab gap excite --robot h1_2 --out plan.mcap [--duration S] [--rate HZ]`
 //! - `ulab gap simulate --robot h1_2 --out real.mcap [--effect KIND:UNIT:VALUE]... [--engine E]
 //!   [--substeps N [--pd-held]]`: a log of the benchmark's reference plant (demo and test logs)
-//! - `ulab gap bench [--trials N] [--seed S] [--duration S] [--out DIR] [--policy SPEC.toml]... [--floating]`
+//! - `ulab gap bench [--trials N] [--seed S] [--duration S] [--out DIR] [--policy SPEC.toml]... [--floating]
+//!   [--only TRIAL]...`
 use anyhow::{bail, Context, Result};
 use gap_bench::{self as bench, BenchOptions, Motion, RealConfig};
 use gap_diagnosis::diagnose::PlantChoice;
@@ -193,6 +194,11 @@ struct BenchArgs {
     /// class (any named effect is a confident attribution).
     #[arg(long, default_value_t = 0)]
     out_of_library: usize,
+    /// Run only this trial of the bench (an index into the --trials regular then --out-of-library trials);
+    /// repeatable. Each trial draws from --seed and its index alone, so it gives the same log and report as in the
+    /// full run: re-run one row of a recorded table without the others.
+    #[arg(long = "only", value_name = "TRIAL")]
+    only: Vec<usize>,
 }
 
 pub fn run(args: Args) -> Result<Exit> {
@@ -478,10 +484,17 @@ fn bench_cmd(a: BenchArgs) -> Result<Exit> {
         out_of_library: a.out_of_library,
         ..BenchOptions::new(a.trials, a.seed, a.duration)
     };
+    if let Some(&k) = a.only.iter().find(|&&k| k >= a.trials + a.out_of_library) {
+        bail!(
+            "--only {k}: the bench has {} trials (0 to {})",
+            a.trials + a.out_of_library,
+            a.trials + a.out_of_library - 1
+        );
+    }
     let mut scores = Vec::new();
     let mut seals = Vec::new();
     let started = std::time::Instant::now();
-    for i in 0..a.trials + a.out_of_library {
+    for i in (0..a.trials + a.out_of_library).filter(|i| a.only.is_empty() || a.only.contains(i)) {
         // Each generated log goes to disk as MCAP and is read back: the diagnosis sees exactly what a recording gives.
         let mut via_mcap = |i: usize, log: &RobotLog| -> Result<RobotLog, gap_diagnosis::GapError> {
             let p = dir.join(format!("trial_{i:03}.mcap"));
@@ -569,13 +582,14 @@ fn bench_cmd(a: BenchArgs) -> Result<Exit> {
         let reference =
             if a.floating { String::new() } else { format!(" --reference-engine {}", opts.reference.name()) };
         println!(
-            "ulab gap bench{flag}{reference} --trials {} --seed {} --duration {}{}{}{} ({} s {what}; {:.0} s total)\n",
+            "ulab gap bench{flag}{reference} --trials {} --seed {} --duration {}{}{}{}{} ({} s {what}; {:.0} s total)\n",
             a.trials,
             a.seed,
             a.duration,
             a.policy.iter().map(|p| format!(" --policy {}", p.display())).collect::<String>(),
             if a.gentle_chirp { " --gentle-chirp" } else { "" },
             if a.out_of_library > 0 { format!(" --out-of-library {}", a.out_of_library) } else { String::new() },
+            a.only.iter().map(|k| format!(" --only {k}")).collect::<String>(),
             a.duration,
             started.elapsed().as_secs_f64()
         );
