@@ -45,8 +45,9 @@ pub enum Ambiguity {
     Collinear,
     /// A masked effect (`diagnose/unmask.rs`), or a candidate the selection added after the first, and its rivals
     /// (masked effects): each, refitted with the combination before it applied, cuts what that combination leaves on
-    /// the same limb beyond its noise floor, and the log cannot rank their cuts (here `cosine` compares their changes given the combination and `gap_difference` is relative to the residual
-    /// the combination leaves). The first is named; the others are not, but are as likely.
+    /// the same limb beyond its noise floor, and the log cannot rank their cuts (here `cosine` compares their changes
+    /// given the combination and `gap_difference` is relative to the residual the combination leaves). The first is
+    /// named; the others are not, but are as likely.
     EqualCut,
 }
 
