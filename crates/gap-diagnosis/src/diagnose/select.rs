@@ -116,11 +116,11 @@ pub(super) fn select(
                 break;
             }
             let kind = cands[trial.index];
-            let units = match &trial.params {
-                Some(ps) => ps.clone(),
-                None => results.iter().find(|r| r.kind == kind).map(|r| r.params.clone()).unwrap_or_default(),
+            let units: &[FittedParam] = match &trial.params {
+                Some(ps) => ps,
+                None => results.iter().find(|r| r.kind == kind).map_or(&[], |r| r.params.as_slice()),
             };
-            let added_as = (kind, &trial.fx, units.as_slice());
+            let added_as = (kind, &trial.fx, units);
             let rivals = super::unmask::rivals_of_added(
                 ctx,
                 &results,

@@ -112,7 +112,8 @@ pub(super) fn unmask(
     }
     let mut rng = ChaCha8Rng::seed_from_u64(UNMASK_STREAM ^ ctx.opts.seed);
     let (mut offers, mut totals) = offers_given(ctx, &kinds, combo, &mut rng)?;
-    let Some(best) = (0..offers.len()).min_by(|&a, &b| sum(&totals[a]).total_cmp(&sum(&totals[b]))) else {
+    let sums: Vec<f64> = totals.iter().map(|t| t.iter().sum::<f64>()).collect();
+    let Some(best) = (0..offers.len()).min_by(|&a, &b| sums[a].total_cmp(&sums[b])) else {
         return Ok(None);
     };
     let judged = judge(cur, &totals[best], off_limit, ctx.opts.bootstrap, &mut rng);
@@ -124,10 +125,6 @@ pub(super) fn unmask(
     let Offer { kind, with: fx, alone, params, .. } = offers.swap_remove(best);
     let totals = totals.swap_remove(best);
     Ok(Some(Unmasked { kind, fx, alone, totals, metric_after, params, judged, rivals }))
-}
-
-fn sum(v: &[f64]) -> f64 {
-    v.iter().sum()
 }
 
 /// The masked effects `kinds` refitted with `combo` applied that keep a unit against the residual `combo` leaves,
@@ -256,6 +253,7 @@ pub(super) fn rivals_of_added(
     }
     let mut rng = ChaCha8Rng::seed_from_u64(ADDED_RIVALS_STREAM ^ ctx.opts.seed);
     let (mut offers, mut all) = offers_given(ctx, &kinds, combo, &mut rng)?;
+    // `alone` is read only for the offered effect of the masked-effect step, never by `rivals`.
     offers.push(Offer { kind, with: with.clone(), alone: Effects::none(ctx.nj()), params: units.to_vec(), limbs });
     all.push(totals.to_vec());
     let best = offers.len() - 1;
