@@ -201,8 +201,9 @@ pub fn markdown(r: &Report) -> String {
         .flat_map(|e| &e.ceilings_in_log)
         .map(|c| {
             format!(
-                "{} at {:.2} of its limit ({} samples held, {:.2} followed below)",
-                c.joint, c.scale, c.pinned, c.follow
+                "{} at {:.2} of its limit ({} samples held, {:.2} followed below, logged torque {} state sample(s) \
+                 behind the demand)",
+                c.joint, c.scale, c.pinned, c.follow, c.lag_samples
             )
         })
         .collect();

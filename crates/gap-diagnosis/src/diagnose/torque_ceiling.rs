@@ -79,12 +79,15 @@ pub struct LogCeiling {
     pub pinned: usize,
     /// Median of logged over demanded torque below the plateau (≈ 1: the drive follows the PD law there).
     pub follow: f64,
+    /// State samples by which the logged torque trails the demand it was paired with ([`MAX_TORQUE_LAG`]).
+    #[serde(default)]
+    pub lag_samples: usize,
 }
 
 /// The ceilings the log shows ([`LogCeiling`]), one per joint at most, in joint order. `joints` gives each
 /// joint's name and nominal torque limit, in the log's joint order. Reads the log only: no simulation, no fit.
 pub fn ceilings_in_log(log: &RobotLog, joints: &[(&str, f64)]) -> Vec<LogCeiling> {
-    // The PD demand of the command in force at each state, and the logged torque, per joint.
+    // The PD demand of the command in force at each state, and the logged torque, per joint (NaN where missing).
     let pairs: Vec<(&Measurement, &Command)> = log
         .states
         .iter()
@@ -92,21 +95,54 @@ pub fn ceilings_in_log(log: &RobotLog, joints: &[(&str, f64)]) -> Vec<LogCeiling
         .collect();
     let mut out = Vec::new();
     for (j, &(name, limit)) in joints.iter().enumerate() {
-        let samples: Vec<(f64, f64)> = pairs
+        let (demands, taus): (Vec<f64>, Vec<f64>) = pairs
             .iter()
-            .filter_map(|(s, c)| {
-                let demand = c.tau.get(j)?
-                    + c.kp.get(j)? * (c.q.get(j)? - s.q.get(j)?)
-                    + c.kd.get(j)? * (c.dq.get(j)? - s.dq.get(j)?);
-                Some((demand, *s.tau.get(j)?))
-            })
+            .map(|(s, c)| (pd_demand(s, c, j).unwrap_or(f64::NAN), s.tau.get(j).copied().unwrap_or(f64::NAN)))
+            .unzip();
+        let lag = torque_lag(&demands, &taus);
+        let samples: Vec<(f64, f64)> = demands
+            .iter()
+            .zip(taus.iter().skip(lag))
+            .map(|(&d, &t)| (d, t))
             .filter(|(d, t)| d.is_finite() && t.is_finite())
             .collect();
         if let Some(c) = plateau(&samples, limit) {
-            out.push(LogCeiling { joint: name.to_string(), ..c });
+            out.push(LogCeiling { joint: name.to_string(), lag_samples: lag, ..c });
         }
     }
     out
+}
+
+/// The torque the PD law of command `c` asks of joint `j` at state `s`.
+fn pd_demand(s: &Measurement, c: &Command, j: usize) -> Option<f64> {
+    Some(c.tau.get(j)? + c.kp.get(j)? * (c.q.get(j)? - s.q.get(j)?) + c.kd.get(j)? * (c.dq.get(j)? - s.dq.get(j)?))
+}
+
+/// The delivered torque may trail the state the PD law read by a sample or more: a drive computes its torque from
+/// the position it measured at one tick and reports it with the next state (the Rapier reference plant does, and
+/// its seed 21's trial 29 showed it: an ankle pitch held at 0.42 of its limit for 12 samples, of which only 8 line up
+/// with the demand read off the same state). A short saturation then loses the first sample of every episode, and
+/// one that lasts a few samples falls under [`MIN_PINNED`].
+pub const MAX_TORQUE_LAG: usize = 3;
+
+/// The lag, in state samples up to [`MAX_TORQUE_LAG`], by which the logged torque best follows the PD demand: the one
+/// with the smallest median |logged - demanded|, ties to the shorter lag. Read off the log, so a drive that reports
+/// the torque of the same state (lag 0) is paired as before.
+fn torque_lag(demands: &[f64], taus: &[f64]) -> usize {
+    let mut best = (0, f64::INFINITY);
+    for lag in 0..=MAX_TORQUE_LAG {
+        let mut gaps: Vec<f64> =
+            demands.iter().zip(taus.iter().skip(lag)).map(|(d, t)| (t - d).abs()).filter(|g| g.is_finite()).collect();
+        if gaps.len() < MIN_FOLLOW {
+            continue;
+        }
+        gaps.sort_by(f64::total_cmp);
+        let median = gaps[gaps.len() / 2];
+        if median < best.1 {
+            best = (lag, median);
+        }
+    }
+    best.0
 }
 
 /// The plateau of one joint's (demand, logged torque) samples, if the log shows one below [`MAX_SCALE_IN_LOG`]
@@ -138,7 +174,7 @@ fn plateau(samples: &[(f64, f64)], limit: f64) -> Option<LogCeiling> {
     if (follow - 1.0).abs() > FOLLOW_TOL {
         return None;
     }
-    Some(LogCeiling { joint: String::new(), scale: c / limit, pinned, follow })
+    Some(LogCeiling { joint: String::new(), scale: c / limit, pinned, follow, lag_samples: 0 })
 }
 
 #[cfg(test)]
@@ -161,6 +197,31 @@ mod tests {
         let c = plateau(&samples(215.0, |d| d.clamp(-147.0, 147.0)), 300.0).expect("a ceiling");
         assert!((c.scale - 0.49).abs() < 0.005, "{c:?}");
         assert!(c.pinned >= MIN_PINNED && (c.follow - 1.0).abs() < 1e-9, "{c:?}");
+    }
+
+    #[test]
+    fn a_short_saturation_reported_a_sample_late_is_seen_once_the_lag_is_read_off_the_samples() {
+        // An ankle pitch (60 N·m) following a slow demand up to 20 N·m, kicked three times to a demand that decays
+        // from 35 to 30 N·m, delivered up to 25.4 N·m and reported with the next sample: each kick holds the
+        // plateau for 4 samples, of which 3 line up with the demand of the same sample (9 < MIN_PINNED).
+        let mut demands: Vec<f64> = (0..5000).map(|i| 20.0 * (i as f64 * 0.004).sin()).collect();
+        for start in [700, 2300, 3900] {
+            demands[start..start + 4].copy_from_slice(&[35.0, 33.0, 31.0, 30.0]);
+        }
+        let mut taus = vec![0.0];
+        taus.extend(demands.iter().map(|d| d.clamp(-25.4, 25.4)));
+        taus.pop();
+        let same_sample: Vec<(f64, f64)> = demands.iter().copied().zip(taus.iter().copied()).collect();
+        assert!(plateau(&same_sample, 60.0).is_none(), "9 pinned samples must not pass");
+        let lag = torque_lag(&demands, &taus);
+        assert_eq!(lag, 1);
+        let aligned: Vec<(f64, f64)> = demands.iter().copied().zip(taus.iter().copied().skip(lag)).collect();
+        let c = plateau(&aligned, 60.0).expect("a ceiling once aligned");
+        assert_eq!(c.pinned, 12, "{c:?}");
+        assert!((c.scale - 25.4 / 60.0).abs() < 1e-9, "{c:?}");
+        // A drive that reports the torque of the same sample is paired as before.
+        let now: Vec<f64> = demands.iter().map(|d| d.clamp(-25.4, 25.4)).collect();
+        assert_eq!(torque_lag(&demands, &now), 0);
     }
 
     #[test]
