@@ -100,13 +100,7 @@ pub fn ceilings_in_log(log: &RobotLog, joints: &[(&str, f64)]) -> Vec<LogCeiling
             .map(|(s, c)| (pd_demand(s, c, j).unwrap_or(f64::NAN), s.tau.get(j).copied().unwrap_or(f64::NAN)))
             .unzip();
         let lag = torque_lag(&demands, &taus);
-        let samples: Vec<(f64, f64)> = demands
-            .iter()
-            .zip(taus.iter().skip(lag))
-            .map(|(&d, &t)| (d, t))
-            .filter(|(d, t)| d.is_finite() && t.is_finite())
-            .collect();
-        if let Some(c) = plateau(&samples, limit) {
+        if let Some(c) = plateau(&aligned(&demands, &taus, lag), limit) {
             out.push(LogCeiling { joint: name.to_string(), lag_samples: lag, ..c });
         }
     }
@@ -131,8 +125,7 @@ pub const MAX_TORQUE_LAG: usize = 3;
 fn torque_lag(demands: &[f64], taus: &[f64]) -> usize {
     let mut best = (0, f64::INFINITY);
     for lag in 0..=MAX_TORQUE_LAG {
-        let mut gaps: Vec<f64> =
-            demands.iter().zip(taus.iter().skip(lag)).map(|(d, t)| (t - d).abs()).filter(|g| g.is_finite()).collect();
+        let mut gaps: Vec<f64> = aligned(demands, taus, lag).iter().map(|(d, t)| (t - d).abs()).collect();
         if gaps.len() < MIN_FOLLOW {
             continue;
         }
@@ -143,6 +136,16 @@ fn torque_lag(demands: &[f64], taus: &[f64]) -> usize {
         }
     }
     best.0
+}
+
+/// Each demand with the logged torque `lag` samples after it, both finite.
+fn aligned(demands: &[f64], taus: &[f64], lag: usize) -> Vec<(f64, f64)> {
+    demands
+        .iter()
+        .zip(taus.iter().skip(lag))
+        .map(|(&d, &t)| (d, t))
+        .filter(|(d, t)| d.is_finite() && t.is_finite())
+        .collect()
 }
 
 /// The plateau of one joint's (demand, logged torque) samples, if the log shows one below [`MAX_SCALE_IN_LOG`]
@@ -211,12 +214,10 @@ mod tests {
         let mut taus = vec![0.0];
         taus.extend(demands.iter().map(|d| d.clamp(-25.4, 25.4)));
         taus.pop();
-        let same_sample: Vec<(f64, f64)> = demands.iter().copied().zip(taus.iter().copied()).collect();
-        assert!(plateau(&same_sample, 60.0).is_none(), "9 pinned samples must not pass");
+        assert!(plateau(&aligned(&demands, &taus, 0), 60.0).is_none(), "9 pinned samples must not pass");
         let lag = torque_lag(&demands, &taus);
         assert_eq!(lag, 1);
-        let aligned: Vec<(f64, f64)> = demands.iter().copied().zip(taus.iter().copied().skip(lag)).collect();
-        let c = plateau(&aligned, 60.0).expect("a ceiling once aligned");
+        let c = plateau(&aligned(&demands, &taus, lag), 60.0).expect("a ceiling once aligned");
         assert_eq!(c.pinned, 12, "{c:?}");
         assert!((c.scale - 25.4 / 60.0).abs() < 1e-9, "{c:?}");
         // A drive that reports the torque of the same sample is paired as before.
