@@ -15,6 +15,7 @@
 //! at one level below the nominal limit while the PD law of the log's own command and state asks for more, and
 //! below that level the drive follows the PD law. Neither a gain drop nor a latency nor the nominal clamp looks so.
 use super::replay::Ctx;
+use super::stats::median;
 use crate::effects::EffectKind;
 use crate::log::{Command, Measurement, RobotLog};
 use crate::plant::Effects;
@@ -125,14 +126,13 @@ pub const MAX_TORQUE_LAG: usize = 3;
 fn torque_lag(demands: &[f64], taus: &[f64]) -> usize {
     let mut best = (0, f64::INFINITY);
     for lag in 0..=MAX_TORQUE_LAG {
-        let mut gaps: Vec<f64> = aligned(demands, taus, lag).iter().map(|(d, t)| (t - d).abs()).collect();
+        let gaps: Vec<f64> = aligned(demands, taus, lag).iter().map(|(d, t)| (t - d).abs()).collect();
         if gaps.len() < MIN_FOLLOW {
             continue;
         }
-        gaps.sort_by(f64::total_cmp);
-        let median = gaps[gaps.len() / 2];
-        if median < best.1 {
-            best = (lag, median);
+        let m = median(&gaps);
+        if m < best.1 {
+            best = (lag, m);
         }
     }
     best.0
