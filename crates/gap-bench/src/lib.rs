@@ -733,6 +733,10 @@ pub struct BenchSummary {
     pub out_of_library: usize,
     #[serde(default)]
     pub out_of_library_named: usize,
+    /// Out-of-library trials whose first named effect is in no ambiguous set: named without the report saying
+    /// another effect explains the log as well (not the target; the row above is).
+    #[serde(default)]
+    pub out_of_library_confident: usize,
     #[serde(default)]
     pub out_of_library_unexplained: usize,
 }
@@ -789,6 +793,10 @@ pub fn summarize(scores: &[TrialScore]) -> BenchSummary {
         },
         out_of_library: ool.len(),
         out_of_library_named: ool.iter().filter(|s| !s.ranked.is_empty()).count(),
+        out_of_library_confident: ool
+            .iter()
+            .filter(|s| s.ranked.first().is_some_and(|f| !s.ambiguous.iter().any(|set| set.contains(f))))
+            .count(),
         out_of_library_unexplained: ool.iter().filter(|s| s.remainder_unexplained).count(),
     }
 }
@@ -896,6 +904,11 @@ fn table_rows(s: &BenchSummary) -> Vec<(String, String, String)> {
             "out-of-library trials (torque ripple, load-dependent friction): a library effect named",
             of_ool(s.out_of_library_named),
             "0",
+        ),
+        row(
+            "out-of-library trials: the first named effect in no ambiguous set",
+            of_ool(s.out_of_library_confident),
+            "",
         ),
         row("out-of-library trials: part of the gap reported unexplained", of_ool(s.out_of_library_unexplained), ""),
         row("mean diagnosis time per log", format!("{:.1} s", s.mean_diagnose_s), ""),
@@ -1099,7 +1112,7 @@ pub fn run_floating_trial_drawn(
 #[cfg(test)]
 mod misattribution_tests {
     use super::{misattributed, AmbiguousSet};
-    use gap_diagnosis::EffectKind::{Armature, Damping, EncoderOffset, Friction, Latency};
+    use gap_diagnosis::EffectKind::{Armature, Damping, EncoderOffset, Friction, GainScale, Latency};
 
     #[test]
     fn only_effects_ranked_above_an_injected_one_count() {
@@ -1182,6 +1195,14 @@ mod misattribution_tests {
         assert!(t.starts_with("| metric | all | excitation plan | gentle chirp | policy rollout | target |"), "{t}");
         assert!(t.contains("| top-1 effect, single effects | 50 % | 100 % | 0 % | n/a | ≥ 90 % |"), "{t}");
         assert!(t.contains("a library effect named | 1 of 2 | 1 of 2 | — | — | 0 |"), "{t}");
+        assert_eq!(s.out_of_library_confident, 1);
+        // Named first, but in a set with an effect that explains the log as well: named, not confident.
+        let mut in_set = trial(Excitation, &[], &[GainScale], true);
+        in_set.ambiguous = vec![vec![GainScale, Armature]];
+        let mut other_set = trial(Excitation, &[], &[GainScale, Friction], true);
+        other_set.ambiguous = vec![vec![Friction, Armature]];
+        let s = super::summarize(&[in_set, other_set]);
+        assert_eq!((s.out_of_library_named, s.out_of_library_confident), (2, 1));
     }
 
     #[test]

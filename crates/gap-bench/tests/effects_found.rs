@@ -226,6 +226,32 @@ fn arm_encoder_offset_of_a_rapier_benchmark_trial() {
     assert!(score.param_errors.iter().all(|&x| x < 0.25), "{:?}", score.param_errors);
 }
 
+/// Issue 14, item 6: trial 13 of the Rapier benchmark's seed 22 (`--trials 40 --out-of-library 6 --seed 22`), an
+/// encoder offset of -0.057 rad on the left elbow. It shifts the elbow's gravity torque as a COM shift of the forearm
+/// does, and only the windows away from the range limits show either: a COM shift of -0.027 m was named there, the
+/// offset not at all (its fit over every joint kept no unit), a confident misattribution. Fitted on the elbow the
+/// COM shift was named on, the offset cuts those windows as much, so the report names the two as one ambiguous set,
+/// with the offset near its true size.
+#[test]
+#[ignore = "nightly (scripts/nightly.sh): CI keeps the no-effect control and one benchmark trial"]
+fn an_elbow_encoder_offset_named_a_com_shift_on_part_of_the_windows_is_reported_with_it() {
+    let (score, report) = benchmark_trial_on(diff_physics::EngineKind::RapierMultibody, 40, 6, 22, 13, None);
+    assert_eq!(score.injected.len(), 1, "{:?}", score.injected);
+    assert_eq!(score.injected[0].kind, EffectKind::EncoderOffset);
+    assert_eq!(score.misattributed, 0, "ranking {:?}; ambiguous {:?}", report.ranked, report.ambiguous);
+    let first = *report.ranked.first().expect("an effect named");
+    if first != EffectKind::EncoderOffset {
+        assert!(
+            report.ambiguous.iter().any(|s| s.links(first, EffectKind::EncoderOffset)),
+            "{first:?} named first without the offset beside it: {:?}",
+            report.ambiguous
+        );
+    }
+    let e = report.effects.iter().find(|e| e.kind == EffectKind::EncoderOffset).expect("encoder offset result");
+    let p = e.params.iter().find(|p| p.unit == "left_elbow").expect("the offset fitted on the left elbow");
+    assert!((p.value - -0.057).abs() < 0.015, "offset {} vs -0.057", p.value);
+}
+
 /// Runs trial `i` of the benchmark `--reference-engine engine --trials trials --out-of-library out_of_library --seed
 /// seed --duration 15` as `ulab gap bench` does (its log written as MCAP and read back).
 fn benchmark_trial(

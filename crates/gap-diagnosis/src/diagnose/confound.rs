@@ -47,7 +47,10 @@ pub enum Ambiguity {
     /// (masked effects): each, refitted with the combination before it applied, cuts what that combination leaves on
     /// the same limb beyond its noise floor, and the log cannot rank their cuts (here `cosine` compares their changes
     /// given the combination and `gap_difference` is relative to the residual the combination leaves). The first is
-    /// named; the others are not, but are as likely.
+    /// named; the others are not, but are as likely. Also an effect named on part of the held-out windows only (the
+    /// trimmed ones or those away from the range limits) on single joints, and the effects that, fitted on those
+    /// joints, cut as much there (`rivals_on_joints` in `diagnose/unmask.rs`: an elbow encoder offset and a COM shift of
+    /// the forearm).
     EqualCut,
 }
 

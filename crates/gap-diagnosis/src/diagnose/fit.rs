@@ -140,6 +140,46 @@ pub(super) fn fit_one_joint_per_group(
     fit_units(ctx, kind, base, base_train, rng, &mask, &setter)
 }
 
+/// A joint or group effect fitted on the given joints only (a group unit on the one of its joints among them, scored
+/// on the group's residual as [`fit_one_joint_per_group`]; the other units stay at no effect), on top of `base`:
+/// the effect set and, per joint, its value and bootstrap standard deviation. `None` for the other scopes, or when
+/// no unit holds one of the joints.
+pub(super) fn fit_at_joints(
+    ctx: &Ctx<'_>,
+    kind: EffectKind,
+    joints: &[usize],
+    base: &Effects,
+    base_train: &Scores,
+    rng: &mut impl Rng,
+) -> Result<Option<(Effects, Vec<(usize, f64, f64)>)>, GapError> {
+    let units = units_of(ctx, kind);
+    // Per unit, the joint it is fitted on.
+    let at: Vec<Option<usize>> = match kind.scope() {
+        Scope::Joint => (0..units.len()).map(|u| joints.contains(&u).then_some(u)).collect(),
+        Scope::Group => units.iter().map(|cols| joints.iter().copied().find(|j| cols.contains(j))).collect(),
+        Scope::Global | Scope::Imu => return Ok(None),
+    };
+    if at.iter().all(Option::is_none) {
+        return Ok(None);
+    }
+    let mask: Vec<bool> = at.iter().map(Option::is_some).collect();
+    let setter = |fx: &mut Effects, u: usize, v: f64| {
+        if let Some(Some(j)) = at.get(u) {
+            kind.set(fx, *j, v)
+        }
+    };
+    let fit = fit_units(ctx, kind, base, base_train, rng, &mask, &setter)?;
+    let mut fx = base.clone();
+    let mut values = Vec::new();
+    for (u, j) in at.iter().enumerate() {
+        if let Some(j) = *j {
+            kind.set(&mut fx, j, fit.values[u]);
+            values.push((j, fit.values[u], fit.sds[u]));
+        }
+    }
+    Ok(Some((fx, values)))
+}
+
 /// Grid search then lockstep golden-section refinement of the units in `mask` (the others stay at no effect);
 /// `set` writes a unit's value into an effect set (each unit is scored on its own columns, [`units_of`]);
 /// returns every unit's value and bootstrap standard deviation.

@@ -103,6 +103,16 @@ pub(super) fn select(
         // has run (the rivals' results change, and that stage reads them as they were).
         let mut added_rivals: Vec<(EffectKind, Vec<super::unmask::Rival>)> = Vec::new();
         let off_limit = ctx.off_limit_test();
+        // Read before any stage changes the results; reported once the selection and the unmask stage have run.
+        let first_units = results.iter().find(|r| r.kind == first).map(|r| r.params.clone()).unwrap_or_default();
+        let first_rivals = super::unmask::rivals_of_first(
+            ctx,
+            &results,
+            (first, &combo, &first_units),
+            &cur,
+            &baseline.test_tot,
+            &off_limit,
+        )?;
         while members.len() < MAX_COMBINATION {
             let cands: Vec<EffectKind> = candidates.iter().map(|c| c.kind).filter(|k| !members.contains(k)).collect();
             if cands.is_empty() {
@@ -167,7 +177,7 @@ pub(super) fn select(
                     route,
                 });
                 if !u.rivals.is_empty() {
-                    equal_cut.push(rival_set(&mut results, u.kind, &u.rivals));
+                    equal_cut.push(rival_set(&mut results, u.kind, &u.rivals, RivalOf::Added));
                 }
                 unmasked.push((u.kind, u.alone));
                 combo = u.fx;
@@ -176,7 +186,12 @@ pub(super) fn select(
             }
         }
         for (kind, rivals) in added_rivals {
-            equal_cut.push(rival_set(&mut results, kind, &rivals));
+            equal_cut.push(rival_set(&mut results, kind, &rivals, RivalOf::Added));
+        }
+        let first_rivals: Vec<super::unmask::Rival> =
+            first_rivals.into_iter().filter(|r| !members.contains(&r.kind)).collect();
+        if !first_rivals.is_empty() {
+            equal_cut.push(rival_set(&mut results, first, &first_rivals, RivalOf::First));
         }
         name_conditionals(&mut results, &members, added);
         sort_results(&mut results);
@@ -192,21 +207,43 @@ pub(super) fn select(
     Ok(Selection { effects: results, ranked, abstentions, best_combination, combo_fx, unmasked, equal_cut })
 }
 
-/// The set of a masked effect `offered` and its `rivals`; each rival's result says where it cut what the
-/// combination leaves and keeps those units as its parameters (it stays unnamed).
-fn rival_set(results: &mut [EffectResult], offered: EffectKind, rivals: &[super::unmask::Rival]) -> AmbiguousSet {
+/// Which effect rivals were sought for.
+#[derive(Clone, Copy)]
+enum RivalOf {
+    /// A masked effect or a candidate added after the first ([`super::unmask::unmask`],
+    /// [`super::unmask::rivals_of_added`]).
+    Added,
+    /// The first effect, named on part of the windows only ([`super::unmask::rivals_of_first`]).
+    First,
+}
+
+/// The set of an effect `offered` (masked, added, or the first) and its `rivals`; each rival's result says where it
+/// cut and keeps those units as its parameters (it stays unnamed).
+fn rival_set(
+    results: &mut [EffectResult],
+    offered: EffectKind,
+    rivals: &[super::unmask::Rival],
+    of: RivalOf,
+) -> AmbiguousSet {
     for rival in rivals {
         if let Some(r) = results.iter_mut().find(|r| r.kind == rival.kind) {
             r.params = rival.params.clone();
-            r.note = Some(format!(
-                "not named, but as likely as {}: alone it cut no unit's own residual by the unit floor; refitted with \
-                 the effects before it applied, it cuts what they leave on {} beyond that residual's floor, and the \
-                 log cannot rank its cut against that of {} (held-out gaps {:.1} % apart, of that residual)",
-                offered.name(),
-                rival.params.iter().map(|p| p.unit.as_str()).collect::<Vec<_>>().join(", "),
-                offered.name(),
-                100.0 * rival.gap_difference
-            ));
+            let units = rival.params.iter().map(|p| p.unit.as_str()).collect::<Vec<_>>().join(", ");
+            let (name, pct) = (offered.name(), 100.0 * rival.gap_difference);
+            r.note = Some(match of {
+                RivalOf::Added => format!(
+                    "not named, but as likely as {name}: alone it cut no unit's own residual by the unit floor; \
+                     refitted with the effects before it applied, it cuts what they leave on {units} beyond that \
+                     residual's floor, and the log cannot rank its cut against that of {name} (held-out gaps \
+                     {pct:.1} % apart, of that residual)"
+                ),
+                RivalOf::First => format!(
+                    "not named, but as likely as {name}: {name} was named on part of the held-out windows only; \
+                     fitted alone on its joint(s) ({units}), this effect cuts the held-out gap beyond the floor too, \
+                     and on the windows {name} was named on the log cannot rank the two cuts (held-out gaps {pct:.1} % \
+                     apart, of the gap there)"
+                ),
+            });
         }
     }
     AmbiguousSet {
@@ -487,7 +524,7 @@ mod tests {
         let kept = |unit: &str| vec![FittedParam { unit: unit.into(), value: 0.07, sd: 0.01, held_out_reduction: 0.8 }];
         let rival = Rival { kind: LinkCom, params: kept("right_shoulder_roll"), cosine: 0.4, gap_difference: 0.02 };
         let mut results = vec![result(Armature, true, 0.9), result(LinkMass, false, 0.0), result(LinkCom, false, 0.0)];
-        let set = rival_set(&mut results, LinkMass, std::slice::from_ref(&rival));
+        let set = rival_set(&mut results, LinkMass, std::slice::from_ref(&rival), RivalOf::Added);
         assert_eq!(set.effects, vec![LinkMass, LinkCom]);
         assert_eq!((set.reason, set.cosine, set.gap_difference), (Ambiguity::EqualCut, 0.4, 0.02));
         let com = results.iter().find(|r| r.kind == LinkCom).expect("link_com");
