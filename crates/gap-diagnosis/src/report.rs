@@ -202,8 +202,8 @@ pub fn markdown(r: &Report) -> String {
         .map(|c| {
             format!(
                 "{} at {:.2} of its limit ({} samples held, {:.2} followed below, logged torque {} state sample(s) \
-                 behind the demand)",
-                c.joint, c.scale, c.pinned, c.follow, c.lag_samples
+                 behind the demand, of the command {} state sample(s) earlier)",
+                c.joint, c.scale, c.pinned, c.follow, c.lag_samples, c.command_delay_samples
             )
         })
         .collect();

@@ -13,7 +13,9 @@
 //! reaches in a few windows cuts too little of the whole held-out gap to clear a floor (Rapier seed 10's trial 2, a
 //! right knee at 0.49 of its limit beside a right-leg friction), yet in those windows the delivered torque sits
 //! at one level below the nominal limit while the PD law of the log's own command and state asks for more, and
-//! below that level the drive follows the PD law. Neither a gain drop nor a latency nor the nominal clamp looks so.
+//! below that level the drive follows the PD law. Neither a gain drop nor the nominal clamp looks so; a command
+//! latency can (the demand read off the newest command leads the torque delivered), so the command delay is read off
+//! the log ([`MAX_COMMAND_DELAY`]) as the torque's lag is.
 use super::replay::Ctx;
 use super::stats::median;
 use crate::effects::EffectKind;
@@ -58,8 +60,8 @@ pub const MIN_PINNED: usize = 10;
 pub const MAX_SCALE_IN_LOG: f64 = 0.9;
 /// Below the plateau the drive must follow the PD law: the median of logged over demanded torque, over the samples
 /// whose demand is between half the plateau and [`FOLLOW_BELOW`] of it, within this distance of 1. A gain drop
-/// (the drive delivers a fixed fraction of every demand) or a command latency (the demand read off the newest
-/// command is not the one applied) fails it, so neither is taken for a ceiling.
+/// (the drive delivers a fixed fraction of every demand) fails it, and so does a command latency the delay search
+/// ([`MAX_COMMAND_DELAY`]) missed (the demand read off a newer command is not the one applied).
 pub const FOLLOW_TOL: f64 = 0.1;
 /// The upper end of the demands over which the drive's following is checked, as a fraction of the plateau.
 pub const FOLLOW_BELOW: f64 = 0.9;
@@ -83,26 +85,33 @@ pub struct LogCeiling {
     /// State samples by which the logged torque trails the demand it was paired with ([`MAX_TORQUE_LAG`]).
     #[serde(default)]
     pub lag_samples: usize,
+    /// State samples by which the command the demand was computed from precedes the state ([`MAX_COMMAND_DELAY`]).
+    #[serde(default)]
+    pub command_delay_samples: usize,
 }
 
 /// The ceilings the log shows ([`LogCeiling`]), one per joint at most, in joint order. `joints` gives each
 /// joint's name and nominal torque limit, in the log's joint order. Reads the log only: no simulation, no fit.
 pub fn ceilings_in_log(log: &RobotLog, joints: &[(&str, f64)]) -> Vec<LogCeiling> {
-    // The PD demand of the command in force at each state, and the logged torque, per joint (NaN where missing).
-    let pairs: Vec<(&Measurement, &Command)> = log
-        .states
-        .iter()
-        .filter_map(|s| log.command_at(s.t).and_then(|i| log.commands.get(i)).map(|c| (s, c)))
-        .collect();
+    // The command in force at each state (None before the first).
+    let cmds: Vec<Option<&Command>> =
+        log.states.iter().map(|s| log.command_at(s.t).and_then(|i| log.commands.get(i))).collect();
     let mut out = Vec::new();
     for (j, &(name, limit)) in joints.iter().enumerate() {
-        let (demands, taus): (Vec<f64>, Vec<f64>) = pairs
-            .iter()
-            .map(|(s, c)| (pd_demand(s, c, j).unwrap_or(f64::NAN), s.tau.get(j).copied().unwrap_or(f64::NAN)))
-            .unzip();
-        let lag = torque_lag(&demands, &taus);
+        let taus: Vec<f64> = log.states.iter().map(|s| s.tau.get(j).copied().unwrap_or(f64::NAN)).collect();
+        // Per command delay, the PD demand at each state of the command in force that many states earlier.
+        let demands_at = |delay: usize| -> Vec<f64> {
+            (0..log.states.len())
+                .map(|i| {
+                    let c = i.checked_sub(delay).and_then(|k| cmds.get(k).copied().flatten());
+                    c.and_then(|c| pd_demand(&log.states[i], c, j)).unwrap_or(f64::NAN)
+                })
+                .collect()
+        };
+        let (delay, lag) = demand_alignment(&taus, demands_at);
+        let demands = demands_at(delay);
         if let Some(c) = plateau(&aligned(&demands, &taus, lag), limit) {
-            out.push(LogCeiling { joint: name.to_string(), lag_samples: lag, ..c });
+            out.push(LogCeiling { joint: name.to_string(), lag_samples: lag, command_delay_samples: delay, ..c });
         }
     }
     out
@@ -120,10 +129,19 @@ fn pd_demand(s: &Measurement, c: &Command, j: usize) -> Option<f64> {
 /// one that lasts a few samples falls under [`MIN_PINNED`].
 pub const MAX_TORQUE_LAG: usize = 3;
 
+/// A command may reach the drive some state samples after the log records it (a command latency: Rapier seed 23's
+/// trial 6, 24 ms). The demand read off the newest command then leads the delivered torque, and where the command
+/// steps, the torque seems to stop short of it: a right hip roll "held" at 0.64 of its limit for 11 samples beside
+/// a latency and a dead band, while the drive followed the late command (the follow test below passed at 0.94). So
+/// the demand is taken of the command in force up to this many states earlier (40 ms at 500 Hz, beyond the
+/// library's latency range), the delay read off the log as the lag is.
+pub const MAX_COMMAND_DELAY: usize = 20;
+
 /// The lag, in state samples up to [`MAX_TORQUE_LAG`], by which the logged torque best follows the PD demand: the one
-/// with the smallest median |logged - demanded|, ties to the shorter lag. Read off the log, so a drive that reports
-/// the torque of the same state (lag 0) is paired as before.
-fn torque_lag(demands: &[f64], taus: &[f64]) -> usize {
+/// with the smallest median |logged - demanded|, ties to the shorter lag, with that median (infinite when no lag has
+/// [`MIN_FOLLOW`] samples). Read off the log, so a drive that reports the torque of the same state (lag 0) is paired
+/// as before.
+fn torque_lag(demands: &[f64], taus: &[f64]) -> (usize, f64) {
     let mut best = (0, f64::INFINITY);
     for lag in 0..=MAX_TORQUE_LAG {
         let gaps: Vec<f64> = aligned(demands, taus, lag).iter().map(|(d, t)| (t - d).abs()).collect();
@@ -135,7 +153,21 @@ fn torque_lag(demands: &[f64], taus: &[f64]) -> usize {
             best = (lag, m);
         }
     }
-    best.0
+    best
+}
+
+/// The command delay (up to [`MAX_COMMAND_DELAY`] states) and torque lag by which the logged torque `taus` best
+/// follows the PD demand (`demands_at(delay)`, per state): the smallest median |logged - demanded|, ties to the
+/// shorter delay. A log without latency is paired as before (delay 0).
+fn demand_alignment(taus: &[f64], demands_at: impl Fn(usize) -> Vec<f64>) -> (usize, usize) {
+    let mut best = (0, 0, f64::INFINITY);
+    for delay in 0..=MAX_COMMAND_DELAY {
+        let (lag, gap) = torque_lag(&demands_at(delay), taus);
+        if gap < best.2 {
+            best = (delay, lag, gap);
+        }
+    }
+    (best.0, best.1)
 }
 
 /// Each demand with the logged torque `lag` samples after it, both finite.
@@ -177,7 +209,14 @@ fn plateau(samples: &[(f64, f64)], limit: f64) -> Option<LogCeiling> {
     if (follow - 1.0).abs() > FOLLOW_TOL {
         return None;
     }
-    Some(LogCeiling { joint: String::new(), scale: c / limit, pinned, follow, lag_samples: 0 })
+    Some(LogCeiling {
+        joint: String::new(),
+        scale: c / limit,
+        pinned,
+        follow,
+        lag_samples: 0,
+        command_delay_samples: 0,
+    })
 }
 
 #[cfg(test)]
@@ -215,14 +254,32 @@ mod tests {
         taus.extend(demands.iter().map(|d| d.clamp(-25.4, 25.4)));
         taus.pop();
         assert!(plateau(&aligned(&demands, &taus, 0), 60.0).is_none(), "9 pinned samples must not pass");
-        let lag = torque_lag(&demands, &taus);
+        let (lag, _) = torque_lag(&demands, &taus);
         assert_eq!(lag, 1);
         let c = plateau(&aligned(&demands, &taus, lag), 60.0).expect("a ceiling once aligned");
         assert_eq!(c.pinned, 12, "{c:?}");
         assert!((c.scale - 25.4 / 60.0).abs() < 1e-9, "{c:?}");
         // A drive that reports the torque of the same sample is paired as before.
         let now: Vec<f64> = demands.iter().map(|d| d.clamp(-25.4, 25.4)).collect();
-        assert_eq!(torque_lag(&demands, &now), 0);
+        assert_eq!(torque_lag(&demands, &now).0, 0);
+    }
+
+    /// A joint tracking a triangle-wave command: the drive applies each command 12 states after the log records it
+    /// (a 24 ms latency at 500 Hz) and reports its torque with the next state. The delay and the lag are read off the
+    /// samples; a drive without latency is paired at delay 0.
+    #[test]
+    fn a_command_latency_is_read_off_the_samples_with_the_torque_lag() {
+        let n: usize = 3000;
+        let cmd: Vec<f64> = (0..n).map(|i| 0.3 * (((i % 400) as f64 / 200.0) - 1.0).abs()).collect();
+        let q: Vec<f64> = (0..n).map(|i| cmd[i.saturating_sub(15)]).collect();
+        let demand = |delay: usize| -> Vec<f64> {
+            (0..n).map(|i| i.checked_sub(delay).map_or(f64::NAN, |k| 100.0 * (cmd[k] - q[i]))).collect()
+        };
+        let one_late = |d: Vec<f64>| -> Vec<f64> {
+            std::iter::once(0.0).chain(d.iter().take(n - 1).map(|d| if d.is_finite() { *d } else { 0.0 })).collect()
+        };
+        assert_eq!(demand_alignment(&one_late(demand(12)), demand), (12, 1));
+        assert_eq!(demand_alignment(&one_late(demand(0)), demand), (0, 1));
     }
 
     #[test]
