@@ -328,9 +328,7 @@ pub(super) fn rivals_on_joints(
     let Some(joints) = joints else {
         return Ok(Vec::new());
     };
-    let mut limbs: Vec<usize> = joints.iter().filter_map(|&j| ctx.groups.get(j).copied()).collect();
-    limbs.sort_unstable();
-    limbs.dedup();
+    let limbs = limbs_of(ctx, kind, units);
     let kinds: Vec<EffectKind> = results
         .iter()
         .filter(|r| {
