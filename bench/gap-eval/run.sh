@@ -1,0 +1,106 @@
+#!/usr/bin/env bash
+# The gap diagnosis's development and evaluation sets (issue 57). The evaluation sets are fixed here before the
+# decision model they judge was designed, and are run only to report; the development sets are for looking at.
+#
+#   bench/gap-eval/run.sh dev|eval [SET...]     generate the logs, diagnose them, score them strictly
+#   bench/gap-eval/run.sh score dev|eval        score what is there
+#
+# Output: out/gap-eval/<split>/<set>/ (logs, labels, one report per trial) and out/gap-eval/<split>/score.{md,json}.
+# Sets: four of `ulab gap bench` (reference plants Rapier multibody and DART, each under the excitation plan and
+# under gentle chirps: 12 trials single/single/pair/control and 2 out-of-library) and one of a plant outside ulab
+# (`mujoco_trials.py`: Unitree's MJCF in MuJoCo's Python bindings, 1 ms steps, PD at 1 kHz, 16 trials plan/chirp
+# and 2 out-of-library). ULAB_BIN overrides the binary (default target/release/ulab, built if missing);
+# ULAB_EVAL_JOBS (default 1) runs that many diagnoses at once.
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+source scripts/env.sh
+split=${1:?usage: run.sh dev|eval [SET...] | run.sh score dev|eval}
+shift
+BIN=${ULAB_BIN:-target/release/ulab}
+JOBS=${ULAB_EVAL_JOBS:-1}
+DURATION=20
+
+# name  kind  seed  arguments
+EVAL_SETS=(
+  "rapier-plan bench 9001 --reference-engine rapier_multibody --trials 12 --out-of-library 2"
+  "rapier-chirp bench 9002 --reference-engine rapier_multibody --trials 12 --out-of-library 2 --gentle-chirp"
+  "dart-plan bench 9003 --reference-engine dart --trials 12 --out-of-library 2"
+  "dart-chirp bench 9004 --reference-engine dart --trials 12 --out-of-library 2 --gentle-chirp"
+  "mujoco-py mujoco 9005 --trials 16 --out-of-library 2"
+)
+DEV_SETS=(
+  "rapier-plan bench 101 --reference-engine rapier_multibody --trials 12 --out-of-library 2"
+  "rapier-chirp bench 102 --reference-engine rapier_multibody --trials 12 --out-of-library 2 --gentle-chirp"
+  "dart-plan bench 103 --reference-engine dart --trials 12 --out-of-library 2"
+  "dart-chirp bench 104 --reference-engine dart --trials 12 --out-of-library 2 --gentle-chirp"
+  "mujoco-py mujoco 105 --trials 16 --out-of-library 2"
+)
+
+score() {
+  local dir=out/gap-eval/$1
+  local sets=()
+  for d in "$dir"/*/; do [ -d "$d" ] && sets+=("$d"); done
+  "$ULAB_PYTHON" bench/gap-eval/score.py "${sets[@]}" --json "$dir/score.json" | tee "$dir/score.md"
+}
+
+case "$split" in
+  score) score "${1:?dev or eval}"; exit 0 ;;
+  eval) sets=("${EVAL_SETS[@]}") ;;
+  dev) sets=("${DEV_SETS[@]}") ;;
+  *) echo "usage: run.sh dev|eval [SET...] | run.sh score dev|eval" >&2; exit 2 ;;
+esac
+[ -x "$BIN" ] || cargo build --release --locked -p ulab
+plan=out/gap-eval/plan.mcap
+[ -f "$plan" ] || { mkdir -p out/gap-eval; "$BIN" gap excite --out "$plan" --duration "$DURATION" --rate 500; }
+
+# Trials of a set, dealt to $JOBS workers (each runs every JOBS-th trial).
+for spec in "${sets[@]}"; do
+  read -r name kind seed args <<< "$spec"
+  if [ $# -gt 0 ] && [[ " $* " != *" $name "* ]]; then continue; fi
+  dir=out/gap-eval/$split/$name
+  mkdir -p "$dir"
+  # shellcheck disable=SC2086
+  n=$(( $(echo $args | sed -E 's/.*--trials ([0-9]+).*/\1/') + $(echo $args | sed -E 's/.*--out-of-library ([0-9]+).*/\1/') ))
+  echo "run.sh: $split/$name ($n trials)"
+  for ((w = 0; w < JOBS; w++)); do
+    (
+      only=()
+      for ((i = w; i < n; i += JOBS)); do only+=(--only "$i"); done
+      if [ "$kind" = bench ]; then
+        # shellcheck disable=SC2086
+        "$BIN" gap bench $args --seed "$seed" --duration "$DURATION" --out "$dir/w$w" "${only[@]}" > "$dir/w$w.txt"
+      else
+        # shellcheck disable=SC2086
+        "$ULAB_PYTHON" bench/gap-eval/mujoco_trials.py $args --seed "$seed" --duration "$DURATION" --plan "$plan" \
+          --out "$dir" "${only[@]}" > /dev/null
+        for ((i = w; i < n; i += JOBS)); do
+          t=$(printf "trial_%03d" "$i")
+          "$BIN" gap diagnose --log "$dir/$t.mcap" --out "$dir/$t" --format json > /dev/null
+        done
+      fi
+    ) &
+  done
+  wait
+  if [ "$kind" = bench ]; then
+    # One set directory: the workers' trials and their labels side by side.
+    "$ULAB_PYTHON" - "$dir" "$JOBS" <<'PY'
+import json, os, shutil, sys
+d, jobs = sys.argv[1], int(sys.argv[2])
+scores = []
+for w in range(jobs):
+    wd = os.path.join(d, f"w{w}")
+    scores += json.load(open(os.path.join(wd, "scores.json")))
+    for f in os.listdir(wd):
+        if f.startswith("trial_"):
+            dst = os.path.join(d, f)
+            if os.path.isdir(dst):
+                shutil.rmtree(dst)
+            elif os.path.exists(dst):
+                os.remove(dst)
+            shutil.move(os.path.join(wd, f), dst)
+scores.sort(key=lambda s: s["trial"])
+json.dump(scores, open(os.path.join(d, "scores.json"), "w"), indent=1)
+PY
+  fi
+done
+score "$split"
