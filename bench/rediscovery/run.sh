@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Reproduces the rediscovery tables of BENCHMARKS.md.
+# Reproduces the rediscovery table of BENCHMARKS.md and the per-version tables of README.md.
 #  - rapier set: builds the MuJoCo reference and one adapter per pinned rapier version (each its own workspace
 #    and Cargo.lock), runs the same scenes and oracles on each;
 #  - cross set: MuJoCo, Bullet and DART versions from their PyPI wheels (one venv per version, created on first

@@ -418,7 +418,7 @@ impl Engine for RapierImpulseEngine {
 }
 
 /// Checks of [`crate::oracle`] this engine cannot meet for reasons inside the formulation, with the reason and
-/// the figure measured with `ulab model check --robot h1_2` (seed 1, 5 samples) when this was written.
+/// the figure `ulab model check --robot h1_2` measures (seed 1, 5 samples).
 pub fn known_difference(check: &str) -> Option<&'static str> {
     match check {
         "accelerations under random (q,v,tau)" | "mass matrix from accelerations" => Some(

@@ -133,7 +133,8 @@ pub fn fuzz_with_observer(
     }
     while evaluated < fcfg.iterations.max(seeds.len()) && !corpus.is_empty() {
         let n = fcfg.batch.max(1).min(fcfg.iterations.saturating_sub(evaluated).max(1));
-        // Parents by weight 1 + score (+1 for entries that brought the rarest patterns first: novelty).
+        // Parents by weight 1 + score (capped); novelty acts through admission: an input that brings a new contact
+        // pattern joins the corpus whatever its score.
         let weights: Vec<f64> = corpus.iter().map(|c| 1.0 + c.score.min(100.0)).collect();
         let total: f64 = weights.iter().sum();
         let mut children = Vec::new();
@@ -216,7 +217,8 @@ pub fn oracle_pairs() -> Vec<[diff_physics::EngineKind; 2]> {
 }
 
 /// The pair an input's `engines` byte chooses: `byte % pairs`. Byte 0 is the first pair (MuJoCo against Rapier
-/// multibody), the only pair inputs were run on before the choice existed. `None` with fewer than two engines.
+/// multibody): an input too short to carry the byte decodes it as 0 and runs on the reference pair, in every
+/// build. `None` with fewer than two engines.
 pub fn oracle_pair(choice: u8) -> Option<[diff_physics::EngineKind; 2]> {
     let pairs = oracle_pairs();
     (!pairs.is_empty()).then(|| pairs[usize::from(choice) % pairs.len()])

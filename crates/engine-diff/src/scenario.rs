@@ -227,8 +227,8 @@ pub struct FuzzPerturbation {
     pub friction: Option<u8>,
     pub jitter: u8,
     pub excitation: u8,
-    /// Which pair of engines runs it ([`crate::fuzz::oracle_pair`]). Last, so that inputs saved before it
-    /// existed still decode every other field as before.
+    /// Which pair of engines runs it ([`crate::fuzz::oracle_pair`]). Last, so that an input too short to carry it
+    /// decodes every other field the same way and runs on the first pair.
     pub engines: u8,
 }
 

@@ -122,7 +122,7 @@ fn a_gait_optimised_in_mujoco_transfers() {
 }
 
 /// Experiment (prints, asserts nothing): how often the search in each engine yields a gait flagged elsewhere,
-/// over search seeds. Figures in BENCHMARKS.md "Cross-engine policy validation".
+/// over search seeds. Summary in BENCHMARKS.md "Validation".
 #[test]
 #[ignore = "experiment: planted cheat over search seeds and training engines"]
 fn planted_cheat_over_search_seeds() {

@@ -105,7 +105,7 @@ impl EngineFactory for MujocoWithoutArmature {
 /// stand + forward, seeds 1-4, 4 s): the degradation in Bullet and Rapier impulse is a pelvis yaw-rate wobble
 /// (yaw-rate tracking error 0.75 and 1.03 rad/s RMS against MuJoCo's 0.085; forward and lateral unchanged);
 /// MuJoCo without armature shows the same signature at a third of the size (0.29 rad/s; score drop 0.095 against
-/// Bullet's 0.50): armature is one cause, not all of it. Figures in BENCHMARKS.md "Cross-engine policy validation".
+/// Bullet's 0.50): armature is one cause, not all of it. Figures in BENCHMARKS.md "Validation".
 #[test]
 #[ignore = "experiment: prints the validation with MuJoCo without armature beside Bullet and Rapier impulse"]
 fn armature_share_of_the_degradation() {

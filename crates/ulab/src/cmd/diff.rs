@@ -79,7 +79,7 @@ enum MethodArg {
     Random,
 }
 
-/// A `--methods` entry with the spaces around it ignored (`cem, random`), as the comma-separated list always was.
+/// A `--methods` entry with the spaces around it ignored (`cem, random`).
 fn trimmed_method(s: &str) -> Result<MethodArg, String> {
     <MethodArg as clap::ValueEnum>::from_str(s.trim(), false)
         .map_err(|_| format!("unknown method {:?} (cem, mutation, random)", s.trim()))
