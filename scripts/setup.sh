@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Installs everything a fresh machine needs beyond the Rust toolchain, gcc and Python 3.11:
-# Debian packages (cmake, make, g++, libclang for cyclors' bindgen, Cyclone DDS 0.10.2 for the interop peers,
+# Debian packages (cmake, make, g++, libclang for cyclors' bindgen, Cyclone DDS 0.10.2 for the interop peers, the mold linker,
 # DART 6.12 with its URDF loader and ODE collision detector for the `dart` engine),
 # a Python venv with the oracle packages and a static ffmpeg (imageio-ffmpeg, for the videos), and the MuJoCo shared library from the PyPI wheel.
 # Idempotent: a second run only checks.
@@ -9,6 +9,7 @@ cd "$(dirname "$0")/.."
 source scripts/env.sh
 
 APT_PACKAGES=(cmake make g++ libclang-dev clang pkg-config cyclonedds-dev cyclonedds-tools
+  mold  # the linker of scripts/cc-with-mold.sh (.cargo/config.toml)
   libbullet-dev  # Bullet 3.24 with the double-precision build (bullet-float64.pc): the `bullet` engine
   libdart-dev libdart-utils-urdf-dev libdart-collision-ode-dev)  # DART 6.12: the `dart` engine
 missing=()
