@@ -81,7 +81,7 @@ pub use crate::noise::{TIMING_HI, TIMING_LO};
 /// whose fit stopped at the bound of the search range, dropped before it was judged again). Both optional when read.
 /// `/18`: one decision model (the judge). Adds `thresholds`, `timing` and `steps` (every selection step's candidates,
 /// winner, rivals and verdict); `numerics` says which variant was adopted; effects carry only `named`, `reduction`,
-/// `metric_after`, `noise_floor` (the judge's `min_cut`), `params` and `note`; `ambiguous` sets hold the winner and
+/// `gain`, `metric_after`, `noise_floor` (the judge's `min_gain`), `params` and `note`; `ambiguous` sets hold the winner and
 /// rivals of a step that abstained; `ceilings_in_log` lists the torque plateaus the log shows (a measurement).
 pub const SCHEMA_VERSION: &str = "ulab-gap-report/18";
 
@@ -186,6 +186,10 @@ pub struct StageTime {
     pub s: f64,
 }
 
+fn zero() -> Estimate {
+    Estimate { value: 0.0, lo: 0.0, hi: 0.0 }
+}
+
 /// One fitted parameter of a named effect.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct FittedParam {
@@ -209,9 +213,12 @@ pub struct EffectResult {
     /// Relative cut of the held-out gap the effects named before it left (named), or of the best candidate of this
     /// kind at the last step (not named).
     pub reduction: Estimate,
+    /// The judge's evidence: held-out log-likelihood gain per window, likewise (absent before `/18`).
+    #[serde(default = "zero")]
+    pub gain: Estimate,
     /// Held-out gap metric with it added.
     pub metric_after: Estimate,
-    /// The cut's lower bound a named effect must reach ([`Thresholds::min_cut`]).
+    /// The gain's lower bound a named effect must reach ([`Thresholds::min_gain`]).
     pub noise_floor: f64,
     /// The named unit with its fitted value (for a kind not named: its best candidate at the last step).
     pub params: Vec<FittedParam>,
@@ -288,7 +295,7 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
     };
     let timed = stamped.with_log(log);
     laps.lap("timing");
-    let (numerics, chosen) = match numerics::choose(&timed, th.min_cut, &mut rng)? {
+    let (numerics, chosen) = match numerics::choose(&timed, th.min_gain, &mut rng)? {
         Some((n, o)) => (Some(n), o),
         None => (None, opts.clone()),
     };
@@ -408,8 +415,9 @@ fn verdict(
             scope: n.kind.scope(),
             named: true,
             reduction: n.cut,
+            gain: n.gain,
             metric_after: n.metric_after,
-            noise_floor: th.min_cut,
+            noise_floor: th.min_gain,
             params,
             note: Some(note),
         });
@@ -438,13 +446,9 @@ fn verdict(
                     c.invalid.clone().unwrap_or_default()
                 ),
                 Some(c) => format!(
-                    "not named: its best candidate, on {} at {:.4}, cuts {:.1} % [{:.1}, {:.1}] of the remaining \
-                     held-out gap; the selection stopped: {stop}",
-                    c.unit,
-                    c.value,
-                    100.0 * c.cut.value,
-                    100.0 * c.cut.lo,
-                    100.0 * c.cut.hi
+                    "not named: its best candidate, on {} at {:.4}, gains {:.3} [{:.3}, {:.3}] per held-out window; \
+                     the selection stopped: {stop}",
+                    c.unit, c.value, c.gain.value, c.gain.lo, c.gain.hi
                 ),
                 None => format!("not named: no candidate of it ranked among those replayed at the last step; {stop}"),
             }
@@ -456,8 +460,9 @@ fn verdict(
             scope: kind.scope(),
             named: false,
             reduction: best.map_or(zero, |c| c.cut),
+            gain: best.map_or(zero, |c| c.gain),
             metric_after: zero,
-            noise_floor: th.min_cut,
+            noise_floor: th.min_gain,
             params: best
                 .map(|c| vec![FittedParam { unit: c.unit.clone(), value: c.value, sd: c.sd, held_out_reduction: 0.0 }])
                 .unwrap_or_default(),
@@ -506,6 +511,7 @@ fn rig_violated(
             scope: kind.scope(),
             named: false,
             reduction: zero,
+            gain: zero,
             metric_after: zero,
             noise_floor: 0.0,
             params: vec![],

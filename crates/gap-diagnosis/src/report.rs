@@ -197,12 +197,13 @@ fn judge_section(r: &Report) -> String {
     let mut s = format!(
         "## How the judge decided (held-out windows)\n\nAt each step every effect of the library not yet named is \
          fitted on every unit (each limb, each joint, the robot, the IMU) on the training windows with the named \
-         effects applied; the most promising are replayed on the held-out windows. The candidate with the largest cut \
-         of the remaining held-out gap is named when the lower bound of its {:.0} % interval reaches {:.0} %, its size \
-         is at least {:.0} % of the size the library resolves, and no valid candidate acting on the same joints has a \
-         cut the log cannot rank below it; at most {} effects. Thresholds and their reasons: `docs/gap/method.md`.\n\n",
+         effects applied; the most promising are replayed on the held-out windows. The candidate with the largest \
+         held-out log-likelihood gain per window (each joint's and each window's residual weighed by its own size) is \
+         named when the lower bound of its {:.0} % interval reaches {}, its size is at least {:.0} % of the size the \
+         library resolves, and no valid candidate acting on the same joints has a gain the log cannot rank below it; at \
+         most {} effects. Thresholds and their reasons: `docs/gap/method.md`.\n\n",
         100.0 * th.confidence,
-        100.0 * th.min_cut,
+        th.min_gain,
         100.0 * th.min_size,
         th.max_effects
     );
@@ -211,7 +212,7 @@ fn judge_section(r: &Report) -> String {
         if st.candidates.is_empty() {
             continue;
         }
-        s += "| candidate | unit | value ± sd | size | cut of the remaining gap [95 % CI] | note |\n|---|---|---|---|---|---|\n";
+        s += "| candidate | unit | value ± sd | size | gain per window [95 % CI] | on its limb | cut of the gap metric | note |\n|---|---|---|---|---|---|---|---|\n";
         for (k, c) in st.candidates.iter().enumerate() {
             let note = if Some(k) == st.winner {
                 "winner".to_string()
@@ -221,13 +222,15 @@ fn judge_section(r: &Report) -> String {
                 c.invalid.clone().unwrap_or_default()
             };
             s += &format!(
-                "| {} | {} | {:.4} ± {:.4} | {:.0} % | {} | {} |\n",
+                "| {} | {} | {:.4} ± {:.4} | {:.0} % | {} | {:.3} | {:.1} % | {} |\n",
                 c.kind.name(),
                 c.unit,
                 c.value,
                 c.sd,
                 100.0 * c.size,
-                est(&c.cut),
+                est(&c.gain),
+                c.local_gain.value,
+                100.0 * c.cut.value,
                 note
             );
         }
@@ -261,19 +264,19 @@ fn numerics_section(r: &Report) -> String {
     match n.better_variant() {
         Some(v) => {
             s += &format!(
-                "**The log was replayed with {}**: it fits the training windows best and cuts the held-out gap by {:.0} \
-                 % without any effect (lower bound over the {:.0} % a named effect must cut): the log comes from a \
+                "**The log was replayed with {}**: it fits the training windows best and gains {:.3} per held-out \
+                 window without any effect (lower bound over the {} a named effect must gain): the log comes from a \
                  plant that integrates differently, and the effects were judged with the numerics it fits.",
                 v.label(),
-                100.0 * v.reduction.value,
-                100.0 * n.noise_floor,
+                v.gain.value,
+                n.noise_floor,
             )
         }
         None => {
             s += &format!(
-                "No other integrator, timestep or PD rate cuts the held-out gap by the {:.0} % a named effect must: \
-                 the log was replayed with the diagnosing numerics.",
-                100.0 * n.noise_floor
+                "No other integrator, timestep or PD rate gains the {} per held-out window a named effect must: the \
+                 log was replayed with the diagnosing numerics.",
+                n.noise_floor
             )
         }
     }
@@ -301,11 +304,11 @@ fn identifiability_section(r: &Report) -> String {
         return String::new();
     }
     let mut s = format!(
-        "\n## What this log can reveal (held-out windows)\n\nAn effect of the size given would move the prediction by \
-         at least the share of the gap a named effect must cut ({:.0} % of the baseline gap) only on the units listed \
-         as identifiable; on the others this log cannot show it, whatever the fit says.\n\n\
+        "\n## What this log can reveal (held-out windows)\n\nAn effect of the size given would give the evidence a named \
+         effect needs ({} per held-out window) only on the units listed as identifiable; on the others this log cannot \
+         show it, whatever the fit says.\n\n\
          | effect | size asked | identifiable on | not identifiable on | motion that would reveal it |\n|---|---|---|---|---|\n",
-        100.0 * r.thresholds.min_cut
+        r.thresholds.min_gain
     );
     let list = |names: Vec<&str>| -> String {
         match names.len() {
@@ -430,11 +433,11 @@ pub fn write_all(r: &Report, dir: &Path) -> Result<(), GapError> {
     w("report.json", serde_json::to_string_pretty(r)?)?;
     let joints: Vec<(String, f64)> = r.by_joint.iter().map(|s| (s.name.clone(), s.residual)).collect();
     bar_chart(&dir.join("by_joint.svg"), "Baseline residual by joint (mean normalised)", &joints, None)?;
-    let eff: Vec<(String, f64)> = r.effects.iter().map(|e| (e.kind.name().to_string(), e.reduction.value)).collect();
+    let eff: Vec<(String, f64)> = r.effects.iter().map(|e| (e.kind.name().to_string(), e.gain.value)).collect();
     let floor = r.effects.iter().map(|e| e.noise_floor).fold(0.0, f64::max);
     bar_chart(
         &dir.join("effects.svg"),
-        "Held-out cut per effect: named, or its best candidate (red: the judge's floor)",
+        "Held-out log-likelihood gain per window: named, or best candidate (red: the judge's floor)",
         &eff,
         Some(floor),
     )?;

@@ -1,30 +1,31 @@
 //! Identifiability: could this log show each effect at all? For every effect kind, the held-out windows are
 //! replayed with each candidate unit at the kind's magnitude of interest ([`EffectKind::magnitude_of_interest`]) and
 //! without it; how far the two simulations move apart on the unit's columns, in the gap metric's units, is the
-//! *signal* an effect of that size would add. The judge names an effect only when it cuts at least
-//! [`super::Thresholds::min_cut`] of the held-out gap, so a signal under that share of the baseline gap means the log
-//! cannot reveal the effect there, whatever a fit says: the report says so, with the motion that would reveal it
-//! ([`EffectKind::revealed_by`]). Simulator sensitivities only (no log residual in the signal): an effect is
+//! *signal* an effect of that size would add. Were the effect in the log, the judge's evidence for it would be about
+//! the log-likelihood gain of removing that signal from the baseline residual, `Σ_c ln((b + d + ν) / (b + ν))` per
+//! window; under [`super::Thresholds::min_gain`] the log cannot reveal the effect there, whatever a fit says: the
+//! report says so, with the motion that would reveal it ([`EffectKind::revealed_by`]). Simulator sensitivities only (no log residual in the signal): an effect is
 //! unidentifiable because the log's motion does not excite it, not because the data happen to hide it.
 use super::fit::{lockstep_sets, report_value};
 use super::options::PlantKind;
 use super::replay::{Ctx, Scores};
-use super::stats::{mean, total};
+use super::stats::{log_gain, mean};
 use super::Thresholds;
 use crate::effects::{EffectKind, Scope};
 use crate::plant::Effects;
 use crate::GapError;
 use serde::{Deserialize, Serialize};
 
-/// One unit (joint, group or the robot): the signal an effect of the magnitude of interest would add to its
-/// held-out residual, and the floor a fit must clear there.
+/// One unit (joint, group or the robot): the evidence an effect of the magnitude of interest would give there, and
+/// the evidence a named effect needs.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct UnitSignal {
     pub unit: String,
-    /// Mean over held-out windows of the unit's normalised squared difference between the simulation with the
-    /// effect and without it.
+    /// Mean over held-out windows of the log-likelihood gain the effect's signal (the normalised squared difference
+    /// between the simulation with the effect and without it) would give on top of the baseline residual, on the
+    /// unit's columns.
     pub signal: f64,
-    /// [`super::Thresholds::min_cut`] of the mean held-out baseline gap.
+    /// [`super::Thresholds::min_gain`].
     pub floor: f64,
 }
 
@@ -78,7 +79,8 @@ pub(super) fn identify(
     let none = Effects::none(ctx.nj());
     let without = ctx.predictions(&none, windows)?;
     let train: Scores = ctx.train.iter().filter_map(|&w| baseline.get(w).cloned()).collect();
-    let floor = th.min_cut * mean(&windows.iter().filter_map(|&w| baseline.get(w)).map(|s| total(s)).collect::<Vec<_>>());
+    let base: Scores = windows.iter().filter_map(|&w| baseline.get(w).cloned()).collect();
+    let floor = th.min_gain;
     let mut out = Vec::new();
     for &kind in kinds {
         if kind.scope() == Scope::Imu || (ctx.plant == PlantKind::Rig && !kind.identifiable_suspended()) {
@@ -91,9 +93,12 @@ pub(super) fn identify(
             set.iter().for_each(|u| u.set(kind, &mut fx, m));
             let with = ctx.predictions(&fx, windows)?;
             let diffs: Vec<Vec<f64>> = without.iter().zip(&with).map(|(a, b)| ctx.difference_scores(a, b)).collect();
+            // The residual with the signal on top of the baseline: the log as it would be with the effect in it.
+            let with_signal: Scores =
+                base.iter().zip(&diffs).map(|(b, d)| b.iter().zip(d).map(|(x, y)| x + y).collect()).collect();
             for u in &set {
-                let cols = u.score_columns(ctx);
-                let signal = mean(&diffs.iter().map(|d| joint_sum(ctx, &cols, d)).collect::<Vec<_>>());
+                let cols: Vec<usize> = u.score_columns(ctx).into_iter().filter(|&c| c < ctx.nj()).collect();
+                let signal = mean(&log_gain(&with_signal, &base, Some(&cols), &ctx.noise));
                 units.push(UnitSignal { unit: u.name().into(), signal, floor });
             }
         }
@@ -108,19 +113,14 @@ pub(super) fn identify(
     Ok(out)
 }
 
-/// A score's joint columns of one unit (the IMU column is left out: no replayed effect is judged on it here).
-fn joint_sum(ctx: &Ctx<'_>, cols: &[usize], score: &[f64]) -> f64 {
-    cols.iter().filter(|&&c| c < ctx.nj()).filter_map(|&c| score.get(c)).sum()
-}
-
 /// The abstention note's addition for an effect no unit of which could show at the magnitude of interest.
 pub(super) fn not_identifiable_note(i: &Identifiability) -> Option<String> {
     if !i.identifiable_units().is_empty() {
         return None;
     }
     Some(format!(
-        "not identifiable from this log: at {} ({}) it would move no unit's prediction by the share of the gap a \
-         named effect must cut (at best {:.0} % of it); {} would reveal it",
+        "not identifiable from this log: at {} ({}) it would give no unit the evidence a named effect needs (at best \
+         {:.0} % of it); {} would reveal it",
         i.magnitude_text(),
         i.kind.parameter(),
         100.0 * i.best_ratio(),

@@ -13,14 +13,17 @@
 //!    the log's own torque exceeds it ([`super::torque_ceiling::joints_above_ceiling`]). A fit within the resolution of
 //!    the no-effect value is no candidate.
 //! 3. **Evidence.** The most promising candidates are replayed alone on top of the named effects over the held-out
-//!    windows; each one's cut of the remaining held-out gap gets a percentile bootstrap interval over windows.
-//! 4. **Decision.** The candidate with the largest cut wins the step. It is named when
-//!    (a) its cut's lower bound reaches [`Thresholds::min_cut`],
+//!    windows; each one's evidence is its held-out log-likelihood gain per window ([`super::stats::log_gain`]: every
+//!    column of every window has its own variance, so neither a window nor a joint with a large residual for other
+//!    reasons dominates, and an effect local to a few joints is not diluted by the rest), with a percentile bootstrap
+//!    interval over windows.
+//! 4. **Decision.** The candidate with the largest gain wins the step. It is named when
+//!    (a) its gain's lower bound reaches [`Thresholds::min_gain`],
 //!    (b) its fitted size reaches [`Thresholds::min_size`] of the kind's magnitude of interest, and
 //!    (c) no rival — a valid candidate of another kind acting on the same joints, or of the same kind on joints the
-//!    winner's unit does not hold — has a cut the log cannot rank below the winner's (the paired interval of the two
-//!    cuts' difference holds 0).
-//!    Of the same kind on nested units (a limb and one of its joints) whose cuts the log cannot rank, the larger unit
+//!    winner's unit does not hold — has a gain the log cannot rank below the winner's (the paired interval of the two
+//!    gains' difference holds 0).
+//!    Of the same kind on nested units (a limb and one of its joints) whose gains the log cannot rank, the larger unit
 //!    is named: the log does not say which joint of it carries the effect.
 //!    A step that names nothing ends the selection, with the reason (a), (b) or (c) — the abstention. At most
 //!    [`Thresholds::max_effects`] effects are named.
@@ -31,7 +34,7 @@ use super::breakdown::Baseline;
 use super::fit::{self, report_value, FittedUnit, Unit};
 use super::options::PlantKind;
 use super::replay::{Ctx, Scores};
-use super::stats::{bootstrap_mean, percentile_interval, total, Estimate};
+use super::stats::{bootstrap_mean, log_gain, total, Estimate};
 use super::torque_ceiling::joints_above_ceiling;
 use crate::effects::EffectKind;
 use crate::plant::Effects;
@@ -46,10 +49,12 @@ pub struct Thresholds {
     /// Coverage of every interval (a percentile bootstrap over held-out windows). Statistical: a decision rests on an
     /// interval that misses the truth in 5 % of logs.
     pub confidence: f64,
-    /// A named effect cuts the remaining held-out gap by at least this fraction (lower bound of its interval).
-    /// Physical: simulators of the same robot disagree among themselves by several percent of such a gap (another
-    /// engine's joint and limit models, integrators), so a cut smaller than that is no evidence of an effect.
-    pub min_cut: f64,
+    /// A named effect's held-out log-likelihood gain per window is at least this (lower bound of its interval), in
+    /// nats without the factor n/2: 0.3 ≈ ln(4/3) is a quarter of one joint's residual removed in every held-out
+    /// window (or all of it in one window of five). Physical: an effect named as the cause of a gap explains a
+    /// substantial share of the residual where it acts; a correction fitted to another cause, or to the disagreement
+    /// between two simulators of the same robot (their joint and limit models, integrators), gains less.
+    pub min_gain: f64,
     /// A named effect's fitted size is at least this fraction of the kind's magnitude of interest
     /// ([`EffectKind::magnitude_of_interest`]: a tenth to a fifth of a nominal value, a centimetre, a degree, 10 ms).
     /// Physical: smaller corrections are what one simulator needs to match another, and below what the library is
@@ -69,7 +74,7 @@ pub struct Thresholds {
 
 impl Default for Thresholds {
     fn default() -> Self {
-        Thresholds { confidence: 0.95, min_cut: 0.05, min_size: 0.5, max_effects: 3, exact_candidates: 10, joints_per_limb: 4 }
+        Thresholds { confidence: 0.95, min_gain: 0.3, min_size: 0.5, max_effects: 3, exact_candidates: 10, joints_per_limb: 4 }
     }
 }
 
@@ -85,7 +90,11 @@ pub struct CandidateResult {
     pub sd: f64,
     /// |value − no effect| as a fraction of |magnitude of interest − no effect|.
     pub size: f64,
-    /// Relative cut of the remaining held-out gap with this candidate added (bootstrap interval).
+    /// Held-out log-likelihood gain per window with this candidate added (bootstrap interval): the evidence.
+    pub gain: Estimate,
+    /// The same on the unit's own columns (its limb; every column for the robot; the IMU's).
+    pub local_gain: Estimate,
+    /// Relative cut of the remaining held-out gap metric with this candidate added (bootstrap interval).
     pub cut: Estimate,
     /// Why the fit is not an estimate (then it cannot win).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -98,11 +107,11 @@ pub struct CandidateResult {
 pub enum Abstention {
     /// No valid candidate was left.
     NoCandidate,
-    /// (a): the best cut's lower bound is under [`Thresholds::min_cut`].
-    CutBelowFloor,
+    /// (a): the best gain's lower bound is under [`Thresholds::min_gain`].
+    GainBelowFloor,
     /// (b): the best candidate's size is under [`Thresholds::min_size`].
     TooSmall,
-    /// (c): a rival's cut cannot be ranked below the best one's.
+    /// (c): a rival's gain cannot be ranked below the best one's.
     Tied,
     /// [`Thresholds::max_effects`] are named.
     Enough,
@@ -111,9 +120,9 @@ pub enum Abstention {
 /// One step of the forward selection.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct Step {
-    /// The candidates replayed exactly, best cut first.
+    /// The candidates replayed exactly, best gain first.
     pub candidates: Vec<CandidateResult>,
-    /// Index into `candidates` of the winner (the largest cut among valid candidates), if any.
+    /// Index into `candidates` of the winner (the largest gain among valid candidates), if any.
     pub winner: Option<usize>,
     /// Indices of the rivals the log cannot rank below the winner.
     pub rivals: Vec<usize>,
@@ -140,6 +149,7 @@ pub(super) struct Named {
     pub kind: EffectKind,
     pub fit: FittedUnit,
     pub cut: Estimate,
+    pub gain: Estimate,
     pub metric_after: Estimate,
 }
 
@@ -190,36 +200,42 @@ pub(super) fn judge(
         fitted.sort_by(|a, b| b.approx_cut.total_cmp(&a.approx_cut));
         let exact: Vec<Fitted> = fitted.into_iter().take(th.exact_candidates).collect();
         let cfgs: Vec<Effects> = exact.iter().map(|f| f.fx.clone()).collect();
-        let after: Vec<Vec<f64>> =
-            ctx.eval_many(&cfgs, &ctx.test)?.into_iter().map(|s| s.iter().map(|w| total(w)).collect()).collect();
+        let after: Vec<Scores> = ctx.eval_many(&cfgs, &ctx.test)?;
+        let gains: Vec<Vec<f64>> = after.iter().map(|a| log_gain(&cur_test, a, None, &ctx.noise)).collect();
         let mut results: Vec<(CandidateResult, usize)> = exact
             .iter()
-            .zip(&after)
+            .zip(after.iter().zip(&gains))
             .enumerate()
-            .map(|(i, (f, a))| (candidate_result(f, &cur_tot, a, bootstrap, rng), i))
+            .map(|(i, (f, (a, g)))| (candidate_result(ctx, f, &cur_test, &cur_tot, a, g, bootstrap, rng), i))
             .collect();
-        results.sort_by(|a, b| b.0.cut.value.total_cmp(&a.0.cut.value));
+        results.sort_by(|a, b| b.0.gain.value.total_cmp(&a.0.gain.value));
         let order: Vec<usize> = results.iter().map(|(_, i)| *i).collect();
         let candidates: Vec<CandidateResult> = results.into_iter().map(|(c, _)| c).collect();
-        let decision = decide(&candidates, |a, b| {
-            paired_difference(&cur_tot, &after[order[a]], &after[order[b]], bootstrap, rng)
-        }, |i| exact[order[i]].fit.unit.clone(), th);
+        let decision = decide(
+            &candidates,
+            |a, b| {
+                let d: Vec<f64> = gains[order[a]].iter().zip(&gains[order[b]]).map(|(x, y)| x - y).collect();
+                bootstrap_mean(&d, bootstrap, rng)
+            },
+            |i| exact[order[i]].fit.unit.clone(),
+            th,
+        );
         let named_now = decision.abstention.is_none();
         if let (true, Some(w)) = (named_now, decision.winner) {
             let f = &exact[order[w]];
-            let a = &after[order[w]];
+            let a: Vec<f64> = after[order[w]].iter().map(|s| total(s)).collect();
             named.push(Named {
                 kind: f.kind,
                 fit: f.fit.clone(),
                 cut: candidates[w].cut,
-                metric_after: bootstrap_mean(a, bootstrap, rng),
+                gain: candidates[w].gain,
+                metric_after: bootstrap_mean(&a, bootstrap, rng),
             });
             fx = f.fx.clone();
             let s = ctx.eval_many(std::slice::from_ref(&fx), &ctx.train)?;
             cur_train = s.into_iter().next().unwrap_or_default();
-            let s = ctx.eval_many(std::slice::from_ref(&fx), &ctx.test)?;
-            cur_test = s.into_iter().next().unwrap_or_default();
-            cur_tot = a.clone();
+            cur_test = after[order[w]].clone();
+            cur_tot = a;
         }
         steps.push(Step { candidates, ..decision });
         if !named_now {
@@ -254,16 +270,17 @@ fn decide(
     }
     let w = &candidates[winner];
     let name = format!("{} on {}", w.kind.name(), w.unit);
-    if w.cut.lo < th.min_cut {
+    if w.gain.lo < th.min_gain {
         let reason = format!(
-            "the best explanation, {name}, cuts the remaining held-out gap by {:.1} % [{:.1}, {:.1}]: its lower bound \
-             is under the {:.0} % a named effect must cut",
+            "the best explanation, {name}, gains {:.3} [{:.3}, {:.3}] in held-out log-likelihood per window (cutting \
+             {:.1} % of the remaining gap metric): its lower bound is under the {} a named effect must gain",
+            w.gain.value,
+            w.gain.lo,
+            w.gain.hi,
             100.0 * w.cut.value,
-            100.0 * w.cut.lo,
-            100.0 * w.cut.hi,
-            100.0 * th.min_cut
+            th.min_gain
         );
-        return step(Some(winner), vec![], Some(Abstention::CutBelowFloor), reason);
+        return step(Some(winner), vec![], Some(Abstention::GainBelowFloor), reason);
     }
     if w.size < th.min_size {
         let reason = format!(
@@ -291,21 +308,23 @@ fn decide(
         let names: Vec<String> =
             rivals.iter().map(|&i| format!("{} on {}", candidates[i].kind.name(), candidates[i].unit)).collect();
         let reason = format!(
-            "{name} cuts {:.1} % of the remaining held-out gap, but the log cannot rank it above {} on the same joints \
-             (their cuts' paired {:.0} % interval holds 0)",
-            100.0 * w.cut.value,
+            "{name} gains {:.3} per window, but the log cannot rank it above {} on the same joints (their gains' paired \
+             {:.0} % interval holds 0)",
+            w.gain.value,
             names.join(", "),
             100.0 * th.confidence
         );
         return step(Some(winner), rivals, Some(Abstention::Tied), reason);
     }
     let reason = format!(
-        "named: {name} = {:.4} cuts {:.1} % [{:.1}, {:.1}] of the remaining held-out gap, at {:.0} % of the size the \
-         library resolves, and no rival on the same joints cuts as much",
+        "named: {name} = {:.4} gains {:.3} [{:.3}, {:.3}] in held-out log-likelihood per window (cutting {:.1} % of \
+         the remaining gap metric), at {:.0} % of the size the library resolves, and no rival on the same joints gains \
+         as much",
         w.value,
+        w.gain.value,
+        w.gain.lo,
+        w.gain.hi,
         100.0 * w.cut.value,
-        100.0 * w.cut.lo,
-        100.0 * w.cut.hi,
         100.0 * w.size
     );
     step(Some(winner), vec![], None, reason)
@@ -371,10 +390,22 @@ fn invalidity(ctx: &Ctx<'_>, kind: EffectKind, f: &FittedUnit, fx: &Effects) -> 
     None
 }
 
-/// The judged form of a fitted candidate: its cut of the remaining held-out gap `before` (per window) given its
-/// held-out gap `after`.
-fn candidate_result(f: &Fitted, before: &[f64], after: &[f64], bootstrap: usize, rng: &mut impl Rng) -> CandidateResult {
-    let cut = super::stats::bootstrap_ratio(before, after, bootstrap, rng);
+/// The judged form of a fitted candidate: its evidence against the remaining held-out scores `before` (per window
+/// and column; `before_tot` their totals) given its own held-out scores `after` and per-window gains `gain`.
+#[allow(clippy::too_many_arguments)]
+fn candidate_result(
+    ctx: &Ctx<'_>,
+    f: &Fitted,
+    before: &Scores,
+    before_tot: &[f64],
+    after: &Scores,
+    gain: &[f64],
+    bootstrap: usize,
+    rng: &mut impl Rng,
+) -> CandidateResult {
+    let after_tot: Vec<f64> = after.iter().map(|s| total(s)).collect();
+    let cols = f.fit.unit.score_columns(ctx);
+    let local = log_gain(before, after, Some(&cols), &ctx.noise);
     let kind = f.kind;
     let v0 = kind.range().2;
     let m = kind.magnitude_of_interest();
@@ -384,37 +415,11 @@ fn candidate_result(f: &Fitted, before: &[f64], after: &[f64], bootstrap: usize,
         value: report_value(kind, f.fit.value),
         sd: report_value(kind, f.fit.sd),
         size: (f.fit.value - v0).abs() / (m - v0).abs().max(1e-12),
-        cut,
+        gain: bootstrap_mean(gain, bootstrap, rng),
+        local_gain: bootstrap_mean(&local, bootstrap, rng),
+        cut: super::stats::bootstrap_ratio(before_tot, &after_tot, bootstrap, rng),
         invalid: f.invalid.clone(),
     }
-}
-
-/// Paired bootstrap interval of `(Σ after_b − Σ after_a) / Σ before`: candidate `a`'s cut minus candidate `b`'s.
-fn paired_difference(before: &[f64], after_a: &[f64], after_b: &[f64], bootstrap: usize, rng: &mut impl Rng) -> Estimate {
-    let n = before.len().min(after_a.len()).min(after_b.len());
-    let d = |idx: &mut dyn Iterator<Item = usize>| {
-        let (mut b, mut x) = (0.0, 0.0);
-        for i in idx {
-            b += before[i];
-            x += after_b[i] - after_a[i];
-        }
-        if b > 0.0 {
-            x / b
-        } else {
-            0.0
-        }
-    };
-    let value = d(&mut (0..n));
-    if n < 2 {
-        return Estimate { value, lo: value, hi: value };
-    }
-    let draws: Vec<f64> = (0..bootstrap)
-        .map(|_| {
-            let idx: Vec<usize> = (0..n).map(|_| rng.gen_range(0..n)).collect();
-            d(&mut idx.into_iter())
-        })
-        .collect();
-    percentile_interval(value, draws)
 }
 
 #[cfg(test)]
@@ -428,6 +433,8 @@ mod tests {
             value: 1.0,
             sd: 0.0,
             size,
+            gain: Estimate { value: cut, lo: cut - 0.02, hi: cut + 0.02 },
+            local_gain: Estimate { value: cut, lo: cut - 0.02, hi: cut + 0.02 },
             cut: Estimate { value: cut, lo: cut - 0.02, hi: cut + 0.02 },
             invalid: None,
         }
@@ -436,8 +443,8 @@ mod tests {
     fn unit_of(name: &str) -> Unit {
         match name {
             "left_arm" => Unit::Group { index: 3, name: "left_arm".into(), joints: vec![13, 14, 15, 16] },
-            "left_elbow" => Unit::Joint { index: 16, name: "left_elbow".into(), group: vec![13, 14, 15, 16] },
-            "left_knee" => Unit::Joint { index: 3, name: "left_knee".into(), group: vec![0, 1, 2, 3] },
+            "left_elbow" => Unit::Joint { index: 16, name: "left_elbow".into(), limb: vec![13, 14, 15, 16] },
+            "left_knee" => Unit::Joint { index: 3, name: "left_knee".into(), limb: vec![0, 1, 2, 3] },
             "robot" => Unit::Robot,
             other => panic!("{other}"),
         }
@@ -446,7 +453,7 @@ mod tests {
     /// A difference whose interval excludes 0 when the cuts differ by more than `gap`.
     fn diff_of(c: &[CandidateResult], gap: f64) -> impl FnMut(usize, usize) -> Estimate + '_ {
         move |a, b| {
-            let d = c[a].cut.value - c[b].cut.value;
+            let d = c[a].gain.value - c[b].gain.value;
             Estimate { value: d, lo: d - gap, hi: d + gap }
         }
     }
@@ -490,9 +497,9 @@ mod tests {
     fn a_small_cut_a_small_size_and_an_invalid_fit_are_not_named() {
         use EffectKind::*;
         let th = Thresholds::default();
-        let c = vec![cand(Friction, "left_elbow", 0.06, 1.5)];
+        let c = vec![cand(Friction, "left_elbow", 0.31, 1.5)];
         let s = decide(&c, diff_of(&c, 0.1), |_| unit_of("left_elbow"), &th);
-        assert_eq!(s.abstention, Some(Abstention::CutBelowFloor), "{}", s.reason);
+        assert_eq!(s.abstention, Some(Abstention::GainBelowFloor), "{}", s.reason);
         let c = vec![cand(Friction, "left_elbow", 0.6, 0.3)];
         let s = decide(&c, diff_of(&c, 0.1), |_| unit_of("left_elbow"), &th);
         assert_eq!(s.abstention, Some(Abstention::TooSmall), "{}", s.reason);
@@ -500,17 +507,5 @@ mod tests {
         c[0].invalid = Some("at the bound".into());
         let s = decide(&c, diff_of(&c, 0.1), |_| unit_of("left_elbow"), &th);
         assert_eq!((s.winner, s.abstention), (None, Some(Abstention::NoCandidate)));
-    }
-
-    #[test]
-    fn the_paired_difference_is_the_cut_of_one_minus_the_other() {
-        use rand::SeedableRng;
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
-        let before = vec![10.0; 40];
-        let a: Vec<f64> = (0..40).map(|i| 4.0 + (i % 3) as f64 * 0.1).collect();
-        let b: Vec<f64> = (0..40).map(|i| 6.0 + (i % 5) as f64 * 0.1).collect();
-        let d = paired_difference(&before, &a, &b, 500, &mut rng);
-        let expect = (b.iter().sum::<f64>() - a.iter().sum::<f64>()) / 400.0;
-        assert!((d.value - expect).abs() < 1e-12 && d.lo > 0.0 && d.lo <= d.value && d.hi >= d.value, "{d:?}");
     }
 }

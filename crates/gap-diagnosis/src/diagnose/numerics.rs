@@ -3,12 +3,12 @@
 //! PD loop (a 1 kHz simulator, a robot whose drives close the loop faster), and then part of the gap is numerics.
 //! Every variant (MuJoCo's other integrators; on the rig, 1 ms steps with the PD law held for 2 ms or run at each
 //! step) replays every window without effects; the variant that fits the training windows best is adopted for the
-//! rest of the diagnosis when it cuts the held-out gap as much as a named effect must
-//! ([`super::Thresholds::min_cut`]), and the report says so. The floating plant takes one 2 ms step (its integrators
+//! rest of the diagnosis when it gains as much held-out evidence as a named effect must
+//! ([`super::Thresholds::min_gain`]), and the report says so. The floating plant takes one 2 ms step (its integrators
 //! only).
 use super::options::{DiagnoseOptions, PlantKind};
 use super::replay::Ctx;
-use super::stats::{bootstrap_ratio, mean, total, Estimate};
+use super::stats::{bootstrap_mean, bootstrap_ratio, log_gain, mean, total, Estimate};
 use crate::log::Measurement;
 use crate::plant::{Effects, EngineChoice, PdUpdate, Stepping, DT};
 use crate::GapError;
@@ -44,6 +44,9 @@ pub struct NumericsVariant {
     /// Relative reduction of the held-out gap against the diagnosing simulator's, with a paired bootstrap interval
     /// over windows (negative: this variant fits the log worse).
     pub reduction: Estimate,
+    /// Held-out log-likelihood gain per window against the diagnosing simulator's (what adopts it).
+    #[serde(default = "zero_estimate")]
+    pub gain: Estimate,
     /// How far this variant's prediction moves from the diagnosing simulator's, in the gap metric's units (mean
     /// over held-out windows of the normalised squared difference, joints only).
     pub prediction_shift: f64,
@@ -69,6 +72,10 @@ impl NumericsVariant {
     }
 }
 
+fn zero_estimate() -> Estimate {
+    Estimate { value: 0.0, lo: 0.0, hi: 0.0 }
+}
+
 /// What the integrator, timestep or PD-rate choice alone does to the prediction and to the gap.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct Numerics {
@@ -81,7 +88,7 @@ pub struct Numerics {
     pub variants: Vec<NumericsVariant>,
     /// The largest prediction shift, relative to the baseline held-out gap.
     pub shift_share_of_baseline: f64,
-    /// The cut a variant's lower bound must reach to be adopted ([`super::Thresholds::min_cut`]).
+    /// The gain a variant's lower bound must reach to be adopted ([`super::Thresholds::min_gain`]).
     pub noise_floor: f64,
     /// Index into `variants` of the variant the diagnosis replayed the log with, if one was adopted.
     #[serde(default)]
@@ -109,11 +116,11 @@ impl Numerics {
 }
 
 /// Replays every window with every other MuJoCo integrator and, on the rig, every other stepping, and adopts the
-/// variant that fits the training windows best when its held-out cut reaches `min_cut`: the report's numerics and the
+/// variant that fits the training windows best when its held-out gain reaches `min_gain`: the report's numerics and the
 /// options the rest of the diagnosis runs with (`None` for an engine other than MuJoCo, or no held-out window).
 pub(super) fn choose(
     ctx: &Ctx<'_>,
-    min_cut: f64,
+    min_gain: f64,
     rng: &mut impl Rng,
 ) -> Result<Option<(Numerics, DiagnoseOptions)>, GapError> {
     let EngineChoice::Mujoco { integrator } = &ctx.opts.engine else { return Ok(None) };
@@ -122,12 +129,14 @@ pub(super) fn choose(
     }
     let none = Effects::none(ctx.nj());
     let all: Vec<usize> = ctx.train.iter().chain(&ctx.test).copied().collect();
-    let gaps = |c: &Ctx<'_>, pred: &[Vec<Measurement>]| -> Result<Vec<f64>, GapError> {
-        all.iter().zip(pred).map(|(&w, p)| c.prediction_scores(&none, w, p).map(|s| total(&s))).collect()
+    let scores = |c: &Ctx<'_>, pred: &[Vec<Measurement>]| -> Result<Vec<Vec<f64>>, GapError> {
+        all.iter().zip(pred).map(|(&w, p)| c.prediction_scores(&none, w, p)).collect()
     };
-    let split = |g: &[f64]| (g[..ctx.train.len()].to_vec(), g[ctx.train.len()..].to_vec());
+    let n_train = ctx.train.len();
+    let totals = |s: &[Vec<f64>]| -> Vec<f64> { s.iter().map(|w| total(w)).collect() };
     let base_pred = ctx.predictions(&none, &all)?;
-    let (base_train, base_test) = split(&gaps(ctx, &base_pred)?);
+    let base_scores = scores(ctx, &base_pred)?;
+    let (base_train, base_test) = (totals(&base_scores[..n_train]), totals(&base_scores[n_train..]));
     let base_gap = mean(&base_test);
     let mut others: Vec<DiagnoseOptions> = INTEGRATORS
         .iter()
@@ -143,7 +152,6 @@ pub(super) fn choose(
         );
     }
     let mut variants = Vec::new();
-    let n_train = ctx.train.len();
     for opts in &others {
         let alt = ctx.with_options(opts);
         let pred = alt.predictions(&none, &all)?;
@@ -154,7 +162,9 @@ pub(super) fn choose(
                 .map(|(a, b)| ctx.difference_scores(a, b).iter().take(ctx.nj()).sum::<f64>())
                 .collect::<Vec<f64>>(),
         );
-        let (train, test) = split(&gaps(&alt, &pred)?);
+        let alt_scores = scores(&alt, &pred)?;
+        let (train, test) = (totals(&alt_scores[..n_train]), totals(&alt_scores[n_train..]));
+        let gain = log_gain(&base_scores[n_train..], &alt_scores[n_train..], None, &ctx.noise);
         variants.push(NumericsVariant {
             engine: opts.engine.name(),
             timestep_ms: 1e3 * opts.stepping.timestep(),
@@ -162,6 +172,7 @@ pub(super) fn choose(
             train_gap: mean(&train),
             held_out_gap: mean(&test),
             reduction: bootstrap_ratio(&base_test, &test, ctx.opts.bootstrap, rng),
+            gain: bootstrap_mean(&gain, ctx.opts.bootstrap, rng),
             prediction_shift: shift,
         });
     }
@@ -169,7 +180,7 @@ pub(super) fn choose(
     let best = (0..variants.len())
         .filter(|&i| variants[i].train_gap < base_train_gap)
         .min_by(|&a, &b| variants[a].train_gap.total_cmp(&variants[b].train_gap));
-    let adopted = best.filter(|&i| variants[i].reduction.lo >= min_cut);
+    let adopted = best.filter(|&i| variants[i].gain.lo >= min_gain);
     let here = format!(
         "{}, {} ms steps, PD every {} ms",
         ctx.opts.engine.name(),
@@ -178,20 +189,21 @@ pub(super) fn choose(
     );
     let finding = match (best, adopted) {
         (Some(i), Some(_)) => format!(
-            "the log fits {} better than {here} (held-out gap cut {:.1} % [{:.1}, {:.1}]): it was made with other \
-             numerics, and the diagnosis replays it so",
+            "the log fits {} better than {here} (held-out log-likelihood gain {:.3} [{:.3}, {:.3}] per window, gap \
+             cut {:.1} %): it was made with other numerics, and the diagnosis replays it so",
             variants[i].label(),
-            100.0 * variants[i].reduction.value,
-            100.0 * variants[i].reduction.lo,
-            100.0 * variants[i].reduction.hi
+            variants[i].gain.value,
+            variants[i].gain.lo,
+            variants[i].gain.hi,
+            100.0 * variants[i].reduction.value
         ),
         (Some(i), None) => format!(
-            "{here} is kept: {} fits the training windows a little better but cuts the held-out gap by {:.1} % \
-             [{:.1}, {:.1}] only",
+            "{here} is kept: {} fits the training windows a little better but gains {:.3} [{:.3}, {:.3}] per \
+             held-out window only",
             variants[i].label(),
-            100.0 * variants[i].reduction.value,
-            100.0 * variants[i].reduction.lo,
-            100.0 * variants[i].reduction.hi
+            variants[i].gain.value,
+            variants[i].gain.lo,
+            variants[i].gain.hi
         ),
         (None, _) => format!("{here} fits the log best"),
     };
@@ -202,7 +214,7 @@ pub(super) fn choose(
         pd_period_ms: 1e3 * ctx.opts.stepping.pd_period(),
         variants,
         shift_share_of_baseline: 0.0,
-        noise_floor: min_cut,
+        noise_floor: min_gain,
         adopted,
         finding,
     };
@@ -223,6 +235,7 @@ mod tests {
             train_gap: 0.0,
             held_out_gap: 0.0,
             reduction,
+            gain: reduction,
             prediction_shift: shift,
         }
     }
@@ -259,6 +272,7 @@ mod tests {
             train_gap: 0.0,
             held_out_gap: 0.0,
             reduction: Estimate { value: 0.0, lo: 0.0, hi: 0.0 },
+            gain: Estimate { value: 0.0, lo: 0.0, hi: 0.0 },
             prediction_shift: 0.0,
         };
         assert_eq!(v("mujoco-rk4", 2.0, 2.0).diagnose_flags(), "--engine mujoco-rk4");

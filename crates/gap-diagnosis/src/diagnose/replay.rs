@@ -80,6 +80,8 @@ pub(super) struct Ctx<'a> {
     /// Group index of each joint ([`crate::plant::GROUPS`]).
     pub groups: Vec<usize>,
     sigma_tau: Vec<f64>,
+    /// Per score column, the score the log's sensor noise alone would leave (joints; the IMU's: 0).
+    pub noise: Vec<f64>,
     null: Effects,
     /// Idle engines of the unmodified model.
     pool: std::sync::Mutex<Vec<Plant>>,
@@ -107,6 +109,7 @@ impl<'a> Ctx<'a> {
             test: windows.test,
             groups: joint_groups(model),
             sigma_tau: model.joints.iter().map(|j| SIGMA_TAU_FRAC * j.torque_limit.max(1.0)).collect(),
+            noise: super::stats::noise_per_joint(model, &log.states).into_iter().chain([0.0]).collect(),
             null: Effects::none(model.nj()),
             pool: std::sync::Mutex::new(Vec::new()),
         }
@@ -148,6 +151,7 @@ impl<'a> Ctx<'a> {
             test: self.test.clone(),
             groups: self.groups.clone(),
             sigma_tau: self.sigma_tau.clone(),
+            noise: self.noise.clone(),
             null: self.null.clone(),
             pool: std::sync::Mutex::new(Vec::new()),
         }

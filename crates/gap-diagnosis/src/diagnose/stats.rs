@@ -1,4 +1,5 @@
-//! Means, medians and bootstrap intervals: the leaf of the pipeline. It knows nothing of plants or effects, so every
+//! Means, medians, bootstrap intervals, log-likelihood gains and the noise level of a log's channels: the leaf of
+//! the pipeline. It knows nothing of plants or effects, so every
 //! stage can share it; the draws it takes from the one RNG fix the report, so callers keep calling it in the same
 //! order.
 use rand::Rng;
@@ -100,6 +101,65 @@ pub(super) fn bootstrap_ratio(before: &[f64], after: &[f64], b: usize, rng: &mut
     percentile_interval(v, ms)
 }
 
+/// Gap metric of sensor noise alone, per joint column, from the logged states: per channel, the noise standard
+/// deviation estimated from the median absolute second difference of its samples (white noise of deviation σ gives
+/// second differences of deviation √6 σ, whose median absolute value is 0.6745 times that; smooth motion hardly
+/// contributes at the log's rate, and the median ignores the jumps of torque when a new command arrives).
+pub(super) fn noise_per_joint(model: &robot_model::RobotModel, states: &[crate::log::Measurement]) -> Vec<f64> {
+    if states.len() < 3 {
+        return vec![0.0; model.nj()];
+    }
+    let var = |f: &dyn Fn(usize) -> f64| -> f64 {
+        let d: Vec<f64> = (1..states.len() - 1).map(|k| (f(k + 1) - 2.0 * f(k) + f(k - 1)).abs()).collect();
+        let sigma = median(&d) / (0.674_489_75 * 6f64.sqrt());
+        sigma * sigma
+    };
+    let at = |v: &[f64], j: usize| v.get(j).copied().unwrap_or(0.0);
+    model
+        .joints
+        .iter()
+        .enumerate()
+        .map(|(j, joint)| {
+            let sigma_tau = crate::noise::SIGMA_TAU_FRAC * joint.torque_limit.max(1.0);
+            let vq = var(&|k| at(&states[k].q, j)) / (crate::noise::SIGMA_Q * crate::noise::SIGMA_Q);
+            let vdq = var(&|k| at(&states[k].dq, j)) / (crate::noise::SIGMA_DQ * crate::noise::SIGMA_DQ);
+            let vt = var(&|k| at(&states[k].tau, j)) / (sigma_tau * sigma_tau);
+            (vq + vdq + vt) / 3.0
+        })
+        .collect()
+}
+
+/// Per window, the held-out log-likelihood gain of `after` over `before` (both per window and column) on `cols`
+/// (all columns: `None`): `Σ_c ln((before + ν_c) / (after + ν_c))`. A window's column score is a mean squared
+/// residual, and with each column of each window given its own unknown variance, the Gaussian log-likelihood is
+/// `−(n/2) Σ ln(score)` up to constants: a window or a column whose residual is large for other reasons (a joint at
+/// its limit, another engine's model of it) weighs no more than any other, and an effect local to a few joints is not
+/// diluted by the rest of the robot. `ν_c` (the sensor noise's score, at least [`SCORE_FLOOR`]) is what no model can
+/// remove, so a column already at noise gains nothing. Reported per window in nats without the factor `n/2`.
+pub(super) fn log_gain(before: &[Vec<f64>], after: &[Vec<f64>], cols: Option<&[usize]>, nu: &[f64]) -> Vec<f64> {
+    before
+        .iter()
+        .zip(after)
+        .map(|(b, a)| {
+            let term = |c: usize| -> f64 {
+                let n = nu.get(c).copied().unwrap_or(SCORE_FLOOR).max(SCORE_FLOOR);
+                match (b.get(c), a.get(c)) {
+                    (Some(&x), Some(&y)) => ((x + n) / (y + n)).ln(),
+                    _ => 0.0,
+                }
+            };
+            match cols {
+                Some(cs) => cs.iter().map(|&c| term(c)).sum(),
+                None => (0..b.len()).map(term).sum(),
+            }
+        })
+        .collect()
+}
+
+/// The smallest noise score of a column: a hundredth of one residual scale (0.2 mrad, 0.01 rad/s, 0.1 % of the
+/// torque limit), far below any effect of interest, so that a noise-free log does not make tiny residuals count.
+pub const SCORE_FLOOR: f64 = 0.01;
+
 /// The windows by decreasing `before` and how many of the first the trimmed statistics drop ([`TRIM_FRAC`]): the
 /// one rule for the trimmed naming test here and the trimmed mean of "What is left".
 pub(super) fn trim_order(before: &[f64]) -> (Vec<usize>, usize) {
@@ -124,6 +184,20 @@ mod tests {
         let noisy: Vec<f64> = before.iter().enumerate().map(|(i, b)| b * if i % 2 == 0 { 0.3 } else { 0.9 }).collect();
         let r = bootstrap_ratio(&before, &noisy, 500, &mut rng);
         assert!(r.lo < r.value && r.value < r.hi, "{r:?}");
+    }
+
+    #[test]
+    fn the_log_gain_counts_a_local_cut_fully_and_noise_not_at_all() {
+        // Two columns: the first halved in every window, the second (ten times larger) unchanged.
+        let before = vec![vec![1.0, 10.0]; 4];
+        let after = vec![vec![0.5, 10.0]; 4];
+        let nu = [0.0, 0.0];
+        let g = log_gain(&before, &after, None, &nu);
+        assert!(g.iter().all(|x| (x - (1.01_f64 / 0.51).ln()).abs() < 1e-12), "{g:?}");
+        assert_eq!(log_gain(&before, &after, Some(&[1]), &nu), vec![0.0; 4]);
+        // A column at the noise level gains little when its residual falls further.
+        let g = log_gain(&[vec![0.2]], &[vec![0.1]], None, &[1.0]);
+        assert!((g[0] - (1.2_f64 / 1.1).ln()).abs() < 1e-12, "{g:?}");
     }
 
     #[test]

@@ -3,14 +3,14 @@
 //! command before it was sent, which no effect of the library can do and which a fit would absorb as something
 //! unphysical (a negative damping on the stiffest joints). So the replay is tried with every command acting earlier
 //! than its stamp by each of [`ADVANCES_MS`]; the best advance on the training windows is applied — the commands'
-//! stamps are moved, the report says by how much — when it cuts the held-out gap as much as a named effect must
-//! ([`super::Thresholds::min_cut`]). A command acting *later* than its stamp is what a latency is, and that is an
+//! stamps are moved, the report says by how much — when it gains as much held-out evidence as a named effect must
+//! ([`super::Thresholds::min_gain`]). A command acting *later* than its stamp is what a latency is, and that is an
 //! effect of the library, judged with the others.
 //!
 //! The stamps' regularity is reported too: windows whose states stray from a regular grid are not replayed
 //! ([`super::windows`]), and a log most of whose windows do so is not diagnosed at all.
-use super::replay::Ctx;
-use super::stats::{bootstrap_ratio, mean, total, Estimate};
+use super::replay::{Ctx, Scores};
+use super::stats::{bootstrap_mean, bootstrap_ratio, log_gain, mean, total, Estimate};
 use super::Thresholds;
 use crate::log::RobotLog;
 use crate::plant::Effects;
@@ -44,6 +44,8 @@ pub struct AdvanceTried {
     pub advance_ms: f64,
     /// Training gap metric (mean per window).
     pub train_gap: f64,
+    /// Held-out log-likelihood gain per window against the log as stamped.
+    pub gain: Estimate,
     /// Relative cut of the held-out gap against the log as stamped.
     pub cut: Estimate,
 }
@@ -72,45 +74,48 @@ pub(super) fn check(ctx: &Ctx<'_>, th: &Thresholds, rng: &mut impl Rng) -> Resul
         .count();
     let irregular_fraction = irregular as f64 / state_dt.len().max(1) as f64;
     let null = [Effects::none(ctx.nj())];
-    let totals = |c: &Ctx<'_>, w: &[usize]| -> Result<Vec<f64>, GapError> {
-        Ok(c.eval_many(&null, w)?.remove(0).iter().map(|s| total(s)).collect())
-    };
-    let (train0, test0) = (totals(ctx, &ctx.train)?, totals(ctx, &ctx.test)?);
+    let scores = |c: &Ctx<'_>, w: &[usize]| -> Result<Scores, GapError> { Ok(c.eval_many(&null, w)?.remove(0)) };
+    let totals = |s: &Scores| -> Vec<f64> { s.iter().map(|w| total(w)).collect() };
+    let (train0, test0) = (scores(ctx, &ctx.train)?, scores(ctx, &ctx.test)?);
     let mut tried = Vec::new();
-    let mut tests = Vec::new();
     for &ms in &ADVANCES_MS {
         let shifted = advanced(log, ms * 1e-3);
         let c = ctx.with_log(&shifted);
-        let (train, test) = (totals(&c, &c.train)?, totals(&c, &c.test)?);
-        tried.push(AdvanceTried { advance_ms: ms, train_gap: mean(&train), cut: bootstrap_ratio(&test0, &test, ctx.opts.bootstrap, rng) });
-        tests.push(test);
+        let (train, test) = (scores(&c, &c.train)?, scores(&c, &c.test)?);
+        tried.push(AdvanceTried {
+            advance_ms: ms,
+            train_gap: mean(&totals(&train)),
+            gain: bootstrap_mean(&log_gain(&test0, &test, None, &ctx.noise), ctx.opts.bootstrap, rng),
+            cut: bootstrap_ratio(&totals(&test0), &totals(&test), ctx.opts.bootstrap, rng),
+        });
     }
-    let base_train = mean(&train0);
+    let base_train = mean(&totals(&train0));
     let best = tried.iter().enumerate().filter(|(_, t)| t.train_gap < base_train).min_by(|a, b| a.1.train_gap.total_cmp(&b.1.train_gap));
     let (applied_advance_ms, finding) = match best {
-        Some((_, t)) if t.cut.lo >= th.min_cut => (
+        Some((_, t)) if t.gain.lo >= th.min_gain => (
             t.advance_ms,
             format!(
                 "the robot answers the commands {} ms before their stamps say they were sent: the states are stamped \
                  before the time they hold, or the commands after it (two clocks). The commands are replayed {} ms \
-                 earlier (held-out gap cut {:.1} % [{:.1}, {:.1}] against the log as stamped); fix the recorder's \
-                 stamps",
+                 earlier (held-out log-likelihood gain {:.3} [{:.3}, {:.3}] per window, gap cut {:.1} %, against the \
+                 log as stamped); fix the recorder's stamps",
                 t.advance_ms,
                 t.advance_ms,
-                100.0 * t.cut.value,
-                100.0 * t.cut.lo,
-                100.0 * t.cut.hi
+                t.gain.value,
+                t.gain.lo,
+                t.gain.hi,
+                100.0 * t.cut.value
             ),
         ),
         Some((_, t)) => (
             0.0,
             format!(
                 "the stamps are consistent: replaying the commands {} ms earlier fits the training windows a little \
-                 better but cuts the held-out gap by {:.1} % [{:.1}, {:.1}] only",
+                 better but gains {:.3} [{:.3}, {:.3}] per held-out window only",
                 t.advance_ms,
-                100.0 * t.cut.value,
-                100.0 * t.cut.lo,
-                100.0 * t.cut.hi
+                t.gain.value,
+                t.gain.lo,
+                t.gain.hi
             ),
         ),
         None => (0.0, "the stamps are consistent: no command advance fits the log better".into()),
