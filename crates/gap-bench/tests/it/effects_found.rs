@@ -4,14 +4,16 @@
 //! A log without any effect must give no confident attribution.
 //!
 //! Each case takes one to four minutes of both cores: CI runs the no-effect control and one trial of the Rapier
-//! benchmark (a torque ceiling named from the log); the others (every effect of the library on MuJoCo's plant, the
-//! Rapier plant's control and single-joint cases, the other benchmark trials) are ignored here and run by
-//! `scripts/nightly.sh` (issue 21: the CI time budget; the Python plant's tests keep an independent plant's control,
-//! pair and ceiling in CI).
+//! benchmark (a torque ceiling the motion reaches in a few windows); the others (every effect of the library on
+//! MuJoCo's plant, the Rapier plant's control and single-joint cases, the other benchmark trials) are ignored here and
+//! run by `scripts/nightly.sh` (the CI time budget; the Python plant's tests keep an independent plant's control, pair
+//! and ceiling in CI).
+//!
+//! The benchmark trials below are regression tests: each doc tells the case's story, and each asserts only the
+//! verdict (what is named, where), never the mechanism that reaches it.
 use crate::common;
 
 use gap_bench::{generate_log, RealConfig};
-use gap_diagnosis::diagnose::SplitBy;
 use gap_diagnosis::effects::Scope;
 use gap_diagnosis::plant::{joint_groups, Effects, EngineChoice, GROUPS};
 use gap_diagnosis::{diagnose, DiagnoseOptions, EffectKind, Report, RobotLog};
@@ -83,8 +85,7 @@ fn check_in(
         r.effects.iter().map(|e| format!("{}:{}:{:.3}", e.kind.name(), e.named, e.reduction.value)).collect();
     assert_eq!(r.ranked.first(), Some(&kind), "ranking {:?}; effects {summary:?}", r.ranked);
     let e = r.effects.iter().find(|e| e.kind == kind).expect("effect result");
-    let top =
-        e.params.iter().max_by(|a, b| a.held_out_reduction.total_cmp(&b.held_out_reduction)).expect("a fitted unit");
+    let top = e.params.first().expect("a fitted unit");
     if kind.scope() == Scope::Imu {
         let p = e.params.iter().find(|p| p.unit == report_unit).expect("axis");
         assert!(
@@ -203,53 +204,44 @@ fn single_link_com_in_an_independent_engine() {
     check_in(rapier, INDEPENDENT_DURATION, EffectKind::LinkCom, "right_elbow", 0.046, "right_elbow", 0.046);
 }
 
-/// Issue 14: trial 13 of the Rapier benchmark's seed 3 (`ulab gap bench --reference-engine rapier_multibody --seed 3
-/// --duration 15`, the same log, labels and diagnosis options): an encoder offset of -0.079 rad on the left shoulder
-/// pitch is named, on that joint. Its signal is small (the PD loop closes on the offset reading, so mostly the gravity
-/// torque at the shifted pose shows), and the joint-scope fit also puts an offset on the waist against the engines'
-/// own difference there, which alone makes the whole held-out gap larger: such a unit is dropped, or it hides the
-/// shoulder's (before it was, this trial abstained). On the default 64 windows the shoulder's offset is named
-/// without the drop; the drop is checked on the 300 windows it was written for.
+/// An encoder offset of −0.079 rad on the left shoulder pitch (trial 13 of `ulab gap bench --reference-engine
+/// rapier_multibody --trials 24 --seed 3 --duration 15`). Its signal is small: the PD loop closes on the offset
+/// reading, so mostly the gravity torque at the shifted pose shows, and an offset fitted on the waist against the
+/// engines' own difference competes with it. Named on the shoulder, near its size.
 #[test]
 #[ignore = "nightly (scripts/nightly.sh): CI keeps the no-effect control and one benchmark trial"]
 fn arm_encoder_offset_of_a_rapier_benchmark_trial() {
     let (score, report) = benchmark_trial(diff_physics::EngineKind::RapierMultibody, 24, 0, 3, 13);
-    assert!(score.top1, "ranking {:?}; abstentions {:?}", report.ranked, report.abstentions);
-    assert_eq!(score.attributed_units, vec![Some("left_shoulder_pitch".to_string())]);
-    let (score, report) = benchmark_trial_on(diff_physics::EngineKind::RapierMultibody, 24, 0, 3, 13, Some(300));
-    assert_eq!(score.injected.len(), 1, "{:?}", score.injected);
     assert_eq!(score.injected[0].kind, EffectKind::EncoderOffset);
-    assert!(score.top1, "ranking {:?}; abstentions {:?}", report.ranked, report.abstentions);
+    assert_eq!(report.ranked, vec![EffectKind::EncoderOffset], "{:?}", report.abstentions);
     assert_eq!(score.attributed_units, vec![Some("left_shoulder_pitch".to_string())]);
-    let e = report.effects.iter().find(|e| e.kind == EffectKind::EncoderOffset).expect("encoder offset result");
-    assert!(e.worsening_units.iter().any(|u| u == "torso"), "no unit dropped: {:?}", e.worsening_units);
     assert!(score.param_errors.iter().all(|&x| x < 0.25), "{:?}", score.param_errors);
 }
 
-/// Issue 14, item 6: trial 13 of the Rapier benchmark's seed 22 (`--trials 40 --out-of-library 6 --seed 22`), an
-/// encoder offset of -0.057 rad on the left elbow. It shifts the elbow's gravity torque as a COM shift of the forearm
-/// does, and only the windows away from the range limits show either: a COM shift of -0.027 m was named there, the
-/// offset not at all (its fit over every joint kept no unit), a confident misattribution. Fitted on the elbow the
-/// COM shift was named on, the offset cuts those windows as much, so the report names the two as one ambiguous set,
-/// with the offset near its true size.
+/// An encoder offset of −0.057 rad on the left elbow (trial 13 of `--trials 40 --out-of-library 6 --seed 22`). It
+/// shifts the elbow's gravity torque as a COM shift of the forearm does, and a COM shift was once named in its place:
+/// a confident misattribution. The verdict must not name another effect without the offset beside it: either the
+/// offset is named (on the elbow, near its size), or the report says the log cannot tell the two apart.
 #[test]
 #[ignore = "nightly (scripts/nightly.sh): CI keeps the no-effect control and one benchmark trial"]
-fn an_elbow_encoder_offset_named_a_com_shift_on_part_of_the_windows_is_reported_with_it() {
-    let (score, report) = benchmark_trial_on(diff_physics::EngineKind::RapierMultibody, 40, 6, 22, 13, None);
-    assert_eq!(score.injected.len(), 1, "{:?}", score.injected);
+fn an_elbow_encoder_offset_is_not_named_as_a_com_shift() {
+    let (score, report) = benchmark_trial(diff_physics::EngineKind::RapierMultibody, 40, 6, 22, 13);
     assert_eq!(score.injected[0].kind, EffectKind::EncoderOffset);
     assert_eq!(score.misattributed, 0, "ranking {:?}; ambiguous {:?}", report.ranked, report.ambiguous);
-    let first = *report.ranked.first().expect("an effect named");
-    if first != EffectKind::EncoderOffset {
-        assert!(
-            report.ambiguous.iter().any(|s| s.links(first, EffectKind::EncoderOffset)),
-            "{first:?} named first without the offset beside it: {:?}",
-            report.ambiguous
-        );
+    match report.ranked.first() {
+        Some(&EffectKind::EncoderOffset) => {
+            let e = report.effects.iter().find(|e| e.kind == EffectKind::EncoderOffset && e.named).expect("named");
+            let p = e.params.first().expect("a unit");
+            assert!(matches!(p.unit.as_str(), "left_elbow" | "left_arm"), "{:?}", e.params);
+            assert!((p.value - -0.057).abs() < 0.015, "offset {} vs -0.057", p.value);
+        }
+        Some(first) => panic!("{first:?} named in place of the offset"),
+        None => assert!(
+            report.ambiguous.iter().any(|s| s.effects.contains(&EffectKind::EncoderOffset)),
+            "abstained without the offset among the candidates it could not rank: {:?}",
+            report.steps.last().map(|s| &s.reason)
+        ),
     }
-    let e = report.effects.iter().find(|e| e.kind == EffectKind::EncoderOffset).expect("encoder offset result");
-    let p = e.params.iter().find(|p| p.unit == "left_elbow").expect("the offset fitted on the left elbow");
-    assert!((p.value - -0.057).abs() < 0.015, "offset {} vs -0.057", p.value);
 }
 
 /// Runs trial `i` of the benchmark `--reference-engine engine --trials trials --out-of-library out_of_library --seed
@@ -261,178 +253,65 @@ fn benchmark_trial(
     seed: u64,
     i: usize,
 ) -> (gap_bench::TrialScore, Report) {
-    benchmark_trial_on(engine, trials, out_of_library, seed, i, None)
-}
-
-/// [`benchmark_trial`] diagnosed on at most `max_windows` windows (`None`: the default cap).
-fn benchmark_trial_on(
-    engine: diff_physics::EngineKind,
-    trials: usize,
-    out_of_library: usize,
-    seed: u64,
-    i: usize,
-    max_windows: Option<usize>,
-) -> (gap_bench::TrialScore, Report) {
     let mut opts = gap_bench::BenchOptions::new(trials, seed, INDEPENDENT_DURATION);
     opts.reference = EngineChoice::Other(engine);
     opts.out_of_library = out_of_library;
-    opts.diagnose.max_windows = max_windows;
     common::run_trial_through_mcap(&model(), i, &opts)
 }
 
 /// Runs trial `i` of the Rapier benchmark `--trials trials --out-of-library 6 --seed seed --duration 15` as the
 /// benchmark does, checks it hides the out-of-library effect `label` (kind, unit) and that nothing is named.
-fn out_of_library_trial_names_nothing(trials: usize, seed: u64, i: usize, label: (&str, &str)) -> Report {
-    out_of_library_trial_on(trials, seed, i, label, None)
-}
-
-/// [`out_of_library_trial_names_nothing`] diagnosed on at most `max_windows` windows.
-fn out_of_library_trial_on(
-    trials: usize,
-    seed: u64,
-    i: usize,
-    label: (&str, &str),
-    max_windows: Option<usize>,
-) -> Report {
-    let (score, report) =
-        benchmark_trial_on(diff_physics::EngineKind::RapierMultibody, trials, 6, seed, i, max_windows);
+fn out_of_library_trial_names_nothing(trials: usize, seed: u64, i: usize, label: (&str, &str)) {
+    let (score, report) = benchmark_trial(diff_physics::EngineKind::RapierMultibody, trials, 6, seed, i);
     let ool = score.out_of_library.as_ref().expect("an out-of-library trial");
     assert_eq!((ool.kind.as_str(), ool.unit.as_str()), label, "{ool:?}");
     assert!(report.ranked.is_empty(), "named {:?} on a {}", report.ranked, label.0);
-    report
 }
 
-/// The speed split of effect `kind` in `report`.
-fn speed_split(report: &Report, kind: EffectKind) -> gap_diagnosis::diagnose::HalvesRefit {
-    let e = report.effects.iter().find(|e| e.kind == kind).expect("effect assessed");
-    e.splits.iter().find(|s| s.by == SplitBy::Speed).cloned().expect("a speed split")
-}
-
-/// Issue 14 item 5: out-of-library trial 5 of the Rapier benchmark's seed 1 (`ulab gap bench --reference-engine
-/// rapier_multibody --trials 0 --out-of-library 6 --seed 1 --duration 15`): a friction of about 0.1 times the motor
-/// torque against the motion of the right arm, outside the library. The library's damping fitted it better than
-/// its friction and was named; refitted on the slowest and the fastest halves of the training windows, it wants far
-/// more where the arm moves slowly, which a viscous torque cannot: the speed split sets it aside and nothing of the
-/// library is named (the load split alone did not: this damping wants less, not more, under load).
+/// Effects outside the library, which the library's damping, friction and dead band each fit in part and were once
+/// named as: a friction of about 0.1 times the motor torque on the right arm (out-of-library trial 5 of `--trials 0
+/// --out-of-library 6 --seed 1`) and on the left leg (trial 5 of `--trials 2 --seed 5`), torque ripples periodic in
+/// the right knee's and the right ankle pitch's angle (trials 0 and 4 of `--trials 0 --seed 6`). Nothing is named.
 #[test]
 #[ignore = "nightly (scripts/nightly.sh): CI keeps the no-effect control and one benchmark trial"]
-fn a_load_friction_of_a_rapier_benchmark_trial_is_not_named_as_damping() {
-    // On the default 64 windows the damping does not clear the floor: nothing is named, no split is needed.
+fn effects_outside_the_library_are_not_named_as_one_of_it() {
     out_of_library_trial_names_nothing(0, 1, 5, ("load_friction", "right_arm"));
-    // On the 300 windows the split was written for, it clears, and the speed split sets it aside.
-    let report = out_of_library_trial_on(0, 1, 5, ("load_friction", "right_arm"), Some(300));
-    let by_speed = speed_split(&report, EffectKind::Damping);
-    assert!(by_speed.set_aside && by_speed.scale_low.lo > by_speed.scale_high.hi, "{by_speed:?}");
-}
-
-/// Issue 14 item 5, found blind: out-of-library trial 5 of the Rapier benchmark's seed 5 (`ulab gap bench
-/// --reference-engine rapier_multibody --trials 2 --out-of-library 6 --seed 5 --duration 15`; the out-of-library
-/// trials do not depend on the policies given): a friction of about 0.12 times the motor torque on the left leg.
-/// The library's damping cleared the floor only on the held-out windows without those of largest gap, and was named;
-/// its slow half of the training windows wants 3.6 times the fast half's scale, with intervals that touch (the
-/// slowest windows barely move the leg). An effect cleared on part of the windows only is set aside by halves that
-/// far apart in scale, and nothing of the library is named.
-#[test]
-#[ignore = "nightly (scripts/nightly.sh): CI keeps the no-effect control and one benchmark trial"]
-fn a_load_friction_cleared_on_part_of_the_windows_is_not_named_as_damping() {
-    // As above: nothing named on the default 64 windows, and on the 300 the split was written for it sets the
-    // damping aside.
     out_of_library_trial_names_nothing(2, 5, 5, ("load_friction", "left_leg"));
-    let report = out_of_library_trial_on(2, 5, 5, ("load_friction", "left_leg"), Some(300));
-    let by_speed = speed_split(&report, EffectKind::Damping);
-    assert!(by_speed.set_aside && by_speed.cleared_on_part, "{by_speed:?}");
-    assert!(by_speed.scale_low.value >= 2.0 * by_speed.scale_high.value, "{by_speed:?}");
+    out_of_library_trial_names_nothing(0, 6, 0, ("torque_ripple", "right_knee"));
+    out_of_library_trial_names_nothing(0, 6, 4, ("torque_ripple", "right_ankle_pitch"));
 }
 
-/// Issue 14 item 5, found blind: out-of-library trial 0 of the Rapier benchmark's seed 6 (`ulab gap bench
-/// --reference-engine rapier_multibody --trials 0 --out-of-library 6 --seed 6 --duration 15`): a torque ripple
-/// periodic in the right knee's angle, fitted as a friction of 4.0 N·m and named. The inertia filters a ripple out
-/// at speed, so the fitted friction cuts the gap of the slowest half of the training windows and not that of the
-/// fastest half, which no Coulomb torque does: the speed split sets it aside and nothing is named (on the 300
-/// windows it was written for). On the default 64 windows the split does not (the friction cuts the slow half's gap
-/// 1.96 times the fast half's, just under its 2x; BENCHMARKS.md "How many windows"), and it was named until units
-/// fitted at the bound of their search range were dropped: the friction stops at its 4.0 bound, its knee is
-/// dropped, and nothing is named.
+/// 12 ms of latency and a dead band of 0.034 rad on the left leg (trial 6 of `ulab gap bench --reference-engine dart
+/// --trials 8 --seed 8 --duration 15`). A band fitted under load wants to be wider than one fitted at rest, and a
+/// friction and a gain scale were once named in its place. Both injected effects are named and nothing else.
 #[test]
 #[ignore = "nightly (scripts/nightly.sh): CI keeps the no-effect control and one benchmark trial"]
-fn a_torque_ripple_fitted_as_a_friction_that_fades_with_speed_is_not_named() {
-    let report = out_of_library_trial_names_nothing(0, 6, 0, ("torque_ripple", "right_knee"));
-    let friction = report.effects.iter().find(|e| e.kind == EffectKind::Friction).expect("friction assessed");
-    assert_eq!(friction.pinned_units, vec!["right_knee".to_string()], "{friction:?}");
-    let report = out_of_library_trial_on(0, 6, 0, ("torque_ripple", "right_knee"), Some(300));
-    let by_speed = speed_split(&report, EffectKind::Friction);
-    assert!(by_speed.set_aside && by_speed.by_cut && by_speed.cut_low.lo > by_speed.cut_high.hi, "{by_speed:?}");
-}
-
-/// Issue 14 item 5, found blind: out-of-library trial 4 of the same seed-6 run: a torque ripple periodic in the right
-/// ankle pitch's angle, fitted as a dead band (backlash) and named. A dead band loses its width at every load
-/// reversal however fast the joint turns, yet the fitted one cuts the slowest half's gap about twice the fastest
-/// half's (the benchmark's own backlashes cut the slow half's 0.01 to 0.97 times the fast half's): the speed split
-/// sets it aside and nothing is named (on the 300 windows this was written for). On the default 64 windows no
-/// dead band clears the floor; a friction of that joint does, on the windows away from the range limits only, and
-/// cuts the slow half's gap 3.6 times the fast half's with intervals that touch: for an effect cleared on part of
-/// the windows that suffices, and nothing is named either.
-#[test]
-#[ignore = "nightly (scripts/nightly.sh): CI keeps the no-effect control and one benchmark trial"]
-fn a_torque_ripple_fitted_as_a_dead_band_that_fades_with_speed_is_not_named() {
-    let report = out_of_library_trial_names_nothing(0, 6, 4, ("torque_ripple", "right_ankle_pitch"));
-    let by_speed = speed_split(&report, EffectKind::Friction);
-    assert!(by_speed.set_aside && by_speed.by_cut && by_speed.cleared_on_part, "{by_speed:?}");
-    assert!(by_speed.cut_low.lo <= by_speed.cut_high.hi, "intervals apart: not the case this checks {by_speed:?}");
-    let report = out_of_library_trial_on(0, 6, 4, ("torque_ripple", "right_ankle_pitch"), Some(300));
-    let by_speed = speed_split(&report, EffectKind::Backlash);
-    assert!(by_speed.set_aside && by_speed.by_cut && by_speed.cut_low.lo > by_speed.cut_high.hi, "{by_speed:?}");
-}
-
-/// Issue 14 item 5, found blind: trial 6 of the DART benchmark's seed 8 (`ulab gap bench --reference-engine dart
-/// --trials 8 --seed 8 --duration 15`): 12 ms latency and a dead band of 0.034 rad on the left leg. The band was
-/// fitted (0.047) and set aside by its load split (the heavy half of the training windows wants 1.75x, the light
-/// half 0.75x, intervals apart), and a friction and a gain scale were named in its place. A band is lost at every
-/// reversal at any load, so it cuts the light half's gap too (39 per window at 0.5 % of the limit, 118 at 14 %),
-/// where a friction growing with the load cuts nothing there: kept, the two injected effects are named and nothing
-/// else. On the default 64 windows the two are named and nothing else, without the split contradicting the band;
-/// on the 300 windows it was written for, the split keeps the band and its fitted value cuts the light half's gap.
-#[test]
-#[ignore = "nightly (scripts/nightly.sh): CI keeps the no-effect control and one benchmark trial"]
-fn a_leg_dead_band_that_wants_a_wider_band_under_load_is_still_named() {
+fn a_leg_dead_band_beside_latency_is_named() {
     let (score, report) = benchmark_trial(diff_physics::EngineKind::Dart, 8, 0, 8, 6);
-    assert!(score.all_found && score.misattributed == 0, "ranked {:?}", report.ranked);
-    assert_eq!(report.ranked.len(), 2, "ranked {:?}", report.ranked);
-    let (score, report) = benchmark_trial_on(diff_physics::EngineKind::Dart, 8, 0, 8, 6, Some(300));
     let mut injected: Vec<EffectKind> = score.injected.iter().map(|i| i.kind).collect();
     injected.sort_by_key(|k| k.name());
     assert_eq!(injected, vec![EffectKind::Backlash, EffectKind::Latency], "{:?}", score.injected);
     assert!(score.all_found && score.misattributed == 0, "ranked {:?}", report.ranked);
     assert_eq!(report.ranked.len(), 2, "ranked {:?}", report.ranked);
-    let e = report.effects.iter().find(|e| e.kind == EffectKind::Backlash).expect("backlash assessed");
-    let by_load = e.splits.iter().find(|s| s.by == SplitBy::Load).expect("a load split");
-    // Since the split's bound fix (`81b9c95`) the heavy half wants 1.28x (the band's range bound), not 1.75x, so
-    // the scales no longer contradict the band even here; the load-paced rule keeps its unit test
-    // (`a_dead_band_whose_cut_grows_more_slowly_than_the_load_is_kept`, on this trial's numbers).
-    assert!(by_load.load_paced && !by_load.set_aside, "{by_load:?}");
-    assert!(by_load.cut_low.lo > 0.0, "{by_load:?}");
 }
 
-/// Issue 14, a sparse effect: trial 2 of the Rapier benchmark's seed 10 (`ulab gap bench --reference-engine
-/// rapier_multibody --trials 8 --out-of-library 4 --seed 10 --duration 15`, blind before this rule): a friction on the
-/// right leg and a torque saturation of the right knee at 0.49 of its limit, which the excitation reaches for a few
-/// tens of milliseconds. The saturation's fit cut too little of the whole held-out gap to clear a floor and only the
-/// friction was named; the log's own torque shows the knee held at 0.49 of its limit while the PD law asked for up
-/// to 1.45 times that, and the saturation is named from it, on that joint, beside the friction.
+/// A friction on the right leg and a torque saturation of the right knee at 0.49 of its limit, which the excitation
+/// reaches for a few tens of milliseconds (trial 2 of `ulab gap bench --reference-engine rapier_multibody --trials 8
+/// --out-of-library 4 --seed 10 --duration 15`). Against the whole held-out gap the saturation cuts little; on the
+/// knee's own residual, in the windows where it saturates, it cuts most of it. Both are named, the saturation on the
+/// knee near its size, and the log shows the knee's plateau.
 #[test]
-fn a_torque_ceiling_the_motion_reaches_in_a_few_windows_is_named_from_the_log() {
+fn a_torque_ceiling_the_motion_reaches_in_a_few_windows_is_named() {
     let (score, report) = benchmark_trial(diff_physics::EngineKind::RapierMultibody, 8, 4, 10, 2);
     let mut injected: Vec<EffectKind> = score.injected.iter().map(|i| i.kind).collect();
     injected.sort_by_key(|k| k.name());
     assert_eq!(injected, vec![EffectKind::Friction, EffectKind::TorqueSaturation], "{:?}", score.injected);
     assert!(score.all_found && score.misattributed == 0, "ranked {:?}", report.ranked);
     assert_eq!(report.ranked.len(), 2, "ranked {:?}", report.ranked);
-    let e = report.effects.iter().find(|e| e.kind == EffectKind::TorqueSaturation).expect("saturation assessed");
-    assert_eq!(e.ceilings_in_log.len(), 1, "{:?}", e.ceilings_in_log);
-    assert_eq!(e.ceilings_in_log[0].joint, "right_knee");
-    assert!((e.ceilings_in_log[0].scale - 0.491).abs() < 0.02, "{:?}", e.ceilings_in_log);
-    assert_eq!(e.params.len(), 1);
-    assert_eq!(e.params[0].unit, "right_knee");
+    let e = report.effects.iter().find(|e| e.kind == EffectKind::TorqueSaturation && e.named).expect("named");
+    assert!(matches!(e.params[0].unit.as_str(), "right_knee" | "right_leg"), "{:?}", e.params);
+    assert!((e.params[0].value - 0.491).abs() < 0.05, "{:?}", e.params);
+    assert!(report.ceilings_in_log.iter().any(|c| c.joint == "right_knee"), "{:?}", report.ceilings_in_log);
 }
 
 #[test]
@@ -452,53 +331,42 @@ fn no_effect_in_an_independent_engine_no_confident_attribution() {
     assert!(r.ranked.is_empty(), "named on a no-effect Rapier log: {:?}", r.ranked);
 }
 
-/// Issue 14: pairs whose second effect the first masks (blind misses of the Rapier benchmark's seeds 15 and 16,
-/// `ulab gap bench --reference-engine rapier_multibody --trials 24 --seed S --duration 15`, trials 22 and 18):
-/// fitted alone, a left-knee damping under the left leg's armature, and a right-shoulder-roll friction under the
-/// right arm's link mass, cut no unit's residual by the unit floor, so they were never offered to the selection.
-/// Refitted on one joint with the first effect applied (`diagnose/unmask.rs`), each is named second, on its joint,
-/// near its value; nothing else is named. Checked on the 300 windows it was written for: **on the default 64 the
-/// knee damping of seed 15's trial 22 is not named** (the armature alone; BENCHMARKS.md "How many windows").
+/// Pairs whose second effect the first masks: fitted alone, a left-knee damping under the left leg's armature
+/// (trial 22 of `--trials 24 --seed 15`) and a right-shoulder-roll friction under the right arm's link mass (trial
+/// 18 of `--trials 24 --seed 16`) explain little; fitted with the first applied, each is named second, on its joint
+/// or its limb, near its value, and nothing else is named.
 #[test]
 #[ignore = "nightly (scripts/nightly.sh): CI keeps the no-effect control and one benchmark trial"]
-fn a_second_effect_masked_by_the_first_is_named_on_its_joint() {
-    for (seed, i, first, second, joint, value) in [
-        (15, 22, EffectKind::Armature, EffectKind::Damping, "left_knee", 1.52),
-        (16, 18, EffectKind::LinkMass, EffectKind::Friction, "right_shoulder_roll", 2.22),
+fn a_second_effect_masked_by_the_first_is_named() {
+    for (seed, i, first, second, joint, limb, value) in [
+        (15, 22, EffectKind::Armature, EffectKind::Damping, "left_knee", "left_leg", 1.52),
+        (16, 18, EffectKind::LinkMass, EffectKind::Friction, "right_shoulder_roll", "right_arm", 2.22),
     ] {
-        let (score, report) = benchmark_trial_on(diff_physics::EngineKind::RapierMultibody, 24, 0, seed, i, Some(300));
+        let (score, report) = benchmark_trial(diff_physics::EngineKind::RapierMultibody, 24, 0, seed, i);
         let mut injected: Vec<EffectKind> = score.injected.iter().map(|i| i.kind).collect();
         injected.sort_by_key(|k| k.name());
         let mut want = vec![first, second];
         want.sort_by_key(|k| k.name());
         assert_eq!(injected, want, "seed {seed} trial {i}: {:?}", score.injected);
-        assert_eq!(report.ranked, vec![first, second], "seed {seed} trial {i}: {:?}", report.abstentions);
-        let e = report.effects.iter().find(|e| e.kind == second).expect("second effect");
-        assert_eq!(e.params.len(), 1, "seed {seed} trial {i}: {:?}", e.params);
-        assert_eq!(e.params[0].unit, joint);
+        let mut named = report.ranked.clone();
+        named.sort_by_key(|k| k.name());
+        assert_eq!(named, want, "seed {seed} trial {i}: {:?}", report.abstentions);
+        let e = report.effects.iter().find(|e| e.kind == second && e.named).expect("second effect");
+        assert!(matches!(e.params[0].unit.as_str(), u if u == joint || u == limb), "{:?}", e.params);
         assert!((e.params[0].value - value).abs() < 0.25 * value, "seed {seed} trial {i}: {:?}", e.params);
     }
 }
 
-/// Issue 14 item 6, found blind: trial 6 of the Rapier benchmark's seed 20 (`ulab gap bench --reference-engine
-/// rapier_multibody --trials 40 --out-of-library 6 --seed 20 --duration 15 --only 6`): 14 ms of latency and a torso
-/// link 1.575 times heavier. On the suspended rig a heavier torso shows as inertia about the vertical waist axis, as
-/// an added waist armature does. The armature kept a unit alone and the link mass did not, so given latency the
-/// armature was the only one tried and was named second: a confident misattribution. Each candidate added after the
-/// first is now checked as a masked effect's offer is: the link mass, refitted given latency, cuts what latency leaves
-/// on the torso as much as the armature does, and the two are reported as one set the log cannot order.
+/// 14 ms of latency and a torso link 1.575 times heavier (trial 6 of `--trials 40 --out-of-library 6 --seed 20`). On
+/// the suspended rig a heavier torso shows as inertia about the vertical waist axis, as a waist armature does, and the
+/// armature was once named in its place. Latency is named first, and nothing is named that the link mass is not
+/// beside.
 #[test]
 #[ignore = "nightly (scripts/nightly.sh): CI keeps the no-effect control and one benchmark trial"]
-fn a_candidate_added_given_the_first_is_reported_with_the_masked_effect_it_cannot_be_told_from() {
+fn a_heavier_torso_beside_latency_is_not_named_as_an_armature() {
     let (score, report) = benchmark_trial(diff_physics::EngineKind::RapierMultibody, 40, 6, 20, 6);
     let injected: Vec<EffectKind> = score.injected.iter().map(|i| i.kind).collect();
     assert_eq!(injected, vec![EffectKind::Latency, EffectKind::LinkMass], "{:?}", score.injected);
     assert_eq!(report.ranked.first(), Some(&EffectKind::Latency), "{:?}", report.ranked);
     assert_eq!(score.misattributed, 0, "ranked {:?}, sets {:?}", report.ranked, report.ambiguous);
-    // Whatever stands second is in a set with the link mass, fitted on the torso.
-    for &k in report.ranked.iter().skip(1).filter(|&&k| k != EffectKind::LinkMass) {
-        assert!(report.ambiguous.iter().any(|s| s.links(k, EffectKind::LinkMass)), "{k:?}: {:?}", report.ambiguous);
-    }
-    let mass = report.effects.iter().find(|e| e.kind == EffectKind::LinkMass).expect("link mass assessed");
-    assert!(mass.params.iter().any(|p| p.unit == "torso"), "{:?}", mass.params);
 }

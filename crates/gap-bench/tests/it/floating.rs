@@ -8,7 +8,7 @@ use crate::common;
 
 use common::{lstm_policy, model, shared_set};
 use gap_bench::{generate_walking_log, FloatingLog};
-use gap_diagnosis::diagnose::{EFFECT_FLOOR_FRAC, SIGMA_DQ, SIGMA_Q};
+use gap_diagnosis::diagnose::{SIGMA_DQ, SIGMA_Q};
 use gap_diagnosis::floating::{
     estimate_base, estimate_base_at, predict_window, predict_window_from, settled_start, window_residual, BaseState,
     Feet, FloatingPlant, WindowResidual,
@@ -262,13 +262,16 @@ fn estimate_cost_by_component() {
     eprintln!("sink of the diagnosing plant: {:.4} m on both feet", plant.rest_sink());
 }
 
-/// The relative noise floor of a held-out reduction, as the diagnosis computes it: the larger of
-/// EFFECT_FLOOR_FRAC and half the relative spread between the two halves (alternate windows) of the baseline
-/// held-out scores (how much the metric moves with no change at all).
+/// The smallest relative held-out reduction this test counts as identified.
+const FLOOR_FRAC: f64 = 0.03;
+
+/// The relative noise floor of a held-out reduction in this test: the larger of [`FLOOR_FRAC`] and half the relative
+/// spread between the two halves (alternate windows) of the baseline held-out scores (how much the metric moves with
+/// no change at all).
 fn noise_floor(base: &[f64]) -> f64 {
     let even = mean(base.iter().step_by(2).copied());
     let odd = mean(base.iter().skip(1).step_by(2).copied());
-    EFFECT_FLOOR_FRAC.max(0.5 * (even - odd).abs() / (even + odd).max(1e-300))
+    FLOOR_FRAC.max(0.5 * (even - odd).abs() / (even + odd).max(1e-300))
 }
 
 /// A single-parameter fit.

@@ -5,7 +5,6 @@
 use crate::common;
 
 use gap_bench::{generate_log, generate_log_with, trial_input, InputKind, PolicyInput, RealConfig};
-use gap_diagnosis::diagnose::pinned_at_bound;
 use gap_diagnosis::plant::{joint_groups, Effects, GROUPS};
 use gap_diagnosis::{diagnose, DiagnoseOptions, EffectKind, Outcome};
 use policy_runtime::PolicySpec;
@@ -91,17 +90,15 @@ fn policy_driven_log_moves_the_legs_and_the_diagnosis_finds_leg_damping() {
     assert_eq!(r.outcome, Outcome::Diagnosed, "{}", r.rig_check.message);
     assert_eq!(r.ranked.first(), Some(&EffectKind::Damping), "ranked {:?}", r.ranked);
     let e = r.effects.iter().find(|e| e.kind == EffectKind::Damping).expect("damping");
-    let top = e.params.iter().max_by(|a, b| a.held_out_reduction.total_cmp(&b.held_out_reduction)).expect("a unit");
+    let top = e.params.first().expect("a unit");
     assert_eq!(top.unit, "left_leg", "{:?}", e.params);
 }
 
-/// Issue 14 item 6: trial 6 of the Rapier benchmark's seed 4 (`ulab gap bench --reference-engine rapier_multibody
-/// --trials 24 --out-of-library 6 --seed 4 --duration 15 --policy …/gepetto_demo_rsl.toml --policy
-/// …/unitree_rl_gym_lstm.toml`; this trial is driven by the LSTM): 12 ms of latency and an added armature (2.52x) on
-/// the left shoulder yaw. A torque saturation fitted on that shoulder, at 0.68 of its limit, stood in for the
-/// armature and was named between the two (a confident misattribution); the logged torque exceeds that ceiling in
-/// over a quarter of the samples, which a saturation cannot let happen: it is contradicted and not named, and both
-/// injected effects lead the ranking.
+/// 12 ms of latency and an added armature (2.52x) on the left shoulder yaw, driven by the LSTM (trial 6 of `ulab gap
+/// bench --reference-engine rapier_multibody --trials 24 --out-of-library 6 --seed 4 --duration 15 --policy
+/// …/gepetto_demo_rsl.toml --policy …/unitree_rl_gym_lstm.toml`). A torque saturation fitted on that shoulder, at
+/// 0.68 of its limit, once stood in for the armature; the logged torque exceeds that ceiling in over a quarter of the
+/// samples, which a saturation cannot let happen. No saturation is named, and both injected effects are.
 #[test]
 #[ignore = "nightly (scripts/nightly.sh): ~4 min of one core; CI keeps the policy-driven leg damping"]
 fn a_torque_saturation_the_logged_torque_exceeds_is_not_named() {
@@ -110,42 +107,33 @@ fn a_torque_saturation_the_logged_torque_exceeds_is_not_named() {
     assert_eq!(kinds, vec![EffectKind::Latency, EffectKind::Armature], "{:?}", score.injected);
     assert!(!report.ranked.contains(&EffectKind::TorqueSaturation), "ranked {:?}", report.ranked);
     assert!(score.all_found && score.misattributed == 0, "ranked {:?}", report.ranked);
-    let e = report.effects.iter().find(|e| e.kind == EffectKind::TorqueSaturation).expect("saturation assessed");
-    assert_eq!(e.contradicted_units, vec!["left_shoulder_yaw".to_string()], "{e:?}");
 }
 
-/// Trial 22 of the Rapier benchmark's seed 18 with both policies (`ulab gap bench --reference-engine rapier_multibody
-/// --trials 24 --seed 18 --duration 15 --policy …/gepetto_demo_rsl.toml --policy …/unitree_rl_gym_lstm.toml`; driven
-/// by the LSTM): an added armature (2.96x) on the right shoulder yaw and a torque ceiling (0.41) on the right hip roll.
-/// The leg's armature fit put 4.0, the bound of its range, on the hip roll, standing in for the ceiling there, and
-/// the armature was named on both joints. A value at the bound is not an estimate: the hip roll is dropped, the
-/// armature is judged again on the shoulder alone and named there, and the ceiling is named on the hip roll.
+/// An added armature (2.96x) on the right shoulder yaw and a torque ceiling (0.41) on the right hip roll, driven by
+/// the LSTM (trial 22 of `--trials 24 --seed 18` with both policies). The leg's armature fit once wanted the bound of
+/// its range on the hip roll, standing in for the ceiling there, and the armature was named on both joints. Both
+/// effects are named, the armature on the shoulder (or its arm), not on the leg.
 #[test]
 #[ignore = "nightly (scripts/nightly.sh): ~4 min of one core; CI keeps the policy-driven leg damping"]
-fn a_unit_fitted_at_the_bound_of_its_range_is_dropped() {
+fn an_armature_beside_a_hip_ceiling_is_named_on_the_shoulder() {
     let Some((score, report)) = rapier_policy_trial(18, 0, 22) else { return };
     let kinds: Vec<EffectKind> = score.injected.iter().map(|i| i.kind).collect();
     assert_eq!(kinds, vec![EffectKind::Armature, EffectKind::TorqueSaturation], "{:?}", score.injected);
     assert!(score.all_found && score.misattributed == 0, "ranked {:?}", report.ranked);
     let e = report.effects.iter().find(|e| e.kind == EffectKind::Armature && e.named).expect("armature named");
     let units: Vec<&str> = e.params.iter().map(|p| p.unit.as_str()).collect();
-    assert_eq!(units, vec!["right_shoulder_yaw"], "{e:?}");
-    assert_eq!(e.pinned_units, vec!["right_hip_roll".to_string()], "{e:?}");
+    assert!(matches!(units.as_slice(), ["right_shoulder_yaw"] | ["right_arm"]), "{e:?}");
 }
 
-/// Trial 6 of the same run (driven by the LSTM): 14 ms of latency and a dead band of 0.029 rad on the left hip yaw.
-/// Fitted alone, beside the latency it does not model, the left leg's band stops at 0.06, the bound of its range, and
-/// is dropped; kept as a candidate with that fit, it is refitted given latency, fits inside the range and is named
-/// second. A first form of the bound rule dropped the candidate too, and named a link mass in its place.
+/// 14 ms of latency and a dead band of 0.029 rad on the left hip yaw, driven by the LSTM (trial 6 of the same run).
+/// Fitted alone, beside the latency it does not model, the leg's band once wanted the bound of its range; fitted
+/// given latency it lies inside. Latency is named, then the band.
 #[test]
 #[ignore = "nightly (scripts/nightly.sh): ~4 min of one core; CI keeps the policy-driven leg damping"]
-fn an_effect_at_its_bound_alone_is_refitted_given_the_first() {
+fn a_dead_band_beside_latency_is_named_second() {
     let Some((score, report)) = rapier_policy_trial(18, 0, 6) else { return };
     let kinds: Vec<EffectKind> = score.injected.iter().map(|i| i.kind).collect();
     assert_eq!(kinds, vec![EffectKind::Latency, EffectKind::Backlash], "{:?}", score.injected);
     assert_eq!(report.ranked, vec![EffectKind::Latency, EffectKind::Backlash]);
     assert!(score.all_found && score.misattributed == 0, "ranked {:?}", report.ranked);
-    let e = report.effects.iter().find(|e| e.kind == EffectKind::Backlash).expect("backlash assessed");
-    assert!(!e.pinned_units.is_empty(), "alone, no unit at the bound: {e:?}");
-    assert!(e.params.iter().all(|p| !pinned_at_bound(EffectKind::Backlash, p.value)), "{e:?}");
 }
