@@ -30,7 +30,7 @@ cargo test --workspace --locked --no-run
 phase build
 # A failing test does not skip the doc tests or the fuzz smoke run: one CI log reports all; the exit status keeps the
 # failure. nextest runs each test in its own process, two at a time on two cores (.config/nextest.toml: the slow-test
-# report, no retries, the real-time tests one at a time); it does not run doc tests, `cargo test --doc` does.
+# report, no retries, each real-time test alone); it does not run doc tests, `cargo test --doc` does.
 logs=target/test-logs
 mkdir -p "$logs"
 status=0
