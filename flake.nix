@@ -19,13 +19,10 @@
           src = ./.;
           filter = path: type:
             (craneLib.filterCargoSources path type)
-            || (builtins.match ".*(corpus|robots|snapshots)/.*" path != null)
-            # the linker driver that .cargo/config.toml names
-            || (builtins.match ".*/scripts/cc-with-mold\\.sh" path != null);
+            || (builtins.match ".*(corpus|robots|snapshots)/.*" path != null);
         };
         # clang: physx-sys's build script compiles the vendored PhysX SDK with `clang++` (unless CXX is set).
-        # mold: the linker scripts/cc-with-mold.sh uses when it is on PATH.
-        nativeBuildInputs = [ pkgs.cmake pkgs.pkg-config pkgs.rustPlatform.bindgenHook pkgs.clang pkgs.mold ];
+        nativeBuildInputs = [ pkgs.cmake pkgs.pkg-config pkgs.rustPlatform.bindgenHook pkgs.clang ];
         buildInputs = [ pkgs.mujoco pkgs.cyclonedds ];
         commonArgs = {
           inherit src nativeBuildInputs buildInputs;

@@ -8,7 +8,7 @@
 //! and DDS domains are leased (`test-support`).
 
 #[path = "../../../dds-transport/tests/it/common.rs"]
-use crate::common;
+mod common;
 
 use common::*;
 use std::path::{Path, PathBuf};
