@@ -394,7 +394,12 @@ fn verdict(
             Some(a) => ["imu_x", "imu_y", "imu_z"]
                 .iter()
                 .zip(a)
-                .map(|(u, v)| FittedParam { unit: (*u).into(), value: v, sd: n.fit.sd, held_out_reduction: before - after })
+                .map(|(u, v)| FittedParam {
+                    unit: (*u).into(),
+                    value: v,
+                    sd: n.fit.sd,
+                    held_out_reduction: before - after,
+                })
                 .collect(),
             None => vec![FittedParam {
                 unit: n.fit.unit.name().into(),
@@ -432,7 +437,8 @@ fn verdict(
         }
         let why = if ctx.plant == PlantKind::Rig && !kind.identifiable_suspended() {
             if any_contact {
-                "foot contact is estimated in this log, but the suspended-rig plant has no ground model to fit it on".into()
+                "foot contact is estimated in this log, but the suspended-rig plant has no ground model to fit it on"
+                    .into()
             } else {
                 "not identifiable: no foot contact in this log".into()
             }
@@ -475,19 +481,21 @@ fn verdict(
         metric_after: stats::bootstrap_mean(&j.totals, ctx.opts.bootstrap, rng),
         reduction: stats::bootstrap_ratio(&baseline.test_tot, &j.totals, ctx.opts.bootstrap, rng),
     });
+    // The regions the last step could not attribute: each a candidate and its rivals.
     let ambiguous = last
-        .filter(|s| s.abstention == Some(Abstention::Tied))
-        .and_then(|s| {
-            let w = s.winner?;
-            let members: Vec<&CandidateResult> =
-                std::iter::once(w).chain(s.rivals.iter().copied()).filter_map(|i| s.candidates.get(i)).collect();
-            Some(AmbiguousSet {
-                effects: members.iter().map(|c| c.kind).collect(),
-                units: members.iter().map(|c| c.unit.clone()).collect(),
-            })
+        .map(|s| {
+            s.ambiguous
+                .iter()
+                .map(|region| {
+                    let members: Vec<&CandidateResult> = region.iter().filter_map(|&i| s.candidates.get(i)).collect();
+                    AmbiguousSet {
+                        effects: members.iter().map(|c| c.kind).collect(),
+                        units: members.iter().map(|c| c.unit.clone()).collect(),
+                    }
+                })
+                .collect()
         })
-        .into_iter()
-        .collect();
+        .unwrap_or_default();
     Verdict { effects, abstentions, combination, ambiguous }
 }
 

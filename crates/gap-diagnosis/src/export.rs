@@ -60,11 +60,7 @@ fn mjcf_with(model: &RobotModel, report: &Report, fx: &Effects) -> Result<String
     }
     let engine = EngineChoice::parse(&report.engine)?;
     let integrator = engine.mujoco_integrator()?.to_string();
-    let timestep = report
-        .numerics
-        .as_ref()
-        .and_then(|n| n.better_variant())
-        .map_or(DT, |v| 1e-3 * v.timestep_ms);
+    let timestep = report.numerics.as_ref().and_then(|n| n.better_variant()).map_or(DT, |v| 1e-3 * v.timestep_ms);
     let nothing = fx == &Effects::none(model.nj());
     let named: Vec<String> = report
         .effects

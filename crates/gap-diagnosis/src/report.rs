@@ -95,9 +95,7 @@ pub fn markdown(r: &Report) -> String {
     s += &replay_section(r);
     if r.unexplained {
         let why = r.steps.last().map_or(String::new(), |st| format!(" ({})", st.reason));
-        s += &format!(
-            "**No effect is named: the gap is unexplained** by the effect library (abstention){why}.\n\n"
-        );
+        s += &format!("**No effect is named: the gap is unexplained** by the effect library (abstention){why}.\n\n");
     } else {
         let names: Vec<String> = r
             .effects

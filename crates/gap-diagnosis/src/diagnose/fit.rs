@@ -218,7 +218,8 @@ pub(super) fn fit_set(
     let (lo, hi, v0) = kind.range();
     let cols: Vec<Vec<usize>> = set.iter().map(|u| u.score_columns(ctx)).collect();
     // Per training window, unit u's score.
-    let per_window = |s: &Scores, u: usize| -> Vec<f64> { s.iter().map(|w| cols[u].iter().map(|&c| w[c]).sum()).collect() };
+    let per_window =
+        |s: &Scores, u: usize| -> Vec<f64> { s.iter().map(|w| cols[u].iter().map(|&c| w[c]).sum()).collect() };
     let with = |vals: &[f64]| -> Effects {
         let mut fx = base.clone();
         set.iter().zip(vals).for_each(|(u, &v)| u.set(kind, &mut fx, v));
@@ -242,11 +243,8 @@ pub(super) fn fit_set(
         curve.sort_by(|a, b| a.0.total_cmp(&b.0));
         let sums: Vec<f64> = curve.iter().map(|(_, s)| s.iter().sum()).collect();
         let best = (0..curve.len()).min_by(|&a, &b| sums[a].total_cmp(&sums[b])).unwrap_or(0);
-        refined[u] = if kind == EffectKind::Latency {
-            curve[best].0
-        } else {
-            vertex(&curve, &sums, best).clamp(lo, hi)
-        };
+        refined[u] =
+            if kind == EffectKind::Latency { curve[best].0 } else { vertex(&curve, &sums, best).clamp(lo, hi) };
         curves.push(curve);
     }
     // Latency: the odd steps beside the best even one; others: the refined value, kept when it scores better.

@@ -17,16 +17,18 @@
 //!    column of every window has its own variance, so neither a window nor a joint with a large residual for other
 //!    reasons dominates, and an effect local to a few joints is not diluted by the rest), with a percentile bootstrap
 //!    interval over windows.
-//! 4. **Decision.** The candidate with the largest gain wins the step. It is named when
-//!    (a) its gain's lower bound reaches [`Thresholds::min_gain`],
-//!    (b) its fitted size reaches [`Thresholds::min_size`] of the kind's magnitude of interest, and
-//!    (c) no rival — a valid candidate of another kind acting on the same joints, or of the same kind on joints the
-//!    winner's unit does not hold — has a gain the log cannot rank below the winner's (the paired interval of the two
-//!    gains' difference holds 0).
-//!    Of the same kind on nested units (a limb and one of its joints) whose gains the log cannot rank, the larger unit
-//!    is named: the log does not say which joint of it carries the effect.
-//!    A step that names nothing ends the selection, with the reason (a), (b) or (c) — the abstention. At most
-//!    [`Thresholds::max_effects`] effects are named.
+//! 4. **Decision.** An *effect of interest* is a valid candidate whose fitted size reaches [`Thresholds::min_size`]
+//!    of its kind's magnitude of interest; the others are corrections one simulator needs to match another, or
+//!    stand-ins. Going down the candidates by gain, the first effect of interest is the step's winner (of the same kind
+//!    on nested units — a limb and one of its joints — whose gains the log cannot rank, the larger unit: the log does
+//!    not say which joint carries it). It is named when
+//!    (a) its gain's lower bound reaches [`Thresholds::min_gain`], and
+//!    (b) no rival — any other candidate, of interest or not, acting on some of the same joints (not the same kind on
+//!    a nested unit) — has a gain the log cannot rank below the winner's (the paired interval of the two gains'
+//!    difference holds 0): the log would equally take another explanation of those joints.
+//!    A winner failing (b) is set aside with its rivals as a region the log cannot attribute, and the step goes on
+//!    with the candidates acting on other joints. A step that names nothing ends the selection, with its reason — the
+//!    abstention. At most [`Thresholds::max_effects`] effects are named.
 //!
 //! Timing and numerics are settled before the judge runs ([`super::timing`], [`super::numerics`]): they change how the
 //! log is replayed and are never named as effects.
@@ -74,7 +76,14 @@ pub struct Thresholds {
 
 impl Default for Thresholds {
     fn default() -> Self {
-        Thresholds { confidence: 0.95, min_gain: 0.3, min_size: 0.5, max_effects: 3, exact_candidates: 10, joints_per_limb: 4 }
+        Thresholds {
+            confidence: 0.95,
+            min_gain: 0.3,
+            min_size: 0.5,
+            max_effects: 3,
+            exact_candidates: 10,
+            joints_per_limb: 4,
+        }
     }
 }
 
@@ -105,13 +114,11 @@ pub struct CandidateResult {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Abstention {
-    /// No valid candidate was left.
+    /// No effect of interest was left (every candidate is invalid or under [`Thresholds::min_size`]).
     NoCandidate,
-    /// (a): the best gain's lower bound is under [`Thresholds::min_gain`].
+    /// (a): the best remaining effect of interest gains less than [`Thresholds::min_gain`].
     GainBelowFloor,
-    /// (b): the best candidate's size is under [`Thresholds::min_size`].
-    TooSmall,
-    /// (c): a rival's gain cannot be ranked below the best one's.
+    /// (b): every effect of interest that gains enough has a rival the log cannot rank below it.
     Tied,
     /// [`Thresholds::max_effects`] are named.
     Enough,
@@ -126,6 +133,10 @@ pub struct Step {
     pub winner: Option<usize>,
     /// Indices of the rivals the log cannot rank below the winner.
     pub rivals: Vec<usize>,
+    /// Every region of the step the log could not attribute: a candidate and its rivals (indices), set aside while
+    /// the step went on to candidates acting on other joints.
+    #[serde(default)]
+    pub ambiguous: Vec<Vec<usize>>,
     /// `None`: the winner was named.
     pub abstention: Option<Abstention>,
     /// The decision in words.
@@ -186,6 +197,7 @@ pub(super) fn judge(
                 candidates: vec![],
                 winner: None,
                 rivals: vec![],
+                ambiguous: vec![],
                 abstention: Some(Abstention::Enough),
                 reason: format!("{} effects are named, the most the judge names", th.max_effects),
             });
@@ -253,81 +265,118 @@ fn decide(
     unit: impl Fn(usize) -> Unit,
     th: &Thresholds,
 ) -> Step {
-    let step = |winner, rivals, abstention, reason| Step { candidates: vec![], winner, rivals, abstention, reason };
-    let Some(best) = candidates.iter().position(|c| c.invalid.is_none()) else {
-        return step(None, vec![], Some(Abstention::NoCandidate), "no effect of the library fits the log".into());
+    let step = |winner, rivals, ambiguous, abstention, reason| Step {
+        candidates: vec![],
+        winner,
+        rivals,
+        ambiguous,
+        abstention,
+        reason,
     };
-    // Of the same kind on nested units that the log cannot rank, the larger unit.
-    let mut winner = best;
-    for i in 0..candidates.len() {
-        let (c, w) = (&candidates[i], &candidates[winner]);
-        if i == winner || c.invalid.is_some() || c.kind != w.kind || !unit(i).contains(&unit(winner)) {
+    let of_interest = |i: usize| candidates[i].invalid.is_none() && candidates[i].size >= th.min_size;
+    // Regions (winner and rivals) the log cannot attribute, found so far in this step.
+    let mut ambiguous: Vec<Vec<usize>> = Vec::new();
+    let mut first_tie: Option<(usize, Vec<usize>)> = None;
+    let in_ambiguous = |i: usize, amb: &[Vec<usize>]| amb.iter().flatten().any(|&k| unit(k).overlaps(&unit(i)));
+    for best in 0..candidates.len() {
+        if !of_interest(best) || in_ambiguous(best, &ambiguous) {
             continue;
         }
-        if diff(winner, i).lo <= 0.0 {
-            winner = i;
+        // Of the same kind on nested units that the log cannot rank, the larger unit.
+        let mut winner = best;
+        for i in 0..candidates.len() {
+            let (c, w) = (&candidates[i], &candidates[winner]);
+            if i == winner || !of_interest(i) || c.kind != w.kind || !unit(i).contains(&unit(winner)) {
+                continue;
+            }
+            if diff(winner, i).lo <= 0.0 {
+                winner = i;
+            }
         }
-    }
-    let w = &candidates[winner];
-    let name = format!("{} on {}", w.kind.name(), w.unit);
-    if w.gain.lo < th.min_gain {
+        let w = &candidates[winner];
+        let name = format!("{} on {}", w.kind.name(), w.unit);
+        if w.gain.lo < th.min_gain {
+            let tied = first_tie.as_ref().map_or(String::new(), |(t, _)| {
+                format!("; {} was set aside, tied with rivals on its joints", candidates[*t].kind.name())
+            });
+            let reason = format!(
+                "the best remaining effect of interest, {name} = {:.4}, gains {:.3} [{:.3}, {:.3}] in held-out \
+                 log-likelihood per window (cutting {:.1} % of the remaining gap metric): its lower bound is under the \
+                 {} a named effect must gain{tied}",
+                w.value,
+                w.gain.value,
+                w.gain.lo,
+                w.gain.hi,
+                100.0 * w.cut.value,
+                th.min_gain
+            );
+            let (winner, rivals) = first_tie.clone().unwrap_or((winner, vec![]));
+            let abstention = if ambiguous.is_empty() { Abstention::GainBelowFloor } else { Abstention::Tied };
+            return step(Some(winner), rivals, ambiguous, Some(abstention), reason);
+        }
+        let wu = unit(winner);
+        let rivals: Vec<usize> = (0..candidates.len())
+            .filter(|&i| i != winner)
+            .filter(|&i| {
+                let u = unit(i);
+                let nested_same = candidates[i].kind == w.kind && (u.contains(&wu) || wu.contains(&u));
+                !nested_same && u.overlaps(&wu)
+            })
+            .filter(|&i| diff(winner, i).lo <= 0.0)
+            .collect();
+        if !rivals.is_empty() {
+            ambiguous.push(std::iter::once(winner).chain(rivals.iter().copied()).collect());
+            first_tie.get_or_insert((winner, rivals));
+            continue;
+        }
         let reason = format!(
-            "the best explanation, {name}, gains {:.3} [{:.3}, {:.3}] in held-out log-likelihood per window (cutting \
-             {:.1} % of the remaining gap metric): its lower bound is under the {} a named effect must gain",
+            "named: {name} = {:.4} gains {:.3} [{:.3}, {:.3}] in held-out log-likelihood per window (cutting {:.1} % \
+             of the remaining gap metric), at {:.0} % of the size the library resolves, and no other explanation of \
+             its joints gains as much",
+            w.value,
             w.gain.value,
             w.gain.lo,
             w.gain.hi,
             100.0 * w.cut.value,
-            th.min_gain
+            100.0 * w.size
         );
-        return step(Some(winner), vec![], Some(Abstention::GainBelowFloor), reason);
+        return step(Some(winner), vec![], ambiguous, None, reason);
     }
-    if w.size < th.min_size {
-        let reason = format!(
-            "the best explanation, {name} = {:.4}, is {:.0} % of the size the library resolves ({}: {}), under the \
-             {:.0} % a named effect must reach: a correction of that size is what one simulator needs to match another",
-            w.value,
-            100.0 * w.size,
-            w.kind.name(),
-            report_value(w.kind, w.kind.magnitude_of_interest()),
-            100.0 * th.min_size
-        );
-        return step(Some(winner), vec![], Some(Abstention::TooSmall), reason);
+    match first_tie {
+        Some((winner, rivals)) => {
+            let w = &candidates[winner];
+            let names: Vec<String> =
+                rivals.iter().map(|&i| format!("{} on {}", candidates[i].kind.name(), candidates[i].unit)).collect();
+            let reason = format!(
+                "{} on {} gains {:.3} per window, but the log cannot rank it above {} on the same joints (their gains' \
+                 paired {:.0} % interval holds 0), and no other effect of interest remains",
+                w.kind.name(),
+                w.unit,
+                w.gain.value,
+                names.join(", "),
+                100.0 * th.confidence
+            );
+            step(Some(winner), rivals, ambiguous, Some(Abstention::Tied), reason)
+        }
+        None => {
+            let reason = match candidates.first() {
+                Some(c) => format!(
+                    "no effect of interest remains: the best fit, {} on {} = {:.4}, {}",
+                    c.kind.name(),
+                    c.unit,
+                    c.value,
+                    c.invalid.clone().unwrap_or_else(|| format!(
+                        "is {:.0} % of the size the library resolves, under the {:.0} % of an effect of interest: a \
+                         correction of that size is what one simulator needs to match another",
+                        100.0 * c.size,
+                        100.0 * th.min_size
+                    ))
+                ),
+                None => "no effect of the library fits the log".into(),
+            };
+            step(None, vec![], ambiguous, Some(Abstention::NoCandidate), reason)
+        }
     }
-    let wu = unit(winner);
-    let rivals: Vec<usize> = (0..candidates.len())
-        .filter(|&i| i != winner && candidates[i].invalid.is_none())
-        .filter(|&i| {
-            let u = unit(i);
-            let nested_same = candidates[i].kind == w.kind && (u.contains(&wu) || wu.contains(&u));
-            !nested_same && u.overlaps(&wu)
-        })
-        .filter(|&i| diff(winner, i).lo <= 0.0)
-        .collect();
-    if !rivals.is_empty() {
-        let names: Vec<String> =
-            rivals.iter().map(|&i| format!("{} on {}", candidates[i].kind.name(), candidates[i].unit)).collect();
-        let reason = format!(
-            "{name} gains {:.3} per window, but the log cannot rank it above {} on the same joints (their gains' paired \
-             {:.0} % interval holds 0)",
-            w.gain.value,
-            names.join(", "),
-            100.0 * th.confidence
-        );
-        return step(Some(winner), rivals, Some(Abstention::Tied), reason);
-    }
-    let reason = format!(
-        "named: {name} = {:.4} gains {:.3} [{:.3}, {:.3}] in held-out log-likelihood per window (cutting {:.1} % of \
-         the remaining gap metric), at {:.0} % of the size the library resolves, and no rival on the same joints gains \
-         as much",
-        w.value,
-        w.gain.value,
-        w.gain.lo,
-        w.gain.hi,
-        100.0 * w.cut.value,
-        100.0 * w.size
-    );
-    step(Some(winner), vec![], None, reason)
 }
 
 /// The candidates of `kind` on every unit, fitted on top of `base` (training scores `base_train`), each with its
@@ -355,11 +404,8 @@ fn fit_candidates(
         let after = ctx.eval_many(std::slice::from_ref(&all), &ctx.test)?.into_iter().next().unwrap_or_default();
         for f in fits {
             let cols = f.unit.score_columns(ctx);
-            let approx_cut: f64 = base_test
-                .iter()
-                .zip(&after)
-                .map(|(b, a)| cols.iter().map(|&c| b[c] - a[c]).sum::<f64>())
-                .sum();
+            let approx_cut: f64 =
+                base_test.iter().zip(&after).map(|(b, a)| cols.iter().map(|&c| b[c] - a[c]).sum::<f64>()).sum();
             let mut one = base.clone();
             f.apply(kind, &mut one);
             let invalid = invalidity(ctx, kind, &f, &one);
@@ -482,6 +528,38 @@ mod tests {
     }
 
     #[test]
+    fn a_tied_region_is_set_aside_and_an_effect_on_other_joints_is_named() {
+        use EffectKind::*;
+        let c = vec![
+            cand(Friction, "left_elbow", 0.9, 1.5),
+            cand(Damping, "left_arm", 0.85, 1.0),
+            cand(Armature, "left_knee", 0.6, 2.0),
+        ];
+        let units: Vec<Unit> = c.iter().map(|c| unit_of(&c.unit)).collect();
+        let s = decide(&c, diff_of(&c, 0.1), |i| units[i].clone(), &Thresholds::default());
+        assert_eq!((s.winner, s.abstention, s.ambiguous.clone()), (Some(2), None, vec![vec![0, 1]]), "{}", s.reason);
+    }
+
+    #[test]
+    fn a_small_correction_or_an_invalid_fit_is_no_winner_but_still_a_rival() {
+        use EffectKind::*;
+        // A correction under the size of interest that explains the elbow better blocks the friction there.
+        let c = vec![cand(Damping, "left_elbow", 0.9, 0.3), cand(Friction, "left_elbow", 0.85, 1.5)];
+        let units: Vec<Unit> = c.iter().map(|c| unit_of(&c.unit)).collect();
+        let s = decide(&c, diff_of(&c, 0.1), |i| units[i].clone(), &Thresholds::default());
+        assert_eq!((s.winner, s.abstention), (Some(1), Some(Abstention::Tied)), "{}", s.reason);
+        // Ranked above the small correction, the friction is named.
+        let c = vec![cand(Friction, "left_elbow", 0.9, 1.5), cand(Damping, "left_elbow", 0.5, 0.3)];
+        let s = decide(&c, diff_of(&c, 0.1), |i| units[i].clone(), &Thresholds::default());
+        assert_eq!((s.winner, s.abstention), (Some(0), None), "{}", s.reason);
+        // An invalid fit that the log prefers on the same joints blocks a lesser valid one.
+        let mut c = vec![cand(Armature, "left_elbow", 1.5, 8.0), cand(LinkMass, "left_elbow", 0.7, 5.0)];
+        c[0].invalid = Some("at the bound".into());
+        let s = decide(&c, diff_of(&c, 0.1), |i| units[i].clone(), &Thresholds::default());
+        assert_eq!((s.winner, s.abstention), (Some(1), Some(Abstention::Tied)), "{}", s.reason);
+    }
+
+    #[test]
     fn of_nested_units_the_log_cannot_rank_the_larger_is_named() {
         use EffectKind::*;
         let c = vec![cand(Friction, "left_elbow", 0.6, 1.5), cand(Friction, "left_arm", 0.58, 1.2)];
@@ -502,7 +580,7 @@ mod tests {
         assert_eq!(s.abstention, Some(Abstention::GainBelowFloor), "{}", s.reason);
         let c = vec![cand(Friction, "left_elbow", 0.6, 0.3)];
         let s = decide(&c, diff_of(&c, 0.1), |_| unit_of("left_elbow"), &th);
-        assert_eq!(s.abstention, Some(Abstention::TooSmall), "{}", s.reason);
+        assert_eq!(s.abstention, Some(Abstention::NoCandidate), "{}", s.reason);
         let mut c = vec![cand(Friction, "left_elbow", 0.6, 1.5)];
         c[0].invalid = Some("at the bound".into());
         let s = decide(&c, diff_of(&c, 0.1), |_| unit_of("left_elbow"), &th);

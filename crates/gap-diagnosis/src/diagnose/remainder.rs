@@ -199,7 +199,6 @@ pub(super) fn remainder(
     Ok(Remainder { windows, robust, unexplained })
 }
 
-
 #[cfg(test)]
 mod tests {
     use super::*;

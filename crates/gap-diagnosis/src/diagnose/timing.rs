@@ -90,7 +90,11 @@ pub(super) fn check(ctx: &Ctx<'_>, th: &Thresholds, rng: &mut impl Rng) -> Resul
         });
     }
     let base_train = mean(&totals(&train0));
-    let best = tried.iter().enumerate().filter(|(_, t)| t.train_gap < base_train).min_by(|a, b| a.1.train_gap.total_cmp(&b.1.train_gap));
+    let best = tried
+        .iter()
+        .enumerate()
+        .filter(|(_, t)| t.train_gap < base_train)
+        .min_by(|a, b| a.1.train_gap.total_cmp(&b.1.train_gap));
     let (applied_advance_ms, finding) = match best {
         Some((_, t)) if t.gain.lo >= th.min_gain => (
             t.advance_ms,
@@ -112,16 +116,16 @@ pub(super) fn check(ctx: &Ctx<'_>, th: &Thresholds, rng: &mut impl Rng) -> Resul
             format!(
                 "the stamps are consistent: replaying the commands {} ms earlier fits the training windows a little \
                  better but gains {:.3} [{:.3}, {:.3}] per held-out window only",
-                t.advance_ms,
-                t.gain.value,
-                t.gain.lo,
-                t.gain.hi
+                t.advance_ms, t.gain.value, t.gain.lo, t.gain.hi
             ),
         ),
         None => (0.0, "the stamps are consistent: no command advance fits the log better".into()),
     };
     let finding = if irregular_fraction > 0.0 {
-        format!("{finding}; {:.1} % of the state intervals are irregular (outside half to twice the median)", 100.0 * irregular_fraction)
+        format!(
+            "{finding}; {:.1} % of the state intervals are irregular (outside half to twice the median)",
+            100.0 * irregular_fraction
+        )
     } else {
         finding
     };

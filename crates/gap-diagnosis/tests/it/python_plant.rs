@@ -187,7 +187,8 @@ fn the_corrected_model_shrinks_the_gap_in_an_independent_replay_as_the_report_sa
     );
     assert!(!r.ranked.is_empty(), "something is named");
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("gap-python-plant");
-    let (corrected, nominal, report) = (dir.join("export.xml"), dir.join("export.nominal.xml"), dir.join("export.json"));
+    let (corrected, nominal, report) =
+        (dir.join("export.xml"), dir.join("export.nominal.xml"), dir.join("export.json"));
     std::fs::write(&corrected, gap_diagnosis::export::corrected_mjcf(&model, &r).expect("corrected")).expect("write");
     std::fs::write(&nominal, gap_diagnosis::export::nominal_mjcf(&model, &r).expect("nominal")).expect("write");
     std::fs::write(&report, serde_json::to_string(&r).expect("json")).expect("write");
