@@ -53,7 +53,7 @@ impl ReadError {
 /// Largest record (bytes) the reader accepts, whatever a (possibly corrupt) length field says: the file's size or
 /// 256 MiB, whichever is larger (a compressed chunk may hold more than the file's size; a recording's chunks hold a
 /// few MiB). `mcap::MessageStream` has no such limit and allocates whatever a corrupt length inside a decompressed
-/// chunk says (found by `tests/official_writer.rs`: a capacity-overflow panic).
+/// chunk says (found by `tests/it/official_writer.rs`: a capacity-overflow panic).
 pub const MIN_RECORD_LIMIT: usize = 256 << 20;
 
 /// The messages of an MCAP file in file order, each with its channel; ends after the first error.

@@ -21,7 +21,7 @@
 //! # Semantics that differ from the other engines, and what is done (verified on Bullet 3.24)
 //! - Bullet's `btMultiBody` creates no joint motors: pybullet does (`createJointMotors`, a velocity motor with
 //!   max impulse 1 per joint, to be zeroed before torque control). This engine creates none, so joint torques act
-//!   alone (the contact-free accelerations match the model's RNEA, `tests/bullet_engine.rs`).
+//!   alone (the contact-free accelerations match the model's RNEA, `tests/it/bullet_engine.rs`).
 //! - `btMultibodyLink::m_jointDamping` / `m_jointFriction` are stored but unused by Bullet ("todo: implement this
 //!   internally", btMultiBodyLink.h). Viscous damping is applied as the explicit torque `-d q̇` at the start of
 //!   each step (pybullet does the same in its step); dry friction as a velocity motor with target 0 whose impulse
