@@ -234,7 +234,7 @@ pub(super) fn fit_set(
     let scores = ctx.eval_many(&cfgs, &ctx.train)?;
     // Every unit's (value, per-window scores), the no-effect value included, in value order.
     let mut out = Vec::with_capacity(set.len());
-    let mut refined = vec![v0; set.len()];
+    let mut refined = Vec::with_capacity(set.len());
     let mut curves: Vec<Vec<(f64, Vec<f64>)>> = Vec::with_capacity(set.len());
     for u in 0..set.len() {
         let mut curve: Vec<(f64, Vec<f64>)> = std::iter::once((v0, per_window(base_train, u)))
@@ -243,8 +243,11 @@ pub(super) fn fit_set(
         curve.sort_by(|a, b| a.0.total_cmp(&b.0));
         let sums: Vec<f64> = curve.iter().map(|(_, s)| s.iter().sum()).collect();
         let best = (0..curve.len()).min_by(|&a, &b| sums[a].total_cmp(&sums[b])).unwrap_or(0);
-        refined[u] =
-            if kind == EffectKind::Latency { curve[best].0 } else { vertex(&curve, &sums, best).clamp(lo, hi) };
+        refined.push(if kind == EffectKind::Latency {
+            curve[best].0
+        } else {
+            vertex(&curve, &sums, best).clamp(lo, hi)
+        });
         curves.push(curve);
     }
     // Latency: the odd steps beside the best even one; others: the refined value, kept when it scores better.

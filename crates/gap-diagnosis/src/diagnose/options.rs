@@ -81,12 +81,11 @@ pub enum PlantKind {
 }
 
 impl PlantKind {
-    /// Default window cap, which sets a diagnosis's cost: every candidate fit replays its training windows (85 % of
-    /// the time is MuJoCo's step, nearly all of it unique replays), so the time grows with the windows. On the rig
-    /// 64 windows (32 training, 32 held-out; a 6 s log holds fewer) diagnose a 60 s log in about 71 s on 2 cores
-    /// where 300 took 254 s, and on Rapier's seed 18 lost no trial that 300 found and named one more single effect
-    /// first (BENCHMARKS.md, "How many windows"). A floating-base window (ground contact, a base estimate per start) costs
-    /// about three rig windows, so its cap is 120 of them.
+    /// Default window cap, which sets a diagnosis's cost: every candidate fit replays its training windows (MuJoCo's
+    /// step is nearly all of the time), so the time grows with the windows and not with the log's length. On the rig
+    /// 64 windows (32 training, 32 held-out) give each held-out interval 32 samples, enough for a percentile
+    /// bootstrap, at a cost independent of the log's length (a 6 s log holds fewer). A floating-base window (ground
+    /// contact, a base estimate per start) costs about three rig windows, so its cap is 120 of them.
     pub fn default_max_windows(self) -> usize {
         match self {
             PlantKind::Rig => RIG_MAX_WINDOWS,

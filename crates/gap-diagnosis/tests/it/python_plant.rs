@@ -13,7 +13,6 @@
 //! proportional to the load (outside the library) names nothing, where a viscous damping on the same joint is named;
 //! a torque ceiling (a plain clip in the plant) is named on its joint, at its size, and the log shows it; the
 //! corrected MJCF (`--export-mjcf`) replayed by MuJoCo's Python bindings shrinks the gap as the report says.
-use crate::common;
 
 use gap_diagnosis::diagnose::Report;
 use gap_diagnosis::{diagnose, DiagnoseOptions, EffectKind, RobotLog};
