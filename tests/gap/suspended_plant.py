@@ -107,7 +107,7 @@ def plan_commands(path, nj):
     if not out:
         raise SystemExit(f"{path}: no LowCmd on rt/lowcmd")
     t0 = out[0][0]
-    return [((t - t0) * 1e-9,) + rest for (t, *rest) in out]
+    return [((t - t0) * 1e-9,) + tuple(rest) for (t, *rest) in out]
 
 
 def main(argv=None):
