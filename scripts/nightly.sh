@@ -19,21 +19,23 @@ bash scripts/setup.sh
 source scripts/env.sh
 export CARGO_TERM_COLOR=never INSTA_UPDATE=no
 status=0
-cargo test --locked -p diff-physics --features diff-physics/physx --test physx_engine || status=$?
+cargo test --locked -p diff-physics --features diff-physics/physx --test it -- physx_engine:: || status=$?
 phase "physx engine"
 # The PhysX experiments on the campaign's candidate bugs (issue 16): friction offset, contact offset.
-cargo test --locked -p engine-diff --features engine-diff/physx --test campaign_triage -- physx || status=$?
+cargo test --locked -p engine-diff --features engine-diff/physx --test it -- campaign_triage::physx:: || status=$?
 phase "physx campaign triage"
-cargo test --locked -p ulab --features ulab/physx --test model_cli --test sim_sdk_client --test sim_c010_client \
-  -- physx || status=$?
+cargo test --locked -p ulab --features ulab/physx --test it -- model_cli::check_and_inspect_physx \
+  sim_sdk_client::python_sdk_drives_physx sim_c010_client::cyclone_0_10_2_client_drives_physx || status=$?
 phase "physx through ulab"
-cargo test --locked -p gap-bench --test effects_found -- --include-ignored || status=$?
+cargo test --locked -p gap-bench --test it -- --include-ignored effects_found:: || status=$?
 phase "effects_found"
-cargo test --locked -p gap-diagnosis --test python_plant -- --include-ignored || status=$?
+cargo test --locked -p gap-diagnosis --test it -- --include-ignored python_plant:: || status=$?
 phase "python plant"
-cargo test --locked -p gap-bench --test policy_trials --test floating_diagnose -- --include-ignored || status=$?
+cargo test --locked -p gap-bench --test it -- --include-ignored policy_trials:: floating_diagnose:: \
+  || status=$?
 phase "policy trials, floating diagnosis"
-cargo test --locked -p engine-diff --test planted_cheat -- --ignored a_gait_optimised_in_mujoco_transfers || status=$?
+cargo test --locked -p engine-diff --test it -- --ignored planted_cheat::a_gait_optimised_in_mujoco_transfers \
+  || status=$?
 phase "planted cheat control"
 bash scripts/fuzz.sh smoke-all "${ULAB_FUZZ_SECONDS:-60}" || status=$?
 phase "fuzz smoke-all"

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Installs everything a fresh machine needs beyond the Rust toolchain, gcc and Python 3.11:
+# Installs everything a fresh machine needs beyond the Rust toolchain, gcc and Python 3.11: cargo-nextest,
 # Debian packages (cmake, make, g++, libclang for cyclors' bindgen, Cyclone DDS 0.10.2 for the interop peers,
 # DART 6.12 with its URDF loader and ODE collision detector for the `dart` engine),
 # a Python venv with the oracle packages and a static ffmpeg (imageio-ffmpeg, for the videos), and the MuJoCo shared library from the PyPI wheel.
@@ -20,6 +20,12 @@ if [ ${#missing[@]} -gt 0 ]; then
   SUDO=""; [ "$(id -u)" = 0 ] || SUDO="sudo"
   $SUDO apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${missing[@]}" >/dev/null
+fi
+
+# cargo-nextest, the test runner of scripts/test.sh: from crates.io when the machine lacks it (a few minutes' build).
+if ! cargo nextest --version >/dev/null 2>&1; then
+  echo "setup: installing cargo-nextest from crates.io"
+  cargo install --locked --quiet cargo-nextest --version 0.9.143 --no-default-features --features default-no-update
 fi
 
 if [ ! -x "$ULAB_PYTHON" ]; then

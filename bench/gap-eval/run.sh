@@ -3,6 +3,7 @@
 # decision model they judge was designed, and are run only to report; the development sets are for looking at.
 #
 #   bench/gap-eval/run.sh dev|eval [SET...]     generate the logs, diagnose them, score them strictly
+#   bench/gap-eval/run.sh rediagnose dev|eval [SET...]   diagnose the logs already there again (labels kept)
 #   bench/gap-eval/run.sh score dev|eval        score what is there
 #
 # Output: out/gap-eval/<split>/<set>/ (logs, labels, one report per trial) and out/gap-eval/<split>/score.{md,json}.
@@ -10,7 +11,8 @@
 # under gentle chirps: 12 trials single/single/pair/control and 2 out-of-library) and one of a plant outside ulab
 # (`mujoco_trials.py`: Unitree's MJCF in MuJoCo's Python bindings, 1 ms steps, PD at 1 kHz, 16 trials plan/chirp
 # and 2 out-of-library). ULAB_BIN overrides the binary (default target/release/ulab, built if missing);
-# ULAB_EVAL_JOBS (default 1) runs that many diagnoses at once.
+# ULAB_EVAL_JOBS (default 1) runs that many diagnoses at once. The binary is copied into the split's directory first
+# (with `git describe` beside it), so that a rebuild during a run changes nothing.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 source scripts/env.sh
@@ -43,13 +45,19 @@ score() {
   "$ULAB_PYTHON" bench/gap-eval/score.py "${sets[@]}" --json "$dir/score.json" | tee "$dir/score.md"
 }
 
+rediagnose=false
+if [ "$split" = rediagnose ]; then rediagnose=true; split=${1:?dev or eval}; shift; fi
 case "$split" in
   score) score "${1:?dev or eval}"; exit 0 ;;
   eval) sets=("${EVAL_SETS[@]}") ;;
   dev) sets=("${DEV_SETS[@]}") ;;
-  *) echo "usage: run.sh dev|eval [SET...] | run.sh score dev|eval" >&2; exit 2 ;;
+  *) echo "usage: run.sh dev|eval [SET...] | run.sh rediagnose dev|eval [SET...] | run.sh score dev|eval" >&2; exit 2 ;;
 esac
 [ -x "$BIN" ] || cargo build --release --locked -p ulab
+mkdir -p "out/gap-eval/$split"
+cp "$BIN" "out/gap-eval/$split/ulab"
+git describe --always --dirty > "out/gap-eval/$split/ulab.version"
+BIN=out/gap-eval/$split/ulab
 plan=out/gap-eval/plan.mcap
 [ -f "$plan" ] || { mkdir -p out/gap-eval; "$BIN" gap excite --out "$plan" --duration "$DURATION" --rate 500; }
 
@@ -66,7 +74,12 @@ for spec in "${sets[@]}"; do
     (
       only=()
       for ((i = w; i < n; i += JOBS)); do only+=(--only "$i"); done
-      if [ "$kind" = bench ]; then
+      if $rediagnose; then
+        for ((i = w; i < n; i += JOBS)); do
+          t=$(printf "trial_%03d" "$i")
+          "$BIN" gap diagnose --log "$dir/$t.mcap" --out "$dir/$t" --seed "$seed" --format json > /dev/null
+        done
+      elif [ "$kind" = bench ]; then
         # shellcheck disable=SC2086
         "$BIN" gap bench $args --seed "$seed" --duration "$DURATION" --out "$dir/w$w" "${only[@]}" > "$dir/w$w.txt"
       else
@@ -75,13 +88,13 @@ for spec in "${sets[@]}"; do
           --out "$dir" "${only[@]}" > /dev/null
         for ((i = w; i < n; i += JOBS)); do
           t=$(printf "trial_%03d" "$i")
-          "$BIN" gap diagnose --log "$dir/$t.mcap" --out "$dir/$t" --format json > /dev/null
+          "$BIN" gap diagnose --log "$dir/$t.mcap" --out "$dir/$t" --seed "$seed" --format json > /dev/null
         done
       fi
     ) &
   done
   wait
-  if [ "$kind" = bench ]; then
+  if [ "$kind" = bench ] && ! $rediagnose; then
     # One set directory: the workers' trials and their labels side by side.
     "$ULAB_PYTHON" - "$dir" "$JOBS" <<'PY'
 import json, os, shutil, sys

@@ -115,6 +115,7 @@ impl MujocoEngine {
                 }),
             ],
             flag_attrs: flags,
+            ..MjcfOptions::default()
         };
         let mut xml = model.to_mjcf(&opts);
         // Contact parameters through the global override, so that every geom pair uses exactly these values.

@@ -1126,13 +1126,7 @@ mod misattribution_tests {
         // Controls are scored by their own row.
         assert_eq!(misattributed(&[], &[Friction], &[]), 0);
         // Armature above the injected damping, but the report says it cannot tell them apart: not confident.
-        let set_of = |effects: Vec<gap_diagnosis::effects::EffectKind>| AmbiguousSet {
-            effects,
-            cosine: 0.95,
-            gap_difference: 0.01,
-            at_bound: vec![],
-            reason: Default::default(),
-        };
+        let set_of = |effects: Vec<gap_diagnosis::effects::EffectKind>| AmbiguousSet { effects, units: vec![] };
         let set = set_of(vec![Armature, Damping]);
         assert_eq!(misattributed(&[Damping], &[Armature, Damping], std::slice::from_ref(&set)), 0);
         // A set that does not hold the injected effect does not excuse it.

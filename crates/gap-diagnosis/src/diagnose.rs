@@ -1,16 +1,14 @@
-//! The diagnosis: replay the logged commands in short windows from the logged state, break the residual down
-//! (joint, phase, frequency band), fit every effect on training windows, rank by held-out reduction against a
-//! data-derived noise floor, fit the best combination, and attach bootstrap confidence intervals.
+//! The diagnosis: replay the logged commands in short windows from the logged state, settle how the log is to be
+//! replayed (its timing, the simulator's numerics), break the residual down (joint, phase, frequency band), and let
+//! the judge decide which effects explain the held-out windows, with confidence intervals.
 //!
-//! A pipeline of stages, one module each, run in order by [`diagnose()`]; a stage imports only from the ones
-//! below it, so each can be read (and tested) without those above. `options` (what is asked) and `stats` (means,
-//! bootstrap, noise floor) are the leaves; `windows` picks the windows, `replay` replays and scores them,
-//! `breakdown` says where the gap lies, `fit` fits one effect, `assess` judges each effect alone, `select` builds
-//! the best combination (with `unmask`, which refits the effects a first one masked), `confound` says which named effects the log cannot tell apart, `identify` says which
-//! effects this log could reveal at all, `numerics` how much of the gap the integrator, timestep or PD rate alone could make,
-//! and `remainder` says what is left (per window, robustly, and where). One
-//! RNG is threaded through the stages in a fixed order, so a seed fixes the report.
-use crate::effects::EffectKind;
+//! A pipeline of stages, one module each, run in order by [`diagnose()`]; a stage imports only from the ones below
+//! it. `options` (what is asked) and `stats` (means, bootstrap) are the leaves; `windows` picks the windows, `replay`
+//! replays and scores them, `timing` checks the log's stamps, `numerics` chooses how to integrate the replay,
+//! `breakdown` says where the gap lies, `fit` fits one effect on candidate units, `judge` decides (the one decision
+//! model: [`Thresholds`]), `identify` says which effects this log could reveal at all, and `remainder` says what is
+//! left. One RNG is threaded through the stages in a fixed order, so a seed fixes the report.
+use crate::effects::{EffectKind, Scope};
 use crate::log::RobotLog;
 use crate::rig_check::{self, RigCheck};
 use crate::GapError;
@@ -18,42 +16,31 @@ use rand::SeedableRng;
 use robot_model::RobotModel;
 use serde::{Deserialize, Serialize};
 
-mod assess;
 mod breakdown;
-mod confound;
 mod fit;
-mod halves;
 mod identify;
+mod judge;
 mod numerics;
 mod options;
 mod remainder;
 mod replay;
-mod select;
 mod stats;
+mod timing;
 mod torque_ceiling;
-mod unmask;
 mod windows;
 
-pub use assess::{
-    pinned_at_bound, EffectResult, FittedParam, MIN_WINDOWS_OFF_LIMIT, PINNED_FRAC, SINGLE_JOINT_CANDIDATES,
-    UNIT_FLOOR_FRAC,
-};
 pub use breakdown::Share;
-pub use confound::{leading_set, Ambiguity, AmbiguousSet, AMBIGUOUS_COSINE};
-pub use fit::RESOLUTION_FRAC;
-pub use halves::{HalvesRefit, SplitBy, LOAD_CHECKED, MIN_SPLIT_RATIO, POWER_CHECKED, SCALE_RATIO, SPEED_CHECKED};
+pub use fit::{AT_BOUND_FRAC, RESOLUTION_FRAC};
 pub use identify::{Identifiability, UnitSignal};
+pub use judge::{Abstention, CandidateResult, Step, Thresholds};
 pub use numerics::{Numerics, NumericsVariant, INTEGRATORS, STEPPINGS};
 pub use options::{DiagnoseOptions, PlantChoice, PlantKind, FLOATING_MAX_WINDOWS, RIG_MAX_WINDOWS};
 pub use remainder::{
     RobustGap, Unexplained, WindowFlag, WindowResidual, FAST_FRAC, SATURATED_FRAC, UNEXPLAINED_FACTOR,
 };
-pub use select::{Combination, MAX_COMBINATION, REFIT_CANDIDATES};
-pub use stats::{Estimate, Judged, EFFECT_FLOOR_FRAC, TRIM_FRAC};
-pub use torque_ceiling::{
-    ceilings_in_log, LogCeiling, CEILING_MARGIN, DEMAND_OVER, FOLLOW_BELOW, FOLLOW_TOL, MAX_COMMAND_DELAY,
-    MAX_FRACTION_ABOVE, MAX_SCALE_IN_LOG, MAX_TORQUE_LAG, MIN_FOLLOW, MIN_PINNED, PLATEAU_BAND,
-};
+pub use stats::{Estimate, TRIM_FRAC};
+pub use timing::{AdvanceTried, TimingCheck, ADVANCES_MS};
+pub use torque_ceiling::{ceilings_in_log, LogCeiling, CEILING_MARGIN, MAX_FRACTION_ABOVE};
 pub use windows::{AT_LIMIT_RAD, COMMAND_STALE_S, TIMING_TOL_S};
 
 pub use crate::noise::{SIGMA_DQ, SIGMA_GYRO, SIGMA_Q, SIGMA_QUAT, SIGMA_TAU_FRAC};
@@ -92,7 +79,11 @@ pub use crate::noise::{TIMING_HI, TIMING_LO};
 /// `/17`: a gain scale's splits include one `by` `power` (the braking share of its joints' mechanical power: not named
 /// when the driving half wants 2x the braking half's change of gain), and an effect may carry `pinned_units` (units
 /// whose fit stopped at the bound of the search range, dropped before it was judged again). Both optional when read.
-pub const SCHEMA_VERSION: &str = "ulab-gap-report/17";
+/// `/18`: one decision model (the judge). Adds `thresholds`, `timing` and `steps` (every selection step's candidates,
+/// winner, rivals and verdict); `numerics` says which variant was adopted; effects carry only `named`, `reduction`,
+/// `gain`, `metric_after`, `noise_floor` (the judge's `min_gain`), `params` and `note`; `ambiguous` sets hold the winner and
+/// rivals of a step that abstained; `ceilings_in_log` lists the torque plateaus the log shows (a measurement).
+pub const SCHEMA_VERSION: &str = "ulab-gap-report/18";
 
 /// What the diagnosis concluded about the log as a whole.
 #[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq)]
@@ -139,19 +130,33 @@ pub struct Report {
     pub by_group: Vec<Share>,
     pub by_phase: Vec<Share>,
     pub by_band: Vec<Share>,
-    /// Every effect tried: named ones first, each group by its own held-out reduction.
+    /// The numbers the judge decided with.
+    #[serde(default)]
+    pub thresholds: Thresholds,
+    /// The log's timing, checked before anything was attributed (absent in reports before `/18`).
+    #[serde(default)]
+    pub timing: Option<TimingCheck>,
+    /// Every effect kind: named ones first in selection order, then the others with why not.
     pub effects: Vec<EffectResult>,
-    /// The named effects in rank order: the best combination's selection order (each adds the most held-out
-    /// explanatory power given the ones before it), then the effects this log cannot tell apart from a member
-    /// ([`Report::ambiguous`]). Effects that cut the gap alone but add nothing given the combination are explained
-    /// away (not named; their abstention says so).
+    /// The named effects in selection order (each cut the most of what the ones before it left).
     pub ranked: Vec<EffectKind>,
     /// Effects not named, with the reason.
     pub abstentions: Vec<(EffectKind, String)>,
+    /// Every named effect together.
     pub best_combination: Option<Combination>,
     /// No effect was named: the gap is reported as unexplained.
     pub unexplained: bool,
-    /// Every window's gap metric without effects and with the best combination, flagged by cause (torque at its
+    /// The judge's steps: at each, the candidates replayed, the winner, its rivals and the decision.
+    #[serde(default)]
+    pub steps: Vec<Step>,
+    /// Candidates the log cannot rank apart at the step that stopped the selection (the winner first).
+    #[serde(default)]
+    pub ambiguous: Vec<AmbiguousSet>,
+    /// The torque plateaus the log shows (a measurement, reported as evidence; the judge's torque-saturation
+    /// candidates are checked against the logged torque, [`torque_ceiling`]).
+    #[serde(default)]
+    pub ceilings_in_log: Vec<LogCeiling>,
+    /// Every window's gap metric without effects and with the named ones, flagged by cause (torque at its
     /// limit, a joint at its range, a fast transient).
     #[serde(default)]
     pub window_residuals: Vec<WindowResidual>,
@@ -165,11 +170,7 @@ pub struct Report {
     /// interest, and the motion that would reveal it elsewhere.
     #[serde(default)]
     pub identifiability: Vec<Identifiability>,
-    /// Named effects this log cannot tell apart (nearly collinear predicted changes), each set in rank order.
-    #[serde(default)]
-    pub ambiguous: Vec<AmbiguousSet>,
-    /// What MuJoCo's other integrators, a finer timestep and a faster PD rate do to the prediction and the held-out
-    /// gap (a baseline mismatch of numerics).
+    /// How the log was integrated: the variants tried and the one adopted.
     #[serde(default)]
     pub numerics: Option<Numerics>,
     /// Wall time of each stage, in order (where a long diagnosis spends its time; what `--effects` can save).
@@ -183,6 +184,71 @@ pub struct Report {
 pub struct StageTime {
     pub stage: String,
     pub s: f64,
+}
+
+fn zero() -> Estimate {
+    Estimate { value: 0.0, lo: 0.0, hi: 0.0 }
+}
+
+/// One fitted parameter of a named effect.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct FittedParam {
+    /// Joint, limb, `robot` or `imu_x|y|z`.
+    pub unit: String,
+    pub value: f64,
+    /// Bootstrap standard deviation over training windows.
+    pub sd: f64,
+    /// Held-out gap metric this effect removed, per window (absolute, normalised units).
+    pub held_out_reduction: f64,
+}
+
+/// One effect kind's result.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct EffectResult {
+    pub kind: EffectKind,
+    pub parameter: String,
+    pub scope: Scope,
+    /// Named by the judge.
+    pub named: bool,
+    /// Relative cut of the held-out gap the effects named before it left (named), or of the best candidate of this
+    /// kind at the last step (not named).
+    pub reduction: Estimate,
+    /// The judge's evidence: held-out log-likelihood gain per window, likewise (absent before `/18`).
+    #[serde(default = "zero")]
+    pub gain: Estimate,
+    /// Held-out gap metric with it added.
+    pub metric_after: Estimate,
+    /// The gain's lower bound a named effect must reach ([`Thresholds::min_gain`]).
+    pub noise_floor: f64,
+    /// The named unit with its fitted value (for a kind not named: its best candidate at the last step).
+    pub params: Vec<FittedParam>,
+    /// Why named, or why not.
+    pub note: Option<String>,
+}
+
+/// The named effects together.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct Combination {
+    pub effects: Vec<EffectKind>,
+    pub metric_after: Estimate,
+    pub reduction: Estimate,
+}
+
+/// Candidates of a step that the log could not rank apart: the winner and its rivals on the same joints.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct AmbiguousSet {
+    /// The winner's kind first.
+    pub effects: Vec<EffectKind>,
+    /// Each member's unit, in the same order.
+    #[serde(default)]
+    pub units: Vec<String>,
+}
+
+impl AmbiguousSet {
+    /// Whether both kinds are members.
+    pub fn links(&self, a: EffectKind, b: EffectKind) -> bool {
+        self.effects.contains(&a) && self.effects.contains(&b)
+    }
 }
 
 /// Laps of the diagnosis's stages.
@@ -212,51 +278,53 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
     let Some(plant) = opts.plant.resolve(rig.suspended) else {
         return Ok(rig_violated(model, log, opts, rig, t_start));
     };
+    let th = Thresholds::default();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed);
     let windows = windows::cut(model, log, opts, plant)?;
     let tally = windows.tally;
-    let ctx = replay::Ctx::new(model, log, opts, plant, windows);
+    let stamped = replay::Ctx::new(model, log, opts, plant, windows);
     laps.lap("rig check and windows");
-    // Where: the baseline residual over every window; its held-out part is what every effect must beat.
+    // How the log is replayed: its stamps, then the simulator's numerics. Neither is ever named as an effect.
+    let timing = timing::check(&stamped, &th, &mut rng)?;
+    let advanced;
+    let log = if timing.applied_advance_ms > 0.0 {
+        advanced = timing::advanced(log, 1e-3 * timing.applied_advance_ms);
+        &advanced
+    } else {
+        log
+    };
+    let timed = stamped.with_log(log);
+    laps.lap("timing");
+    let (numerics, chosen) = match numerics::choose(&timed, th.min_gain, &mut rng)? {
+        Some((n, o)) => (Some(n), o),
+        None => (None, opts.clone()),
+    };
+    let ctx = timed.with_options(&chosen);
+    laps.lap("numerics");
+    // Where: the baseline residual over every window; its held-out part is what every effect must cut.
     let breakdown = breakdown::breakdown(&ctx)?;
     let baseline = breakdown::Baseline::split(&ctx, &breakdown.scores, opts.bootstrap, &mut rng);
     laps.lap("breakdown");
-    // Which: every effect alone, then the best combination given the effects already in.
+    // Which: the judge.
     let kinds: Vec<EffectKind> = opts.kinds.clone().unwrap_or_else(|| EffectKind::ALL.to_vec());
-    let assessment = assess::assess(&ctx, kinds.clone(), &baseline, breakdown.any_contact, &mut rng)?;
-    laps.lap("each effect alone");
-    let fitted: Vec<(EffectKind, crate::plant::Effects)> =
-        assessment.candidates.iter().map(|c| (c.kind, c.fx.clone())).collect();
-    let mut selection = select::select(&ctx, assessment, &baseline, &mut rng)?;
-    laps.lap("selection");
-    // Which named effects the log cannot tell apart.
-    let fitted: Vec<(EffectKind, crate::plant::Effects)> =
-        fitted.into_iter().chain(selection.unmasked.iter().cloned()).collect();
-    let named: Vec<(EffectKind, crate::plant::Effects)> =
-        selection.ranked.iter().filter_map(|k| fitted.iter().find(|(f, _)| f == k).cloned()).collect();
-    let mut ambiguous = confound::ambiguous_sets(&ctx, &named, &baseline.test_tot, &mut rng)?;
-    ambiguous.append(&mut selection.equal_cut);
-    confound::mark_range_edges(&mut ambiguous, &selection.effects);
-    // Named effects that add nothing once the best combination is in, and that the log can tell apart from its
-    // members, are not named.
-    select::explain_away(&mut selection, &mut ambiguous);
-    laps.lap("ambiguous sets");
-    let ranked = selection.ranked;
+    let judgement = judge::judge(&ctx, &kinds, &baseline, &th, &mut rng)?;
+    laps.lap("judge");
+    let verdict = verdict(&ctx, &kinds, &judgement, &baseline, &th, breakdown.any_contact, &mut rng);
     // Whether the log could show each effect at all: an abstention on an effect it cannot reveal says so.
-    let identifiability = identify::identify(&ctx, &breakdown.scores, &kinds)?;
+    let identifiability = identify::identify(&ctx, &breakdown.scores, &kinds, &th)?;
     laps.lap("identifiability");
-    let mut abstentions = selection.abstentions;
+    let mut abstentions = verdict.abstentions;
     for (kind, why) in &mut abstentions {
         if let Some(note) = identifiability.iter().find(|i| i.kind == *kind).and_then(identify::not_identifiable_note) {
             why.push_str("; ");
             why.push_str(&note);
         }
     }
-    // How much of the gap the simulator's own numerics could make.
-    let numerics = numerics::numerics(&ctx, &baseline.test_tot, &mut rng)?;
-    laps.lap("numerics");
+    let joints: Vec<(&str, f64)> = model.joints.iter().map(|j| (j.motor_name.as_str(), j.torque_limit)).collect();
+    let ceilings = ceilings_in_log(log, &joints);
     // What is left: per window, robustly, and where.
-    let rest = remainder::remainder(&ctx, &breakdown.scores, &baseline, selection.combo_fx.as_ref())?;
+    let named_fx = (!judgement.named.is_empty()).then_some(&judgement.fx);
+    let rest = remainder::remainder(&ctx, &breakdown.scores, &baseline, named_fx)?;
     laps.lap("remainder");
     Ok(Report {
         schema_version: SCHEMA_VERSION.into(),
@@ -266,7 +334,7 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
         windows_unsettled: tally.unsettled,
         windows_down: tally.down,
         robot: model.name.clone(),
-        engine: opts.engine.name(),
+        engine: chosen.engine.name(),
         log_duration_s: log.duration(),
         windows_train: ctx.train.len(),
         windows_held_out: ctx.test.len(),
@@ -277,20 +345,158 @@ pub fn diagnose(model: &RobotModel, log: &RobotLog, opts: &DiagnoseOptions) -> R
         by_group: breakdown.by_group,
         by_phase: breakdown.by_phase,
         by_band: breakdown.by_band,
-        unexplained: ranked.is_empty(),
-        effects: selection.effects,
-        ranked,
+        thresholds: th,
+        timing: Some(timing),
+        unexplained: judgement.named.is_empty(),
+        effects: verdict.effects,
+        ranked: judgement.named.iter().map(|n| n.kind).collect(),
         abstentions,
-        best_combination: selection.best_combination,
+        best_combination: verdict.combination,
+        ambiguous: verdict.ambiguous,
+        steps: judgement.steps,
+        ceilings_in_log: ceilings,
         window_residuals: rest.windows,
         robust: Some(rest.robust),
         unexplained_residual: Some(rest.unexplained),
         identifiability,
-        ambiguous,
         numerics,
         stages: laps.done,
         elapsed_s: t_start.elapsed().as_secs_f64(),
     })
+}
+
+/// The judge's decision in the report's terms.
+struct Verdict {
+    effects: Vec<EffectResult>,
+    abstentions: Vec<(EffectKind, String)>,
+    combination: Option<Combination>,
+    ambiguous: Vec<AmbiguousSet>,
+}
+
+/// Every kind's result: the named ones in selection order, then the others, each with the best candidate of its kind
+/// at the last step and the reason it was not named.
+fn verdict(
+    ctx: &replay::Ctx<'_>,
+    kinds: &[EffectKind],
+    j: &judge::Judgement,
+    baseline: &breakdown::Baseline,
+    th: &Thresholds,
+    any_contact: bool,
+    rng: &mut impl rand::Rng,
+) -> Verdict {
+    let zero = Estimate { value: 0.0, lo: 0.0, hi: 0.0 };
+    let n_test = ctx.test.len().max(1) as f64;
+    let mut before: f64 = baseline.test_tot.iter().sum::<f64>() / n_test;
+    let mut effects = Vec::new();
+    for n in &j.named {
+        let after = n.metric_after.value;
+        let params = match n.fit.axes {
+            Some(a) => ["imu_x", "imu_y", "imu_z"]
+                .iter()
+                .zip(a)
+                .map(|(u, v)| FittedParam {
+                    unit: (*u).into(),
+                    value: v,
+                    sd: n.fit.sd,
+                    held_out_reduction: before - after,
+                })
+                .collect(),
+            None => vec![FittedParam {
+                unit: n.fit.unit.name().into(),
+                value: fit::report_value(n.kind, n.fit.value),
+                sd: fit::report_value(n.kind, n.fit.sd),
+                held_out_reduction: before - after,
+            }],
+        };
+        let given: Vec<&str> = effects.iter().map(|e: &EffectResult| e.kind.name()).collect();
+        let note = if given.is_empty() {
+            "named: the largest held-out cut".to_string()
+        } else {
+            format!("named given {}: the largest cut of what they leave", given.join(" + "))
+        };
+        effects.push(EffectResult {
+            kind: n.kind,
+            parameter: n.kind.parameter().into(),
+            scope: n.kind.scope(),
+            named: true,
+            reduction: n.cut,
+            gain: n.gain,
+            metric_after: n.metric_after,
+            noise_floor: th.min_gain,
+            params,
+            note: Some(note),
+        });
+        before = after;
+    }
+    let last = j.steps.last();
+    let stop = last.map_or_else(String::new, |s| s.reason.clone());
+    let mut abstentions = Vec::new();
+    for &kind in kinds {
+        if j.named.iter().any(|n| n.kind == kind) {
+            continue;
+        }
+        let why = if ctx.plant == PlantKind::Rig && !kind.identifiable_suspended() {
+            if any_contact {
+                "foot contact is estimated in this log, but the suspended-rig plant has no ground model to fit it on"
+                    .into()
+            } else {
+                "not identifiable: no foot contact in this log".into()
+            }
+        } else {
+            let best = last.and_then(|s| s.candidates.iter().find(|c| c.kind == kind));
+            match best {
+                Some(c) if c.invalid.is_some() => format!(
+                    "not named: its best fit ({:.4} on {}) is not an estimate: {}",
+                    c.value,
+                    c.unit,
+                    c.invalid.clone().unwrap_or_default()
+                ),
+                Some(c) => format!(
+                    "not named: its best candidate, on {} at {:.4}, gains {:.3} [{:.3}, {:.3}] per held-out window; \
+                     the selection stopped: {stop}",
+                    c.unit, c.value, c.gain.value, c.gain.lo, c.gain.hi
+                ),
+                None => format!("not named: no candidate of it ranked among those replayed at the last step; {stop}"),
+            }
+        };
+        let best = last.and_then(|s| s.candidates.iter().find(|c| c.kind == kind));
+        effects.push(EffectResult {
+            kind,
+            parameter: kind.parameter().into(),
+            scope: kind.scope(),
+            named: false,
+            reduction: best.map_or(zero, |c| c.cut),
+            gain: best.map_or(zero, |c| c.gain),
+            metric_after: zero,
+            noise_floor: th.min_gain,
+            params: best
+                .map(|c| vec![FittedParam { unit: c.unit.clone(), value: c.value, sd: c.sd, held_out_reduction: 0.0 }])
+                .unwrap_or_default(),
+            note: Some(why.clone()),
+        });
+        abstentions.push((kind, why));
+    }
+    let combination = (!j.named.is_empty()).then(|| Combination {
+        effects: j.named.iter().map(|n| n.kind).collect(),
+        metric_after: stats::bootstrap_mean(&j.totals, ctx.opts.bootstrap, rng),
+        reduction: stats::bootstrap_ratio(&baseline.test_tot, &j.totals, ctx.opts.bootstrap, rng),
+    });
+    // The regions the last step could not attribute: each a candidate and its rivals.
+    let ambiguous = last
+        .map(|s| {
+            s.ambiguous
+                .iter()
+                .map(|region| {
+                    let members: Vec<&CandidateResult> = region.iter().filter_map(|&i| s.candidates.get(i)).collect();
+                    AmbiguousSet {
+                        effects: members.iter().map(|c| c.kind).collect(),
+                        units: members.iter().map(|c| c.unit.clone()).collect(),
+                    }
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    Verdict { effects, abstentions, combination, ambiguous }
 }
 
 /// The report of a log that fails the rig-assumption check: no window replayed, no effect fitted, every effect
@@ -305,8 +511,21 @@ fn rig_violated(
     let zero = Estimate { value: 0.0, lo: 0.0, hi: 0.0 };
     let why = format!("not diagnosed: {}", rig.message);
     let kinds: Vec<EffectKind> = opts.kinds.clone().unwrap_or_else(|| EffectKind::ALL.to_vec());
-    let effects: Vec<EffectResult> =
-        kinds.iter().map(|&kind| EffectResult::not_fitted(kind, zero, why.clone())).collect();
+    let effects: Vec<EffectResult> = kinds
+        .iter()
+        .map(|&kind| EffectResult {
+            kind,
+            parameter: kind.parameter().into(),
+            scope: kind.scope(),
+            named: false,
+            reduction: zero,
+            gain: zero,
+            metric_after: zero,
+            noise_floor: 0.0,
+            params: vec![],
+            note: Some(why.clone()),
+        })
+        .collect();
     Report {
         schema_version: SCHEMA_VERSION.into(),
         outcome: Outcome::RigAssumptionViolated,
@@ -331,6 +550,10 @@ fn rig_violated(
         ranked: vec![],
         best_combination: None,
         unexplained: true,
+        thresholds: Thresholds::default(),
+        timing: None,
+        steps: vec![],
+        ceilings_in_log: vec![],
         window_residuals: vec![],
         robust: None,
         unexplained_residual: None,

@@ -119,21 +119,24 @@ impl EffectKind {
         )
     }
 
-    /// Fitting range `(lo, hi)` and the no-effect value.
+    /// Fitting range `(lo, hi)` and the no-effect value: what is physically plausible for a humanoid's actuators and
+    /// links (up to five times the modelled armature, a few N·m of damping or friction, a dead band of a few degrees,
+    /// 50 ms of latency, half or twice the gains, a link 2.5 times heavier or 12 cm off); a fit that wants more stands
+    /// in for another effect ([`crate::diagnose::Thresholds`]).
     pub fn range(self) -> (f64, f64, f64) {
         match self {
-            EffectKind::Armature => (0.3, 4.0, 1.0),
-            EffectKind::Damping => (-0.8, 4.0, 0.0),
-            EffectKind::Friction => (0.0, 4.0, 0.0),
+            EffectKind::Armature => (0.3, 5.0, 1.0),
+            EffectKind::Damping => (-0.8, 6.0, 0.0),
+            EffectKind::Friction => (0.0, 6.0, 0.0),
             EffectKind::TorqueSaturation => (0.2, 1.0, 1.0),
-            EffectKind::Latency => (0.0, 15.0, 0.0),
-            EffectKind::GainScale => (0.5, 1.6, 1.0),
-            EffectKind::Backlash => (0.0, 0.06, 0.0),
-            EffectKind::EncoderOffset => (-0.1, 0.1, 0.0),
+            EffectKind::Latency => (0.0, 25.0, 0.0),
+            EffectKind::GainScale => (0.4, 2.0, 1.0),
+            EffectKind::Backlash => (0.0, 0.1, 0.0),
+            EffectKind::EncoderOffset => (-0.15, 0.15, 0.0),
             EffectKind::ImuBias => (-0.5, 0.5, 0.0),
             EffectKind::ImuMisalignment => (-0.2, 0.2, 0.0),
-            EffectKind::LinkMass => (0.6, 1.8, 1.0),
-            EffectKind::LinkCom => (-0.08, 0.08, 0.0),
+            EffectKind::LinkMass => (0.5, 2.5, 1.0),
+            EffectKind::LinkCom => (-0.12, 0.12, 0.0),
             EffectKind::ContactFriction => (0.2, 1.5, 1.0),
             EffectKind::ContactStiffness => (0.005, 0.05, 0.02),
         }

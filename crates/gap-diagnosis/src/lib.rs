@@ -4,9 +4,10 @@
 //! * [`plant`]: engine on a suspension rig + actuator/sensor effect layer + model-level effects;
 //! * [`floating`]: the robot on the ground (floating base): base-state estimate from a log sample, plant, windows;
 //! * [`effects`]: the effect library (parameters, ranges, scopes); [`noise`]: sensor noise and residual scales;
-//! * [`diagnose()`]: where the gap lies, which effect explains it, how much it shrinks (held-out, with intervals);
+//! * [`diagnose()`]: the log's timing and numerics, where the gap lies, which effect explains it (one decision
+//!   model, [`diagnose::Thresholds`]), how much it shrinks (held-out, with intervals);
 //! * [`rig_check`]: does the log fit the rig assumption (pelvis held still)? Otherwise the diagnosis abstains;
-//! * [`excite`]: safe excitation plans; [`report`]: Markdown, JSON and SVG plots.
+//! * [`excite`]: safe excitation plans; [`report`]: Markdown, JSON and SVG plots; [`export`]: the corrected MJCF.
 //!
 //! The blind benchmark, with the reference plants that generate its logs, is the `gap-bench` crate.
 #![forbid(unsafe_code)]
@@ -14,6 +15,7 @@
 pub mod diagnose;
 pub mod effects;
 pub mod excite;
+pub mod export;
 pub mod floating;
 pub mod log;
 pub mod noise;

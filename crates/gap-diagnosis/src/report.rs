@@ -92,46 +92,41 @@ pub fn markdown(r: &Report) -> String {
         return s;
     }
     s += &format!("Rig-assumption check: {}.\n\n", r.rig_check.message);
+    s += &replay_section(r);
     if r.unexplained {
-        s += "No effect clears the noise floor on held-out windows: **the gap is unexplained** by the effect library (abstention).\n\n";
+        let why = r.steps.last().map_or(String::new(), |st| format!(" ({})", st.reason));
+        s += &format!("**No effect is named: the gap is unexplained** by the effect library (abstention){why}.\n\n");
     } else {
-        let names: Vec<&str> = r.ranked.iter().map(|k| k.name()).collect();
-        s += &format!("Named effects, most explanatory first: **{}**.\n\n", names.join(", "));
-        if let Some(set) = crate::diagnose::leading_set(&r.ranked, &r.ambiguous) {
-            let n: Vec<&str> = set.effects.iter().map(|k| k.name()).collect();
-            s += &format!(
-                "**This log cannot tell apart {}**: each alone changes the prediction the same way (cosine magnitude \
-                 {:.2}), so the first of them is not a confident first effect (the motions that would separate them: \
-                 \"Effects this log cannot tell apart\").\n\n",
-                n.join(" and "),
-                set.cosine
-            );
-            if !set.at_bound.is_empty() {
-                let b: Vec<&str> = set.at_bound.iter().map(|k| k.name()).collect();
-                s += &format!(
-                    "Fitted at the edge of its search range: {} (the optimum may lie beyond what the library allows, \
-                     as when an effect stands in for another; a true effect near the edge fits there too).\n\n",
-                    b.join(", ")
-                );
-            }
-        }
+        let names: Vec<String> = r
+            .effects
+            .iter()
+            .filter(|e| e.named)
+            .map(|e| {
+                let p: Vec<String> = e.params.iter().map(|p| format!("{} = {:.4}", p.unit, p.value)).collect();
+                format!("{} ({})", e.kind.name(), p.join(", "))
+            })
+            .collect();
+        s += &format!("Named effects, in the order the judge chose them: **{}**.\n\n", names.join("; "));
         if let Some(c) = &r.best_combination {
-            let n: Vec<&str> = c.effects.iter().map(|k| k.name()).collect();
             s += &format!(
-                "Best combination: {} — held-out metric {} (relative reduction {}).\n\n",
-                n.join(" + "),
+                "Together they leave a held-out metric of {} (relative reduction {}).\n\n",
                 est(&c.metric_after),
                 est(&c.reduction)
             );
         }
-        let away: Vec<&str> = r.effects.iter().filter(|e| !e.explained_by.is_empty()).map(|e| e.kind.name()).collect();
-        if !away.is_empty() {
-            s += &format!(
-                "Explained away (each cuts the gap alone, but adds nothing once the best combination is in; not \
-                 named): {}.\n\n",
-                away.join(", ")
-            );
+        if let Some(st) = r.steps.last() {
+            s += &format!("The selection stopped: {}.\n\n", st.reason);
         }
+    }
+    for set in &r.ambiguous {
+        let members: Vec<String> =
+            set.effects.iter().zip(&set.units).map(|(k, u)| format!("{} on {u}", k.name())).collect();
+        let how: Vec<String> = set.effects.iter().map(|k| format!("{}: {}", k.name(), k.revealed_by())).collect();
+        s += &format!(
+            "**This log cannot tell apart {}**; the motion that would: {}.\n\n",
+            members.join(" and "),
+            how.join("; ")
+        );
     }
     s += "## Where the gap lies (baseline)\n\n";
     s += &share_table("By joint group", &r.by_group, 10);
@@ -143,80 +138,29 @@ pub fn markdown(r: &Report) -> String {
     };
     s += &share_table(phase_title, &r.by_phase, 10);
     s += &share_table("By frequency band (joint position residual)", &r.by_band, 10);
-    s += "## Which effect (held-out windows)\n\n| rank | effect | named | relative reduction [95 % CI] | noise floor | metric after | parameters (unit: value ± sd) |\n|---|---|---|---|---|---|---|\n";
-    for (i, e) in r.effects.iter().enumerate() {
-        let p: Vec<String> = e.params.iter().map(|p| format!("{}: {:.4} ± {:.4}", p.unit, p.value, p.sd)).collect();
-        s += &format!(
-            "| {} | {} | {} | {} | {:.3} | {} | {} |\n",
-            i + 1,
-            e.kind.name(),
-            if e.named { "yes" } else { "no" },
-            est(&e.reduction),
-            e.noise_floor,
-            est(&e.metric_after),
-            if p.is_empty() { "—".into() } else { p.join("; ") }
-        );
-    }
+    s += &judge_section(r);
     s += "\n### Abstentions\n\n";
     for (k, why) in &r.abstentions {
         s += &format!("- {}: {}\n", k.name(), why);
     }
-    // Units taken out of a fit, by why: each as "kind on units", the kinds separated by "; ".
-    let listed = |units: fn(&crate::diagnose::EffectResult) -> &Vec<String>| -> String {
+    if !r.ceilings_in_log.is_empty() {
         let rows: Vec<String> = r
-            .effects
+            .ceilings_in_log
             .iter()
-            .filter(|e| !units(e).is_empty())
-            .map(|e| format!("{} on {}", e.kind.name(), units(e).join(", ")))
+            .map(|c| {
+                format!(
+                    "{} at {:.2} of its limit ({} samples held, {:.2} followed below, logged torque {} state \
+                     sample(s) behind the demand, of the command {} state sample(s) earlier)",
+                    c.joint, c.scale, c.pinned, c.follow, c.lag_samples, c.command_delay_samples
+                )
+            })
             .collect();
-        rows.join("; ")
-    };
-    let dropped = listed(|e| &e.worsening_units);
-    if !dropped.is_empty() {
         s += &format!(
-            "\nUnits dropped from a fit (each cut its own held-out residual but, alone, left the whole held-out gap no \
-             smaller: a value fitted against a mismatch elsewhere): {dropped}.\n"
+            "\nTorque plateaus the log shows (the logged torque held below the nominal limit while the PD law of the \
+             log's command asked for more; a measurement, for the reader to weigh): {}.\n",
+            rows.join(", ")
         );
     }
-    let pinned = listed(|e| &e.pinned_units);
-    if !pinned.is_empty() {
-        s += &format!(
-            "\nUnits dropped from a fit alone at the bound of its search range (the fit wanted more than the \
-             library allows: a stand-in for another effect, or one larger than the range; the effect may still be \
-             named refitted given the effects before it, inside the range): {pinned}.\n"
-        );
-    }
-    let contradicted = listed(|e| &e.contradicted_units);
-    if !contradicted.is_empty() {
-        s += &format!(
-            "\nUnits the log contradicts (their fitted torque ceiling is exceeded by the logged torque, more than \
-             {}x it in over {:.0} % of the samples): {contradicted}.\n",
-            crate::diagnose::CEILING_MARGIN,
-            crate::diagnose::MAX_FRACTION_ABOVE * 100.0,
-        );
-    }
-    let in_log: Vec<String> = r
-        .effects
-        .iter()
-        .flat_map(|e| &e.ceilings_in_log)
-        .map(|c| {
-            format!(
-                "{} at {:.2} of its limit ({} samples held, {:.2} followed below, logged torque {} state sample(s) \
-                 behind the demand, of the command {} state sample(s) earlier)",
-                c.joint, c.scale, c.pinned, c.follow, c.lag_samples, c.command_delay_samples
-            )
-        })
-        .collect();
-    if !in_log.is_empty() {
-        s += &format!(
-            "\nTorque ceilings the log shows (the logged torque held at a plateau below the nominal limit while the \
-             PD law of the log's command asked for over {}x it; named whatever share of the gap they cut): {}.\n",
-            crate::diagnose::DEMAND_OVER,
-            in_log.join(", ")
-        );
-    }
-    s += &splits_section(r);
-    s += &ambiguous_section(r);
     s += &identifiability_section(r);
     s += &numerics_section(r);
     s += &remainder_section(r);
@@ -226,122 +170,69 @@ pub fn markdown(r: &Report) -> String {
     s
 }
 
-/// Each friction-like effect that cleared the floor, refitted on the halves of the training windows by load and
-/// by speed, and each gain scale by the braking share of its joints' power.
-fn splits_section(r: &Report) -> String {
-    use crate::diagnose::SplitBy;
-    let rows: Vec<String> = r
-        .effects
-        .iter()
-        .flat_map(|e| e.splits.iter().map(move |l| (e, l)))
-        .map(|(e, l)| {
-            let est = |x: &crate::diagnose::Estimate| format!("{:.2}x [{:.2}, {:.2}]", x.value, x.lo, x.hi);
-            let cut =
-                |x: &crate::diagnose::Estimate| format!("cut {:.3} [{:.3}, {:.3}] per window", x.value, x.lo, x.hi);
-            let (by, q, verdict): (_, fn(f64) -> String, _) = match l.by {
-                SplitBy::Load => (
-                    "load",
-                    |x| format!("{:.1} %", x * 100.0),
-                    match (l.set_aside, l.load_paced && l.scales_contradict()) {
-                        (true, true) => format!(
-                            "grows with the load, and so does its cut ({} light, {} heavy): not named",
-                            cut(&l.cut_low),
-                            cut(&l.cut_high)
-                        ),
-                        (true, false) => "grows with the load: not named".to_string(),
-                        (false, true) => format!(
-                            "a wider band under load, yet it cuts the light half's gap too ({} light, {} heavy, \
-                             less per unit of load): kept",
-                            cut(&l.cut_low),
-                            cut(&l.cut_high)
-                        ),
-                        (false, false) => "holds at both loads".to_string(),
-                    },
-                ),
-                SplitBy::Speed if l.by_cut => (
-                    "speed",
-                    |x| format!("{x:.2} rad/s"),
-                    if l.set_aside { "cuts only the slow half: not named" } else { "cuts both halves" }.to_string(),
-                ),
-                SplitBy::Speed => (
-                    "speed",
-                    |x| format!("{x:.2} rad/s"),
-                    if l.set_aside { "falls with speed: not named" } else { "holds at both speeds" }.to_string(),
-                ),
-                SplitBy::Power => (
-                    "power",
-                    |x| format!("{:.0} % braking", x * 100.0),
-                    if l.set_aside { "weaker only while driving: not named" } else { "holds driving and braking" }
-                        .to_string(),
-                ),
-            };
-            let (low, high) =
-                if l.by_cut { (cut(&l.cut_low), cut(&l.cut_high)) } else { (est(&l.scale_low), est(&l.scale_high)) };
-            let part = if l.set_aside && l.loosened_by_route() { " (cleared on part)" } else { "" };
-            format!(
-                "| {} | {by} | {} | {} | {} | {} | {verdict}{part} |\n",
-                e.kind.name(),
-                q(l.low),
-                low,
-                q(l.high),
-                high,
-            )
-        })
-        .collect();
-    if rows.is_empty() {
-        return String::new();
+/// How the log was replayed: its timing and the simulator's numerics, settled before the judge.
+fn replay_section(r: &Report) -> String {
+    let mut s = String::new();
+    if let Some(t) = &r.timing {
+        s += &format!(
+            "Timing: states every {:.1} ms, commands every {:.1} ms; {}.\n\n",
+            1e3 * t.state_period_s,
+            1e3 * t.command_period_s,
+            t.finding
+        );
     }
-    format!(
-        "\n## Does the effect hold on every part of the motion (training windows)\n\nA damping, friction or dead \
-         band of the library has one size whatever torque the joint carries and however fast it turns; a friction \
-         that grows with the load (a gear's) does not, and the library's effects fit it as an average. Each such \
-         effect that cleared the floor is refitted, as one scale of its fitted values, on the half of the training \
-         windows where its joints carry the least torque and on the half where they carry the most (load: mean \
-         |torque| of its joints, in % of their limits), and on the half where they move slowest and the half \
-         where they move fastest (mean |velocity|); scales with a 95 % bootstrap interval over the half's \
-         windows. A high-load scale at least {r:.1}x the low-load one, or a slow-half scale at least {r:.1}x the \
-         fast-half one, with intervals apart, sets the effect aside; the intervals need not be apart when the \
-         effect cleared the floor only on part of the held-out windows (verdict marked \"cleared on part\"). A \
-         friction or a backlash split by speed is judged by what its fitted value cuts of each half's gap instead \
-         (a Coulomb torque keeps its size at speed, a dead band its width): set aside when it cuts the slow \
-         half's {r:.1}x as much as the fast half's, intervals apart (again, not when it cleared on part). A backlash whose scales grow with the load \
-         is set aside only when its fitted value also cuts the heavy half's gap at least as much per unit of load \
-         as the light half's: a band is lost at every reversal, so it cuts the light windows' gap too, where a \
-         torque growing with the load is nothing there. A gain scale is refitted on the half of the training windows \
-         where its joints' motors mostly drive them and the half where they mostly brake (power: the braking share \
-         of torque x velocity): a gain acts alike on both, a friction fitted as a weaker gain wants it only while \
-         driving; a driving-half scale at least {r:.1}x the braking-half one sets it aside as above.\n\n| effect | split by | low half | \
-         scale there | high half | scale there | verdict |\n|---|---|---|---|---|---|---|\n{}",
-        rows.concat(),
-        r = crate::diagnose::SCALE_RATIO,
-    )
+    if let Some(n) = &r.numerics {
+        if !n.finding.is_empty() {
+            s += &format!("Numerics: {}.\n\n", n.finding);
+        }
+    }
+    s
 }
 
-/// The named effects the log cannot tell apart, with the motion that would reveal each.
-fn ambiguous_section(r: &Report) -> String {
-    if r.ambiguous.is_empty() {
-        return String::new();
-    }
+/// The judge's decision model and its steps.
+fn judge_section(r: &Report) -> String {
+    let th = &r.thresholds;
     let mut s = format!(
-        "\n## Effects this log cannot tell apart\n\nA *collinear* set's effects, fitted alone, change the predicted measurements of the held-out windows in nearly the same direction (|cosine| at least {:.2}) and leave held-out gaps that the log cannot rank (their difference is under the noise floor, or its 95 % interval holds 0): their order in the ranking is not evidence for one over the other. An *equal-cut* set is a masked effect named after the others and the masked effects that, refitted with those others applied, each cut what they leave on the same limb beyond its floor by a cut the log cannot rank against it: only the first is named, the others are as likely (cosine and gap difference given the effects before them, the difference relative to what those leave).\n\n| effects (rank order) | why | smallest cosine magnitude | largest gap difference | fitted at the edge of its range | motion that would reveal each |\n|---|---|---|---|---|---|\n",
-        crate::diagnose::AMBIGUOUS_COSINE
+        "## How the judge decided (held-out windows)\n\nAt each step every effect of the library not yet named is \
+         fitted on every unit (each limb, each joint, the robot, the IMU) on the training windows with the named \
+         effects applied; the most promising are replayed on the held-out windows. The candidate with the largest \
+         held-out log-likelihood gain per window (each joint's and each window's residual weighed by its own size) is \
+         named when the lower bound of its {:.0} % interval reaches {}, its size is at least {:.0} % of the size the \
+         library resolves, and no valid candidate acting on the same joints has a gain the log cannot rank below it; at \
+         most {} effects. Thresholds and their reasons: `docs/gap/method.md`.\n\n",
+        100.0 * th.confidence,
+        th.min_gain,
+        100.0 * th.min_size,
+        th.max_effects
     );
-    for set in &r.ambiguous {
-        let n: Vec<&str> = set.effects.iter().map(|k| k.name()).collect();
-        let how: Vec<String> = set.effects.iter().map(|k| format!("{}: {}", k.name(), k.revealed_by())).collect();
-        let edge: Vec<&str> = set.at_bound.iter().map(|k| k.name()).collect();
-        s += &format!(
-            "| {} | {} | {:.3} | {:.1} % | {} | {} |\n",
-            n.join(", "),
-            match set.reason {
-                crate::diagnose::Ambiguity::Collinear => "collinear",
-                crate::diagnose::Ambiguity::EqualCut => "equal cut",
-            },
-            set.cosine,
-            100.0 * set.gap_difference,
-            if edge.is_empty() { "—".to_string() } else { edge.join(", ") },
-            how.join("; ")
-        );
+    for (i, st) in r.steps.iter().enumerate() {
+        s += &format!("### Step {}\n\n{}.\n\n", i + 1, st.reason);
+        if st.candidates.is_empty() {
+            continue;
+        }
+        s += "| candidate | unit | value ± sd | size | gain per window [95 % CI] | on its limb | cut of the gap metric | note |\n|---|---|---|---|---|---|---|---|\n";
+        for (k, c) in st.candidates.iter().enumerate() {
+            let note = if Some(k) == st.winner {
+                "winner".to_string()
+            } else if st.rivals.contains(&k) {
+                "rival".to_string()
+            } else {
+                c.invalid.clone().unwrap_or_default()
+            };
+            s += &format!(
+                "| {} | {} | {:.4} ± {:.4} | {:.0} % | {} | {:.3} | {:.1} % | {} |\n",
+                c.kind.name(),
+                c.unit,
+                c.value,
+                c.sd,
+                100.0 * c.size,
+                est(&c.gain),
+                c.local_gain.value,
+                100.0 * c.cut.value,
+                note
+            );
+        }
+        s += "\n";
     }
     s
 }
@@ -371,24 +262,19 @@ fn numerics_section(r: &Report) -> String {
     match n.better_variant() {
         Some(v) => {
             s += &format!(
-                "**Part of the baseline gap is numerics**: with {} the held-out gap is {:.0} % smaller without any \
-                 effect, beyond the noise floor ({:.0} %, by the lower bound of its interval): the log comes from a \
-                 plant that integrates differently. The effects above are judged against `{}`, {} ms steps, PD every \
-                 {} ms; to judge them against the numerics the log fits, diagnose again with `{}`.",
+                "**The log was replayed with {}**: it fits the training windows best and gains {:.3} per held-out \
+                 window without any effect (lower bound over the {} a named effect must gain): the log comes from a \
+                 plant that integrates differently, and the effects were judged with the numerics it fits.",
                 v.label(),
-                100.0 * v.reduction.value,
-                100.0 * n.noise_floor,
-                n.engine,
-                n.timestep_ms,
-                n.pd_period_ms,
-                v.diagnose_flags()
+                v.gain.value,
+                n.noise_floor,
             )
         }
         None => {
             s += &format!(
-                "No other integrator, timestep or PD rate fits the log better beyond the noise floor ({:.0} %): the \
-                 gap is not a numerics mismatch of these kinds.",
-                100.0 * n.noise_floor
+                "No other integrator, timestep or PD rate gains the {} per held-out window a named effect must: the \
+                 log was replayed with the diagnosing numerics.",
+                n.noise_floor
             )
         }
     }
@@ -416,11 +302,11 @@ fn identifiability_section(r: &Report) -> String {
         return String::new();
     }
     let mut s = format!(
-        "\n## What this log can reveal (held-out windows)\n\nAn effect of the size given would move a unit's residual by \
-         at least the floor a fit must clear there ({:.0} % of the unit's baseline residual) only on the units listed \
-         as identifiable; on the others this log cannot show it, whatever the fit says.\n\n\
+        "\n## What this log can reveal (held-out windows)\n\nAn effect of the size given would give the evidence a named \
+         effect needs ({} per held-out window) only on the units listed as identifiable; on the others this log cannot \
+         show it, whatever the fit says.\n\n\
          | effect | size asked | identifiable on | not identifiable on | motion that would reveal it |\n|---|---|---|---|---|\n",
-        100.0 * crate::diagnose::UNIT_FLOOR_FRAC
+        r.thresholds.min_gain
     );
     let list = |names: Vec<&str>| -> String {
         match names.len() {
@@ -545,11 +431,11 @@ pub fn write_all(r: &Report, dir: &Path) -> Result<(), GapError> {
     w("report.json", serde_json::to_string_pretty(r)?)?;
     let joints: Vec<(String, f64)> = r.by_joint.iter().map(|s| (s.name.clone(), s.residual)).collect();
     bar_chart(&dir.join("by_joint.svg"), "Baseline residual by joint (mean normalised)", &joints, None)?;
-    let eff: Vec<(String, f64)> = r.effects.iter().map(|e| (e.kind.name().to_string(), e.reduction.value)).collect();
+    let eff: Vec<(String, f64)> = r.effects.iter().map(|e| (e.kind.name().to_string(), e.gain.value)).collect();
     let floor = r.effects.iter().map(|e| e.noise_floor).fold(0.0, f64::max);
     bar_chart(
         &dir.join("effects.svg"),
-        "Held-out relative reduction per effect (red: noise floor)",
+        "Held-out log-likelihood gain per window: named, or best candidate (red: the judge's floor)",
         &eff,
         Some(floor),
     )?;

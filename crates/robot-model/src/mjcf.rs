@@ -32,6 +32,12 @@ pub struct MjcfOptions {
     pub option_attrs: Vec<(String, String)>,
     /// Attributes of `<option><flag/>` (e.g. `energy="enable"`).
     pub flag_attrs: Vec<(String, String)>,
+    /// Limit each motor's torque to its joint's `torque_limit` (`ctrlrange`, gear 1).
+    pub motor_limits: bool,
+    /// `<custom><numeric>` entries (name, data): values a simulator reads beside the model.
+    pub custom: Vec<(String, Vec<f64>)>,
+    /// An XML comment written at the top of the file (`--` is replaced, which XML comments cannot hold).
+    pub comment: Option<String>,
 }
 
 impl Default for MjcfOptions {
@@ -47,6 +53,9 @@ impl Default for MjcfOptions {
             joint_limits: true,
             option_attrs: Vec::new(),
             flag_attrs: Vec::new(),
+            motor_limits: false,
+            custom: Vec::new(),
+            comment: None,
         }
     }
 }
@@ -80,6 +89,9 @@ impl RobotModel {
         // robot-robot pairs collide only when the sidecar enables self-collision.
         let (rt, ra) = if c.self_collision { (3, 3) } else { (2, 1) };
         let fr = v3(&[c.friction, c.torsional_friction, c.rolling_friction]);
+        if let Some(c) = &o.comment {
+            let _ = writeln!(s, "<!--\n{}\n-->", c.replace("--", "- -"));
+        }
         let _ = writeln!(s, r#"<mujoco model="{}">"#, self.name);
         let _ = writeln!(s, r#"  <compiler angle="radian" autolimits="true" inertiafromgeom="false"/>"#);
         let mut opt = format!(r#"timestep="{}" gravity="{}""#, f(o.timestep), v3(&o.gravity));
@@ -107,9 +119,22 @@ impl RobotModel {
         let _ = writeln!(s, "  </worldbody>");
         let _ = writeln!(s, "  <actuator>");
         for j in &self.joints {
-            let _ = writeln!(s, r#"    <motor name="{}" joint="{}" gear="1"/>"#, j.motor_name, j.name);
+            let range = if o.motor_limits {
+                format!(r#" ctrllimited="true" ctrlrange="{} {}""#, f(-j.torque_limit), f(j.torque_limit))
+            } else {
+                String::new()
+            };
+            let _ = writeln!(s, r#"    <motor name="{}" joint="{}" gear="1"{range}/>"#, j.motor_name, j.name);
         }
         let _ = writeln!(s, "  </actuator>");
+        if !o.custom.is_empty() {
+            let _ = writeln!(s, "  <custom>");
+            for (name, data) in &o.custom {
+                let d: Vec<String> = data.iter().map(|x| f(*x)).collect();
+                let _ = writeln!(s, r#"    <numeric name="{name}" data="{}"/>"#, d.join(" "));
+            }
+            let _ = writeln!(s, "  </custom>");
+        }
         let _ = writeln!(s, "</mujoco>");
         s
     }

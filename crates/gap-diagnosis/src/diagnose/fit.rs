@@ -1,6 +1,11 @@
-//! Fitting one effect kind: per unit (joint, group, the robot or the IMU) a grid search then golden-section
-//! refinement on the training windows, with a bootstrap spread; the IMU effects in closed form. Fits only; whether
-//! a fit explains anything held out is decided by the stages above.
+//! Fitting one effect kind's parameter on candidate units: a grid over the library's range then a parabola through
+//! the best grid point and its neighbours, on the training windows, each unit scored on its own columns; the IMU
+//! effects in closed form. Fits only; whether a fit explains anything held out is the judge's question
+//! ([`super::judge`]).
+//!
+//! Units are fitted in lockstep sets: the units of one set act on different limbs (every limb at once, or the k-th
+//! joint of every limb), and with the pelvis held still a limb's effect barely moves another limb, so one replay
+//! per grid value serves every unit of the set.
 use super::options::PlantKind;
 use super::replay::{rot_residual, Ctx, Plant, Scores, IMU_STRIDE};
 use super::stats::mean;
@@ -9,64 +14,171 @@ use crate::plant::{imu_reading, Effects, DT, GROUPS};
 use crate::GapError;
 use rand::Rng;
 
-/// A fitted value closer to the no-effect value than this fraction of the search range is below resolution.
-pub const RESOLUTION_FRAC: f64 = 0.04;
+/// A fitted value closer to the no-effect value than this fraction of the search range is below resolution: no
+/// candidate (the grid's resolution, a fraction of one grid cell).
+pub const RESOLUTION_FRAC: f64 = 0.02;
 
-/// One effect fitted on the training windows.
-pub(super) struct Fit {
-    /// Every unit at its fitted value (on top of the effects the fit started from).
-    pub fx: Effects,
-    /// Per-unit bootstrap standard deviation (IMU: one, over the three axes).
-    pub sds: Vec<f64>,
+/// A fitted value within this fraction of its search range from a bound other than the no-effect end sits on the
+/// bound: the fit wanted more than the range holds (the parabola's vertex clamps to the bound).
+pub const AT_BOUND_FRAC: f64 = 0.005;
+
+/// Grid values per fit across the range (the no-effect value is the baseline, already scored); the parabola through
+/// the best and its neighbours refines it.
+const GRID: usize = 5;
+
+/// Bootstrap resamples of the parabola that give a fit's standard deviation.
+const SD_RESAMPLES: usize = 50;
+
+/// What an effect's parameter acts on.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) enum Unit {
+    /// The whole robot (latency, ground contact).
+    Robot,
+    /// The IMU (three axes, fitted in closed form).
+    Imu,
+    /// Every joint of a limb at one value.
+    Group { index: usize, name: String, joints: Vec<usize> },
+    /// One joint; `limb` holds the joints of its limb (the columns it is scored on: a link's mass or COM shows in
+    /// the joints that carry it, not only its own).
+    Joint { index: usize, name: String, limb: Vec<usize> },
 }
 
-/// The units of one mask fitted together.
-pub(super) struct UnitFit {
-    /// Every unit's value (units outside the mask: unused).
-    pub values: Vec<f64>,
-    pub sds: Vec<f64>,
-    /// Every unit's training score (the sum of its columns over the training windows) at its value.
-    pub scores: Vec<f64>,
-}
+impl Unit {
+    /// A joint, a limb, `robot` or `imu`.
+    pub fn name(&self) -> &str {
+        match self {
+            Unit::Robot => "robot",
+            Unit::Imu => "imu",
+            Unit::Group { name, .. } | Unit::Joint { name, .. } => name,
+        }
+    }
 
-/// Columns (score indices) of each fitting unit of `kind`.
-pub(super) fn units_of(ctx: &Ctx<'_>, kind: EffectKind) -> Vec<Vec<usize>> {
-    let nj = ctx.nj();
-    match kind.scope() {
-        Scope::Global => vec![(0..=nj).collect()],
-        Scope::Imu => vec![vec![nj]],
-        Scope::Joint => (0..nj).map(|j| vec![j]).collect(),
-        Scope::Group => (0..GROUPS.len()).map(|g| (0..nj).filter(|&j| ctx.groups[j] == g).collect()).collect(),
+    /// The joints it sets (none for the robot and the IMU).
+    pub fn joints(&self) -> Vec<usize> {
+        match self {
+            Unit::Robot | Unit::Imu => vec![],
+            Unit::Group { joints, .. } => joints.clone(),
+            Unit::Joint { index, .. } => vec![*index],
+        }
+    }
+
+    /// Whether `other` acts on a subset of what this unit acts on.
+    pub fn contains(&self, other: &Unit) -> bool {
+        match (self, other) {
+            (Unit::Robot, Unit::Robot) | (Unit::Imu, Unit::Imu) => true,
+            (Unit::Robot | Unit::Imu, _) | (_, Unit::Robot | Unit::Imu) => false,
+            _ => other.joints().iter().all(|j| self.joints().contains(j)),
+        }
+    }
+
+    /// Whether the two act on some joint in common (the robot acts on every joint; the IMU only on itself).
+    pub fn overlaps(&self, other: &Unit) -> bool {
+        match (self, other) {
+            (Unit::Imu, Unit::Imu) => true,
+            (Unit::Imu, _) | (_, Unit::Imu) => false,
+            (Unit::Robot, _) | (_, Unit::Robot) => true,
+            _ => other.joints().iter().any(|j| self.joints().contains(j)),
+        }
+    }
+
+    /// The score columns it is judged on: its limb's joints, every column for the robot, the IMU's for the IMU.
+    pub fn score_columns(&self, ctx: &Ctx<'_>) -> Vec<usize> {
+        match self {
+            Unit::Robot => (0..=ctx.nj()).collect(),
+            Unit::Imu => vec![ctx.nj()],
+            Unit::Group { joints, .. } => joints.clone(),
+            Unit::Joint { limb, .. } => limb.clone(),
+        }
+    }
+
+    /// Sets `kind`'s parameter on this unit to `v` (the IMU's three axes are set by [`FittedUnit::apply`]).
+    pub fn set(&self, kind: EffectKind, fx: &mut Effects, v: f64) {
+        match self {
+            Unit::Robot => kind.set(fx, 0, v),
+            Unit::Imu => {}
+            Unit::Group { joints, .. } => joints.iter().for_each(|&j| kind.set(fx, j, v)),
+            Unit::Joint { index, .. } => kind.set(fx, *index, v),
+        }
     }
 }
 
-/// The unit's name in the report: a joint, a group, `robot` or `imu`.
-pub(super) fn unit_name(ctx: &Ctx<'_>, kind: EffectKind, u: usize) -> String {
-    match kind.scope() {
-        Scope::Global => "robot".into(),
-        Scope::Imu => "imu".into(),
-        Scope::Joint => ctx.model.joints[u].motor_name.clone(),
-        Scope::Group => GROUPS[u].into(),
+/// One unit's fitted parameter.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct FittedUnit {
+    pub unit: Unit,
+    /// The fitted value (internal units; the IMU: the norm of its three axes).
+    pub value: f64,
+    /// Bootstrap standard deviation over training windows.
+    pub sd: f64,
+    /// The IMU's three axes (IMU effects only).
+    pub axes: Option<[f64; 3]>,
+}
+
+impl FittedUnit {
+    /// Sets the fitted parameter of `kind` in `fx`.
+    pub fn apply(&self, kind: EffectKind, fx: &mut Effects) {
+        match self.axes {
+            Some(a) => (0..3).for_each(|k| kind.set(fx, k, a[k])),
+            None => self.unit.set(kind, fx, self.value),
+        }
     }
 }
 
-/// Sets unit `u` of `kind` to `v` (IMU: `v` is unused, the closed form writes all three).
-pub(super) fn set_unit(kind: EffectKind, fx: &mut Effects, ctx: &Ctx<'_>, u: usize, v: f64) {
+/// The limbs of the model: per group of [`GROUPS`], its joints.
+pub(super) fn limbs(ctx: &Ctx<'_>) -> Vec<Vec<usize>> {
+    (0..GROUPS.len()).map(|g| (0..ctx.nj()).filter(|&j| ctx.groups[j] == g).collect()).collect()
+}
+
+/// The lockstep sets of `kind`'s candidate units: the robot, the IMU, or, for joint-level kinds, every limb at once
+/// and then the k-th joint of every limb (a limb of one joint is its joint), its joints ranked by their residual in
+/// `train` (training scores), the first `per_limb` of each.
+pub(super) fn lockstep_sets(ctx: &Ctx<'_>, kind: EffectKind, train: &Scores, per_limb: usize) -> Vec<Vec<Unit>> {
     match kind.scope() {
-        Scope::Global => kind.set(fx, 0, v),
-        Scope::Joint => kind.set(fx, u, v),
-        Scope::Group => (0..ctx.nj()).filter(|&j| ctx.groups[j] == u).for_each(|j| kind.set(fx, j, v)),
-        Scope::Imu => {}
+        Scope::Global => vec![vec![Unit::Robot]],
+        Scope::Imu => vec![vec![Unit::Imu]],
+        Scope::Joint | Scope::Group => {
+            let limbs = limbs(ctx);
+            let mut sets = vec![limbs
+                .iter()
+                .enumerate()
+                .filter(|(_, js)| !js.is_empty())
+                .map(|(g, js)| group_unit(ctx, g, js))
+                .collect::<Vec<Unit>>()];
+            let residual = |j: usize| train.iter().filter_map(|w| w.get(j)).sum::<f64>();
+            let ranked: Vec<Vec<usize>> = limbs
+                .iter()
+                .map(|js| {
+                    let mut r = js.clone();
+                    r.sort_by(|&a, &b| residual(b).total_cmp(&residual(a)));
+                    r
+                })
+                .collect();
+            for k in 0..per_limb {
+                let set: Vec<Unit> = ranked
+                    .iter()
+                    .zip(&limbs)
+                    .filter(|(js, _)| js.len() > 1)
+                    .filter_map(|(r, js)| r.get(k).map(|&j| joint_unit(ctx, j, js)))
+                    .collect();
+                if !set.is_empty() {
+                    sets.push(set);
+                }
+            }
+            sets
+        }
     }
 }
 
-/// The value of unit `u` of `kind` in `fx` (a group: its first joint's).
-pub(super) fn unit_value(kind: EffectKind, fx: &Effects, ctx: &Ctx<'_>, u: usize) -> f64 {
-    match kind.scope() {
-        Scope::Global | Scope::Imu => kind.get(fx, 0),
-        Scope::Joint => kind.get(fx, u),
-        Scope::Group => (0..ctx.nj()).find(|&j| ctx.groups[j] == u).map_or(kind.range().2, |j| kind.get(fx, j)),
+fn group_unit(ctx: &Ctx<'_>, g: usize, joints: &[usize]) -> Unit {
+    // A limb of one joint (the waist) is named by its joint.
+    if let [j] = joints {
+        return Unit::Joint { index: *j, name: ctx.model.joints[*j].motor_name.clone(), limb: joints.to_vec() };
     }
+    Unit::Group { index: g, name: GROUPS[g].into(), joints: joints.to_vec() }
+}
+
+fn joint_unit(ctx: &Ctx<'_>, j: usize, limb: &[usize]) -> Unit {
+    Unit::Joint { index: j, name: ctx.model.joints[j].motor_name.clone(), limb: limb.to_vec() }
 }
 
 /// Parameter in report units (latency in ms).
@@ -78,244 +190,144 @@ pub(super) fn report_value(kind: EffectKind, v: f64) -> f64 {
     }
 }
 
-/// The masks of units that are set together: every unit at once, except joint-scope effects, which go one joint
-/// per limb at a time (the k-th joint of every group together): neighbouring joints of a chain would otherwise
-/// trade the effect between them.
-pub(super) fn unit_sets(ctx: &Ctx<'_>, kind: EffectKind) -> Vec<Vec<bool>> {
-    if kind.scope() == Scope::Joint {
-        let pos: Vec<usize> =
-            (0..ctx.nj()).map(|j| (0..j).filter(|&i| ctx.groups[i] == ctx.groups[j]).count()).collect();
-        let maxp = pos.iter().copied().max().unwrap_or(0);
-        (0..=maxp).map(|k| pos.iter().map(|&p| p == k).collect()).collect()
-    } else {
-        vec![vec![true; units_of(ctx, kind).len()]]
-    }
-}
-
-/// Fits one effect on the training windows.
-/// `base` holds effects already accepted (their units stay as they are) and `base_train` its training scores.
-pub(super) fn fit_kind(
-    ctx: &Ctx<'_>,
-    kind: EffectKind,
-    base: &Effects,
-    base_train: &Scores,
-    rng: &mut impl Rng,
-) -> Result<Fit, GapError> {
-    if kind.scope() == Scope::Imu {
-        return fit_imu(ctx, kind);
-    }
-    let units = units_of(ctx, kind);
-    let mut fx = base.clone();
-    let mut sds = vec![0.0; units.len()];
-    let sets = unit_sets(ctx, kind);
-    let setter = |fx: &mut Effects, u: usize, v: f64| set_unit(kind, fx, ctx, u, v);
-    for mask in sets {
-        let fit = fit_units(ctx, kind, base, base_train, rng, &mask, &setter)?;
-        for u in (0..units.len()).filter(|&u| mask[u]) {
-            set_unit(kind, &mut fx, ctx, u, fit.values[u]);
-            sds[u] = fit.sds[u];
-        }
-    }
-    Ok(Fit { fx, sds })
-}
-
-/// A group-scope effect fitted on one joint per group (`joints[g]`, e.g. the joint carrying most of the group's
-/// residual), each scored on its whole group's residual (a joint's effect also shows in its neighbours'): the
-/// values per group and their training scores, to compare with the group fit and name a single joint when it
-/// explains as much.
-pub(super) fn fit_one_joint_per_group(
-    ctx: &Ctx<'_>,
-    kind: EffectKind,
-    joints: &[usize],
-    base: &Effects,
-    base_train: &Scores,
-    rng: &mut impl Rng,
-) -> Result<UnitFit, GapError> {
-    let mask = vec![true; units_of(ctx, kind).len()];
-    let setter = |fx: &mut Effects, u: usize, v: f64| {
-        if let Some(&j) = joints.get(u) {
-            kind.set(fx, j, v)
-        }
-    };
-    fit_units(ctx, kind, base, base_train, rng, &mask, &setter)
-}
-
-/// A joint or group effect fitted on the given joints only (a group unit on the one of its joints among them, scored
-/// on the group's residual as [`fit_one_joint_per_group`]; the other units stay at no effect), on top of `base`:
-/// the effect set and, per joint, its value and bootstrap standard deviation. `None` for the other scopes, or when
-/// no unit holds one of the joints.
-pub(super) fn fit_at_joints(
-    ctx: &Ctx<'_>,
-    kind: EffectKind,
-    joints: &[usize],
-    base: &Effects,
-    base_train: &Scores,
-    rng: &mut impl Rng,
-) -> Result<Option<(Effects, Vec<(usize, f64, f64)>)>, GapError> {
-    let units = units_of(ctx, kind);
-    // Per unit, the joint it is fitted on.
-    let at: Vec<Option<usize>> = match kind.scope() {
-        Scope::Joint => (0..units.len()).map(|u| joints.contains(&u).then_some(u)).collect(),
-        Scope::Group => units.iter().map(|cols| joints.iter().copied().find(|j| cols.contains(j))).collect(),
-        Scope::Global | Scope::Imu => return Ok(None),
-    };
-    if at.iter().all(Option::is_none) {
-        return Ok(None);
-    }
-    let mask: Vec<bool> = at.iter().map(Option::is_some).collect();
-    let setter = |fx: &mut Effects, u: usize, v: f64| {
-        if let Some(Some(j)) = at.get(u) {
-            kind.set(fx, *j, v)
-        }
-    };
-    let fit = fit_units(ctx, kind, base, base_train, rng, &mask, &setter)?;
-    let mut fx = base.clone();
-    let mut values = Vec::new();
-    for (u, j) in at.iter().enumerate() {
-        if let Some(j) = *j {
-            kind.set(&mut fx, j, fit.values[u]);
-            values.push((j, fit.values[u], fit.sds[u]));
-        }
-    }
-    Ok(Some((fx, values)))
-}
-
-/// Grid search then lockstep golden-section refinement of the units in `mask` (the others stay at no effect);
-/// `set` writes a unit's value into an effect set (each unit is scored on its own columns, [`units_of`]);
-/// returns every unit's value and bootstrap standard deviation.
-fn fit_units(
-    ctx: &Ctx<'_>,
-    kind: EffectKind,
-    base: &Effects,
-    base_train: &Scores,
-    rng: &mut impl Rng,
-    mask: &[bool],
-    set: &dyn Fn(&mut Effects, usize, f64),
-) -> Result<UnitFit, GapError> {
-    let null = base.clone();
-    let units = units_of(ctx, kind);
+/// Whether a fitted value is within the grid's resolution of the no-effect value.
+pub(super) fn below_resolution(kind: EffectKind, v: f64) -> bool {
     let (lo, hi, v0) = kind.range();
-    let unit_score =
-        |s: &Scores, u: usize| -> f64 { s.iter().map(|w| units[u].iter().map(|&c| w[c]).sum::<f64>()).sum() };
-    let with_values = |vals: &[f64]| -> Effects {
-        let mut fx = null.clone();
-        for (u, &v) in vals.iter().enumerate() {
-            if mask[u] {
-                set(&mut fx, u, v);
-            }
-        }
+    (v - v0).abs() < RESOLUTION_FRAC * (hi - lo)
+}
+
+/// Whether a fitted value sits on a bound of the range other than the no-effect end.
+pub(super) fn at_bound(kind: EffectKind, v: f64) -> bool {
+    let (lo, hi, v0) = kind.range();
+    let edge = AT_BOUND_FRAC * (hi - lo);
+    ((v - lo).abs() <= edge && (v0 - lo).abs() > edge) || ((hi - v).abs() <= edge && (hi - v0).abs() > edge)
+}
+
+/// Fits `kind` on every unit of `set`, on top of `base` (whose training scores are `base_train`).
+pub(super) fn fit_set(
+    ctx: &Ctx<'_>,
+    kind: EffectKind,
+    base: &Effects,
+    base_train: &Scores,
+    set: &[Unit],
+    rng: &mut impl Rng,
+) -> Result<Vec<FittedUnit>, GapError> {
+    if kind.scope() == Scope::Imu {
+        return Ok(vec![fit_imu(ctx, kind)?]);
+    }
+    let (lo, hi, v0) = kind.range();
+    let cols: Vec<Vec<usize>> = set.iter().map(|u| u.score_columns(ctx)).collect();
+    // Per training window, unit u's score.
+    let per_window =
+        |s: &Scores, u: usize| -> Vec<f64> { s.iter().map(|w| cols[u].iter().map(|&c| w[c]).sum()).collect() };
+    let with = |vals: &[f64]| -> Effects {
+        let mut fx = base.clone();
+        set.iter().zip(vals).for_each(|(u, &v)| u.set(kind, &mut fx, v));
         fx
     };
-    // Grid (integers for latency).
     let grid: Vec<f64> = if kind == EffectKind::Latency {
-        (0..=hi as usize).map(|k| k as f64).collect()
+        (0..=hi.round() as usize).step_by(2).map(|k| k as f64).filter(|&v| v != v0).collect()
     } else {
-        let n = 9;
-        let mut g: Vec<f64> = (0..n).map(|i| lo + (hi - lo) * i as f64 / (n - 1) as f64).collect();
-        g.push(v0);
-        g.sort_by(f64::total_cmp);
-        g.dedup_by(|a, b| (*a - *b).abs() < 1e-12);
-        g
+        (0..GRID).map(|i| lo + (hi - lo) * i as f64 / (GRID - 1) as f64).filter(|&v| (v - v0).abs() > 1e-12).collect()
     };
-    let cfgs: Vec<Effects> =
-        grid.iter().filter(|&&v| (v - v0).abs() > 1e-12).map(|&v| with_values(&vec![v; units.len()])).collect();
-    let grid_nz: Vec<f64> = grid.iter().copied().filter(|&v| (v - v0).abs() > 1e-12).collect();
+    let cfgs: Vec<Effects> = grid.iter().map(|&v| with(&vec![v; set.len()])).collect();
     let scores = ctx.eval_many(&cfgs, &ctx.train)?;
-    let mut best = vec![(v0, f64::INFINITY); units.len()];
-    for (u, b) in best.iter_mut().enumerate() {
-        *b = (v0, unit_score(base_train, u));
-        for (k, s) in scores.iter().enumerate() {
-            let sc = unit_score(s, u);
-            if sc < b.1 {
-                *b = (grid_nz[k], sc);
-            }
-        }
-    }
-    if kind == EffectKind::Latency {
-        return Ok(UnitFit { values: vec![best[0].0], sds: vec![0.0], scores: vec![best[0].1] });
-    }
-    // Golden-section refinement of every unit in lockstep within the neighbouring grid cells.
-    let step = grid.windows(2).map(|w| w[1] - w[0]).fold(0.0, f64::max);
-    let mut a: Vec<f64> = best.iter().map(|b| (b.0 - step).max(lo)).collect();
-    let mut b: Vec<f64> = best.iter().map(|b| (b.0 + step).min(hi)).collect();
-    let gr = 0.618_033_988_749_895;
-    let mut x1: Vec<f64> = (0..units.len()).map(|u| b[u] - gr * (b[u] - a[u])).collect();
-    let mut x2: Vec<f64> = (0..units.len()).map(|u| a[u] + gr * (b[u] - a[u])).collect();
-    let s12 = ctx.eval_many(&[with_values(&x1), with_values(&x2)], &ctx.train)?;
-    let mut f1: Vec<f64> = (0..units.len()).map(|u| unit_score(&s12[0], u)).collect();
-    let mut f2: Vec<f64> = (0..units.len()).map(|u| unit_score(&s12[1], u)).collect();
-    for _ in 0..4 {
-        // Each unit moves its own bracket; the new trial points are evaluated together.
-        let mut trial = vec![0.0; units.len()];
-        let mut left = vec![false; units.len()];
-        for u in 0..units.len() {
-            if f1[u] < f2[u] {
-                b[u] = x2[u];
-                x2[u] = x1[u];
-                f2[u] = f1[u];
-                x1[u] = b[u] - gr * (b[u] - a[u]);
-                trial[u] = x1[u];
-                left[u] = true;
-            } else {
-                a[u] = x1[u];
-                x1[u] = x2[u];
-                f1[u] = f2[u];
-                x2[u] = a[u] + gr * (b[u] - a[u]);
-                trial[u] = x2[u];
-            }
-        }
-        let s = ctx.eval_many(&[with_values(&trial)], &ctx.train)?.remove(0);
-        for u in 0..units.len() {
-            let f = unit_score(&s, u);
-            if left[u] {
-                f1[u] = f;
-            } else {
-                f2[u] = f;
-            }
-        }
-    }
-    let mut vals = vec![0.0; units.len()];
-    let mut scores = vec![0.0; units.len()];
-    for u in 0..units.len() {
-        let (xr, fr) = if f1[u] < f2[u] { (x1[u], f1[u]) } else { (x2[u], f2[u]) };
-        (vals[u], scores[u]) = if fr < best[u].1 { (xr, fr) } else { best[u] };
-    }
-    // Uncertainty: a parabola through (v-h, v, v+h) on bootstrap resamples of the training windows.
-    let h = 0.05 * (hi - lo);
-    let minus: Vec<f64> = vals.iter().map(|v| v - h).collect();
-    let plus: Vec<f64> = vals.iter().map(|v| v + h).collect();
-    let s3 = ctx.eval_many(&[with_values(&minus), with_values(&vals), with_values(&plus)], &ctx.train)?;
-    let nwin = ctx.train.len();
-    let mut sds = vec![0.0; units.len()];
-    for u in 0..units.len() {
-        let per: Vec<[f64; 3]> = (0..nwin)
-            .map(|w| {
-                let f = |s: &Scores| units[u].iter().map(|&c| s[w][c]).sum::<f64>();
-                [f(&s3[0]), f(&s3[1]), f(&s3[2])]
-            })
+    // Every unit's (value, per-window scores), the no-effect value included, in value order.
+    let mut out = Vec::with_capacity(set.len());
+    let mut refined = vec![v0; set.len()];
+    let mut curves: Vec<Vec<(f64, Vec<f64>)>> = Vec::with_capacity(set.len());
+    for u in 0..set.len() {
+        let mut curve: Vec<(f64, Vec<f64>)> = std::iter::once((v0, per_window(base_train, u)))
+            .chain(grid.iter().zip(&scores).map(|(&v, s)| (v, per_window(s, u))))
             .collect();
-        let mut vs = Vec::new();
-        for _ in 0..50 {
-            let mut acc = [0.0; 3];
-            for _ in 0..nwin {
-                let p = per[rng.gen_range(0..nwin)];
-                (0..3).for_each(|k| acc[k] += p[k]);
-            }
-            let curv = acc[0] - 2.0 * acc[1] + acc[2];
-            let shift =
-                if curv > 0.0 { (h * (acc[0] - acc[2]) / (2.0 * curv)).clamp(-3.0 * h, 3.0 * h) } else { 3.0 * h };
-            vs.push(vals[u] + shift);
-        }
-        let m = mean(&vs);
-        sds[u] = (vs.iter().map(|v| (v - m).powi(2)).sum::<f64>() / vs.len() as f64).sqrt();
+        curve.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let sums: Vec<f64> = curve.iter().map(|(_, s)| s.iter().sum()).collect();
+        let best = (0..curve.len()).min_by(|&a, &b| sums[a].total_cmp(&sums[b])).unwrap_or(0);
+        refined[u] =
+            if kind == EffectKind::Latency { curve[best].0 } else { vertex(&curve, &sums, best).clamp(lo, hi) };
+        curves.push(curve);
     }
-    Ok(UnitFit { values: vals, sds, scores })
+    // Latency: the odd steps beside the best even one; others: the refined value, kept when it scores better.
+    let mut trial_sets: Vec<Vec<f64>> = Vec::new();
+    if kind == EffectKind::Latency {
+        trial_sets.push(refined.iter().map(|v| (v - 1.0).max(0.0)).collect());
+        trial_sets.push(refined.iter().map(|v| (v + 1.0).min(hi)).collect());
+    } else {
+        trial_sets.push(refined.clone());
+    }
+    let trial_cfgs: Vec<Effects> = trial_sets.iter().map(|v| with(v)).collect();
+    let trial_scores = ctx.eval_many(&trial_cfgs, &ctx.train)?;
+    for (u, unit) in set.iter().enumerate() {
+        let curve = &mut curves[u];
+        for (vals, s) in trial_sets.iter().zip(&trial_scores) {
+            curve.push((vals[u], per_window(s, u)));
+        }
+        curve.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let sums: Vec<f64> = curve.iter().map(|(_, s)| s.iter().sum()).collect();
+        let best = (0..curve.len()).min_by(|&a, &b| sums[a].total_cmp(&sums[b])).unwrap_or(0);
+        let value = curve[best].0;
+        let sd = if kind == EffectKind::Latency { 0.0 } else { vertex_sd(curve, best, rng) };
+        out.push(FittedUnit { unit: unit.clone(), value, sd, axes: None });
+    }
+    Ok(out)
+}
+
+/// The vertex of the parabola through the best point of `curve` (values ascending, `sums` their total scores) and
+/// its neighbours; the best point itself at an end of the curve or where the three points do not curve upward.
+fn vertex(curve: &[(f64, Vec<f64>)], sums: &[f64], best: usize) -> f64 {
+    if best == 0 || best + 1 >= curve.len() {
+        return curve[best].0;
+    }
+    parabola_vertex([curve[best - 1].0, curve[best].0, curve[best + 1].0], [sums[best - 1], sums[best], sums[best + 1]])
+        .unwrap_or(curve[best].0)
+}
+
+/// The vertex of the parabola through three points (x ascending), if it opens upward; within the outer two.
+fn parabola_vertex(x: [f64; 3], y: [f64; 3]) -> Option<f64> {
+    let (d1, d2) = (x[1] - x[0], x[2] - x[1]);
+    if !(d1 > 0.0 && d2 > 0.0) {
+        return None;
+    }
+    // Divided differences: the parabola is y0 + a (x - x0) + c (x - x0)(x - x1).
+    let a = (y[1] - y[0]) / d1;
+    let b = (y[2] - y[1]) / d2;
+    let c = (b - a) / (x[2] - x[0]);
+    if !(c > 0.0) {
+        return None;
+    }
+    Some((0.5 * (x[0] + x[1] - a / c)).clamp(x[0], x[2]))
+}
+
+/// Standard deviation of the parabola's vertex around the best point over bootstrap resamples of the training windows
+/// (0 at an end of the curve).
+fn vertex_sd(curve: &[(f64, Vec<f64>)], best: usize, rng: &mut impl Rng) -> f64 {
+    if best == 0 || best + 1 >= curve.len() {
+        return 0.0;
+    }
+    let pts = [&curve[best - 1], &curve[best], &curve[best + 1]];
+    let n = pts[1].1.len();
+    if n < 2 {
+        return 0.0;
+    }
+    let xs = [pts[0].0, pts[1].0, pts[2].0];
+    let draws: Vec<f64> = (0..SD_RESAMPLES)
+        .map(|_| {
+            let mut ys = [0.0; 3];
+            for _ in 0..n {
+                let w = rng.gen_range(0..n);
+                (0..3).for_each(|k| ys[k] += pts[k].1[w]);
+            }
+            parabola_vertex(xs, ys).unwrap_or(xs[1])
+        })
+        .collect();
+    let m = mean(&draws);
+    (draws.iter().map(|v| (v - m).powi(2)).sum::<f64>() / draws.len() as f64).sqrt()
 }
 
 /// IMU bias or misalignment in closed form: the mean residual on the training windows (rig: the reading predicted
 /// from the logged joints; floating base: the no-effect window prediction, whose base state is estimated from the
 /// IMU itself, so the residual grows from zero at the window start and the fit is conservative).
-fn fit_imu(ctx: &Ctx<'_>, kind: EffectKind) -> Result<Fit, GapError> {
+fn fit_imu(ctx: &Ctx<'_>, kind: EffectKind) -> Result<FittedUnit, GapError> {
     let null = Effects::none(ctx.nj());
     let mut acc = Vec::new();
     let mut floating_plant = match ctx.plant {
@@ -342,15 +354,44 @@ fn fit_imu(ctx: &Ctx<'_>, kind: EffectKind) -> Result<Fit, GapError> {
         }
     }
     let n = acc.len().max(1) as f64;
-    let mut fx = null.clone();
-    let mut sds = Vec::new();
+    let mut axes = [0.0; 3];
+    let mut var = 0.0;
     for k in 0..3 {
         let m = acc.iter().map(|a| a[k]).sum::<f64>() / n;
-        kind.set(&mut fx, k, m);
-        let var = acc.iter().map(|a| (a[k] - m).powi(2)).sum::<f64>() / n;
+        axes[k] = m;
         // Samples within a window are correlated: count windows, not samples.
-        sds.push((var / ctx.train.len().max(1) as f64).sqrt());
+        var += acc.iter().map(|a| (a[k] - m).powi(2)).sum::<f64>() / n / ctx.train.len().max(1) as f64;
     }
-    let sd = sds.iter().map(|s| s * s).sum::<f64>().sqrt();
-    Ok(Fit { fx, sds: vec![sd] })
+    let value = axes.iter().map(|a| a * a).sum::<f64>().sqrt();
+    Ok(FittedUnit { unit: Unit::Imu, value, sd: var.sqrt(), axes: Some(axes) })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_parabola_through_three_points_finds_their_minimum() {
+        // y = (x - 1.3)^2 + 2 at 1, 1.5, 2.
+        let f = |x: f64| (x - 1.3).powi(2) + 2.0;
+        let v = parabola_vertex([1.0, 1.5, 2.0], [f(1.0), f(1.5), f(2.0)]).expect("a vertex");
+        assert!((v - 1.3).abs() < 1e-12, "{v}");
+        // Unevenly spaced.
+        let v = parabola_vertex([0.0, 1.0, 4.0], [f(0.0), f(1.0), f(4.0)]).expect("a vertex");
+        assert!((v - 1.3).abs() < 1e-12, "{v}");
+        // A maximum is no vertex.
+        assert!(parabola_vertex([0.0, 1.0, 2.0], [0.0, 1.0, 0.0]).is_none());
+    }
+
+    #[test]
+    fn a_value_on_a_bound_other_than_no_effect_is_at_the_bound() {
+        use EffectKind::*;
+        for kind in [Damping, Friction, Armature, GainScale, Backlash, LinkMass, EncoderOffset] {
+            let (lo, hi, v0) = kind.range();
+            assert!(at_bound(kind, hi), "{kind:?} {hi}");
+            assert_eq!(at_bound(kind, lo), (v0 - lo).abs() > 1e-9, "{kind:?} {lo}");
+            assert!(!at_bound(kind, 0.5 * (v0 + hi)), "{kind:?}");
+            assert!(below_resolution(kind, v0) && !below_resolution(kind, 0.5 * (v0 + hi)), "{kind:?}");
+        }
+    }
 }

@@ -1,30 +1,31 @@
 //! Identifiability: could this log show each effect at all? For every effect kind, the held-out windows are
-//! replayed with each unit at the kind's magnitude of interest ([`EffectKind::magnitude_of_interest`]) and
-//! without it; how far the two simulations move apart on a unit, in the gap metric's units, is the *signal* an
-//! effect of that size would add to the unit's residual. A fit keeps a unit only when it cuts the unit's held-out
-//! residual by [`UNIT_FLOOR_FRAC`] of it, so a signal under that floor means the log cannot reveal the effect
-//! there, whatever the fit says: the report says so, with the motion that would reveal it ([`EffectKind::revealed_by`]).
-//! Simulator sensitivities only (no log residual in the signal): an effect is unidentifiable because the log's
-//! motion does not excite it, not because the data happen to hide it.
-use super::assess::UNIT_FLOOR_FRAC;
-use super::fit::{report_value, set_unit, unit_name, unit_sets, units_of};
+//! replayed with each candidate unit at the kind's magnitude of interest ([`EffectKind::magnitude_of_interest`]) and
+//! without it; how far the two simulations move apart on the unit's columns, in the gap metric's units, is the
+//! *signal* an effect of that size would add. Were the effect in the log, the judge's evidence for it would be about
+//! the log-likelihood gain of removing that signal from the baseline residual, `Σ_c ln((b + d + ν) / (b + ν))` per
+//! window; under [`super::Thresholds::min_gain`] the log cannot reveal the effect there, whatever a fit says: the
+//! report says so, with the motion that would reveal it ([`EffectKind::revealed_by`]). Simulator sensitivities only (no log residual in the signal): an effect is
+//! unidentifiable because the log's motion does not excite it, not because the data happen to hide it.
+use super::fit::{lockstep_sets, report_value};
 use super::options::PlantKind;
 use super::replay::{Ctx, Scores};
-use super::stats::mean;
+use super::stats::{log_gain, mean};
+use super::Thresholds;
 use crate::effects::{EffectKind, Scope};
 use crate::plant::Effects;
 use crate::GapError;
 use serde::{Deserialize, Serialize};
 
-/// One unit (joint, group or the robot): the signal an effect of the magnitude of interest would add to its
-/// held-out residual, and the floor a fit must clear there.
+/// One unit (joint, group or the robot): the evidence an effect of the magnitude of interest would give there, and
+/// the evidence a named effect needs.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct UnitSignal {
     pub unit: String,
-    /// Mean over held-out windows of the unit's normalised squared difference between the simulation with the
-    /// effect and without it.
+    /// Mean over held-out windows of the log-likelihood gain the effect's signal (the normalised squared difference
+    /// between the simulation with the effect and without it) would give on top of the baseline residual, on the
+    /// unit's columns.
     pub signal: f64,
-    /// [`UNIT_FLOOR_FRAC`] of the unit's mean held-out baseline residual.
+    /// [`super::Thresholds::min_gain`].
     pub floor: f64,
 }
 
@@ -69,6 +70,7 @@ pub(super) fn identify(
     ctx: &Ctx<'_>,
     baseline: &Scores,
     kinds: &[EffectKind],
+    th: &Thresholds,
 ) -> Result<Vec<Identifiability>, GapError> {
     let windows = &ctx.test;
     if windows.is_empty() {
@@ -76,46 +78,39 @@ pub(super) fn identify(
     }
     let none = Effects::none(ctx.nj());
     let without = ctx.predictions(&none, windows)?;
+    let train: Scores = ctx.train.iter().filter_map(|&w| baseline.get(w).cloned()).collect();
+    let base: Scores = windows.iter().filter_map(|&w| baseline.get(w).cloned()).collect();
+    let floor = th.min_gain;
     let mut out = Vec::new();
     for &kind in kinds {
         if kind.scope() == Scope::Imu || (ctx.plant == PlantKind::Rig && !kind.identifiable_suspended()) {
             continue;
         }
-        let units = units_of(ctx, kind);
         let m = kind.magnitude_of_interest();
-        let mut signal = vec![0.0; units.len()];
-        for mask in unit_sets(ctx, kind) {
+        let mut units = Vec::new();
+        for set in lockstep_sets(ctx, kind, &train, th.joints_per_limb) {
             let mut fx = none.clone();
-            for u in (0..units.len()).filter(|&u| mask[u]) {
-                set_unit(kind, &mut fx, ctx, u, m);
-            }
+            set.iter().for_each(|u| u.set(kind, &mut fx, m));
             let with = ctx.predictions(&fx, windows)?;
             let diffs: Vec<Vec<f64>> = without.iter().zip(&with).map(|(a, b)| ctx.difference_scores(a, b)).collect();
-            for u in (0..units.len()).filter(|&u| mask[u]) {
-                signal[u] = mean(&diffs.iter().map(|d| joint_sum(ctx, &units[u], d)).collect::<Vec<_>>());
+            // The residual with the signal on top of the baseline: the log as it would be with the effect in it.
+            let with_signal: Scores =
+                base.iter().zip(&diffs).map(|(b, d)| b.iter().zip(d).map(|(x, y)| x + y).collect()).collect();
+            for u in &set {
+                let cols: Vec<usize> = u.score_columns(ctx).into_iter().filter(|&c| c < ctx.nj()).collect();
+                let signal = mean(&log_gain(&with_signal, &base, Some(&cols), &ctx.noise));
+                units.push(UnitSignal { unit: u.name().into(), signal, floor });
             }
         }
-        let unit_signals: Vec<UnitSignal> = (0..units.len())
-            .map(|u| {
-                let base: Vec<f64> =
-                    windows.iter().filter_map(|&w| baseline.get(w)).map(|s| joint_sum(ctx, &units[u], s)).collect();
-                UnitSignal { unit: unit_name(ctx, kind, u), signal: signal[u], floor: UNIT_FLOOR_FRAC * mean(&base) }
-            })
-            .collect();
-        let all = unit_signals.iter().all(UnitSignal::identifiable);
+        let all = units.iter().all(UnitSignal::identifiable);
         out.push(Identifiability {
             kind,
             magnitude: report_value(kind, m),
-            units: unit_signals,
+            units,
             revealed_by: (!all).then(|| kind.revealed_by().to_string()),
         });
     }
     Ok(out)
-}
-
-/// A score's joint columns of one unit (the IMU column is left out: no replayed effect is judged on it here).
-fn joint_sum(ctx: &Ctx<'_>, cols: &[usize], score: &[f64]) -> f64 {
-    cols.iter().filter(|&&c| c < ctx.nj()).filter_map(|&c| score.get(c)).sum()
 }
 
 /// The abstention note's addition for an effect no unit of which could show at the magnitude of interest.
@@ -124,8 +119,8 @@ pub(super) fn not_identifiable_note(i: &Identifiability) -> Option<String> {
         return None;
     }
     Some(format!(
-        "not identifiable from this log: at {} ({}) it would move no unit's residual by the floor a fit must \
-         clear (at best {:.0} % of it); {} would reveal it",
+        "not identifiable from this log: at {} ({}) it would give no unit the evidence a named effect needs (at best \
+         {:.0} % of it); {} would reveal it",
         i.magnitude_text(),
         i.kind.parameter(),
         100.0 * i.best_ratio(),

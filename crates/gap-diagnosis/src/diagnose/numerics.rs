@@ -1,12 +1,15 @@
-//! The diagnosing simulator's own numerics (issue 14 item 5): how far the prediction moves when only MuJoCo's
-//! integrator, the physics timestep or the PD rate changes, and whether one of those explains the log better. A
-//! gap between two simulators (or a simulator and a robot) of the size such a choice alone makes is numerics, not
-//! evidence of a physical effect; a variant that cuts the held-out gap says part of the baseline is a numerics
-//! mismatch, and which setting it lies in. Reporting only: effects are fitted and judged against the diagnosing
-//! settings. The timestep and PD-rate variants are the rig's (the floating plant takes one 2 ms step).
+//! The diagnosing simulator's own numerics, settled before anything is attributed: how the log is replayed is not
+//! a physical effect. The log may have been made by a simulator with another integrator, a finer timestep or a faster
+//! PD loop (a 1 kHz simulator, a robot whose drives close the loop faster), and then part of the gap is numerics.
+//! Every variant (MuJoCo's other integrators; on the rig, 1 ms steps with the PD law held for 2 ms or run at each
+//! step) replays every window without effects; the variant that fits the training windows best is adopted for the
+//! rest of the diagnosis when it gains as much held-out evidence as a named effect must
+//! ([`super::Thresholds::min_gain`]), and the report says so. The floating plant takes one 2 ms step (its integrators
+//! only).
 use super::options::{DiagnoseOptions, PlantKind};
 use super::replay::Ctx;
-use super::stats::{bootstrap_ratio, mean, noise_floor, total, Estimate};
+use super::stats::{bootstrap_mean, bootstrap_ratio, log_gain, mean, total, Estimate};
+use crate::log::Measurement;
 use crate::plant::{Effects, EngineChoice, PdUpdate, Stepping, DT};
 use crate::GapError;
 use rand::Rng;
@@ -33,11 +36,17 @@ pub struct NumericsVariant {
     pub timestep_ms: f64,
     /// How often the PD law is evaluated (ms).
     pub pd_period_ms: f64,
+    /// Training gap metric (mean per window) of the log against this variant: what chooses it.
+    #[serde(default)]
+    pub train_gap: f64,
     /// Held-out gap metric of the log against this variant.
     pub held_out_gap: f64,
     /// Relative reduction of the held-out gap against the diagnosing simulator's, with a paired bootstrap interval
     /// over windows (negative: this variant fits the log worse).
     pub reduction: Estimate,
+    /// Held-out log-likelihood gain per window against the diagnosing simulator's (what adopts it).
+    #[serde(default = "zero_estimate")]
+    pub gain: Estimate,
     /// How far this variant's prediction moves from the diagnosing simulator's, in the gap metric's units (mean
     /// over held-out windows of the normalised squared difference, joints only).
     pub prediction_shift: f64,
@@ -63,6 +72,10 @@ impl NumericsVariant {
     }
 }
 
+fn zero_estimate() -> Estimate {
+    Estimate { value: 0.0, lo: 0.0, hi: 0.0 }
+}
+
 /// What the integrator, timestep or PD-rate choice alone does to the prediction and to the gap.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct Numerics {
@@ -75,19 +88,20 @@ pub struct Numerics {
     pub variants: Vec<NumericsVariant>,
     /// The largest prediction shift, relative to the baseline held-out gap.
     pub shift_share_of_baseline: f64,
-    /// The relative noise floor of the held-out gap: a variant cutting the gap by more is reported as a numerics
-    /// mismatch.
+    /// The gain a variant's lower bound must reach to be adopted ([`super::Thresholds::min_gain`]).
     pub noise_floor: f64,
+    /// Index into `variants` of the variant the diagnosis replayed the log with, if one was adopted.
+    #[serde(default)]
+    pub adopted: Option<usize>,
+    /// What the stage concluded, in words.
+    #[serde(default)]
+    pub finding: String,
 }
 
 impl Numerics {
-    /// The variant that cuts the held-out gap most, when its cut's lower bound clears the noise floor (the test an
-    /// effect must pass to be named).
+    /// The variant the diagnosis adopted, if one.
     pub fn better_variant(&self) -> Option<&NumericsVariant> {
-        self.variants
-            .iter()
-            .filter(|v| v.reduction.lo > self.noise_floor)
-            .max_by(|a, b| a.reduction.value.total_cmp(&b.reduction.value))
+        self.adopted.and_then(|i| self.variants.get(i))
     }
 
     /// The variant that moves the prediction most.
@@ -101,17 +115,29 @@ impl Numerics {
     }
 }
 
-/// Replays the held-out windows with every other MuJoCo integrator and, on the rig, every other stepping (`None`
-/// for an engine other than MuJoCo, or no held-out window). `baseline_tot`: the diagnosing simulator's held-out
-/// gap per window.
-pub(super) fn numerics(ctx: &Ctx<'_>, baseline_tot: &[f64], rng: &mut impl Rng) -> Result<Option<Numerics>, GapError> {
+/// Replays every window with every other MuJoCo integrator and, on the rig, every other stepping, and adopts the
+/// variant that fits the training windows best when its held-out gain reaches `min_gain`: the report's numerics and the
+/// options the rest of the diagnosis runs with (`None` for an engine other than MuJoCo, or no held-out window).
+pub(super) fn choose(
+    ctx: &Ctx<'_>,
+    min_gain: f64,
+    rng: &mut impl Rng,
+) -> Result<Option<(Numerics, DiagnoseOptions)>, GapError> {
     let EngineChoice::Mujoco { integrator } = &ctx.opts.engine else { return Ok(None) };
     if ctx.test.is_empty() {
         return Ok(None);
     }
     let none = Effects::none(ctx.nj());
-    let base_pred = ctx.predictions(&none, &ctx.test)?;
-    let base_gap = mean(baseline_tot);
+    let all: Vec<usize> = ctx.train.iter().chain(&ctx.test).copied().collect();
+    let scores = |c: &Ctx<'_>, pred: &[Vec<Measurement>]| -> Result<Vec<Vec<f64>>, GapError> {
+        all.iter().zip(pred).map(|(&w, p)| c.prediction_scores(&none, w, p)).collect()
+    };
+    let n_train = ctx.train.len();
+    let totals = |s: &[Vec<f64>]| -> Vec<f64> { s.iter().map(|w| total(w)).collect() };
+    let base_pred = ctx.predictions(&none, &all)?;
+    let base_scores = scores(ctx, &base_pred)?;
+    let (base_train, base_test) = (totals(&base_scores[..n_train]), totals(&base_scores[n_train..]));
+    let base_gap = mean(&base_test);
     let mut others: Vec<DiagnoseOptions> = INTEGRATORS
         .iter()
         .filter(|i| !i.eq_ignore_ascii_case(integrator))
@@ -128,40 +154,72 @@ pub(super) fn numerics(ctx: &Ctx<'_>, baseline_tot: &[f64], rng: &mut impl Rng) 
     let mut variants = Vec::new();
     for opts in &others {
         let alt = ctx.with_options(opts);
-        let pred = alt.predictions(&none, &ctx.test)?;
+        let pred = alt.predictions(&none, &all)?;
         let shift = mean(
-            &base_pred
+            &base_pred[n_train..]
                 .iter()
-                .zip(&pred)
+                .zip(&pred[n_train..])
                 .map(|(a, b)| ctx.difference_scores(a, b).iter().take(ctx.nj()).sum::<f64>())
                 .collect::<Vec<f64>>(),
         );
-        // The gap from the same replay (scoring a prediction is what `eval_many` does after replaying it).
-        let alt_tot: Vec<f64> = ctx
-            .test
-            .iter()
-            .zip(&pred)
-            .map(|(&w, p)| alt.prediction_scores(&none, w, p).map(|s| total(&s)))
-            .collect::<Result<_, _>>()?;
+        let alt_scores = scores(&alt, &pred)?;
+        let (train, test) = (totals(&alt_scores[..n_train]), totals(&alt_scores[n_train..]));
+        let gain = log_gain(&base_scores[n_train..], &alt_scores[n_train..], None, &ctx.noise);
         variants.push(NumericsVariant {
             engine: opts.engine.name(),
             timestep_ms: 1e3 * opts.stepping.timestep(),
             pd_period_ms: 1e3 * opts.stepping.pd_period(),
-            held_out_gap: mean(&alt_tot),
-            reduction: bootstrap_ratio(baseline_tot, &alt_tot, ctx.opts.bootstrap, rng),
+            train_gap: mean(&train),
+            held_out_gap: mean(&test),
+            reduction: bootstrap_ratio(&base_test, &test, ctx.opts.bootstrap, rng),
+            gain: bootstrap_mean(&gain, ctx.opts.bootstrap, rng),
             prediction_shift: shift,
         });
     }
+    let base_train_gap = mean(&base_train);
+    let best = (0..variants.len())
+        .filter(|&i| variants[i].train_gap < base_train_gap)
+        .min_by(|&a, &b| variants[a].train_gap.total_cmp(&variants[b].train_gap));
+    let adopted = best.filter(|&i| variants[i].gain.lo >= min_gain);
+    let here = format!(
+        "{}, {} ms steps, PD every {} ms",
+        ctx.opts.engine.name(),
+        1e3 * ctx.opts.stepping.timestep(),
+        1e3 * ctx.opts.stepping.pd_period()
+    );
+    let finding = match (best, adopted) {
+        (Some(i), Some(_)) => format!(
+            "the log fits {} better than {here} (held-out log-likelihood gain {:.3} [{:.3}, {:.3}] per window, gap \
+             cut {:.1} %): it was made with other numerics, and the diagnosis replays it so",
+            variants[i].label(),
+            variants[i].gain.value,
+            variants[i].gain.lo,
+            variants[i].gain.hi,
+            100.0 * variants[i].reduction.value
+        ),
+        (Some(i), None) => format!(
+            "{here} is kept: {} fits the training windows a little better but gains {:.3} [{:.3}, {:.3}] per \
+             held-out window only",
+            variants[i].label(),
+            variants[i].gain.value,
+            variants[i].gain.lo,
+            variants[i].gain.hi
+        ),
+        (None, _) => format!("{here} fits the log best"),
+    };
+    let chosen = adopted.map_or_else(|| ctx.opts.clone(), |i| others[i].clone());
     let mut n = Numerics {
         engine: ctx.opts.engine.name(),
         timestep_ms: 1e3 * ctx.opts.stepping.timestep(),
         pd_period_ms: 1e3 * ctx.opts.stepping.pd_period(),
         variants,
         shift_share_of_baseline: 0.0,
-        noise_floor: noise_floor(baseline_tot),
+        noise_floor: min_gain,
+        adopted,
+        finding,
     };
     n.shift_share_of_baseline = if base_gap > 0.0 { n.largest_shift() / base_gap } else { 0.0 };
-    Ok(Some(n))
+    Ok(Some((n, chosen)))
 }
 
 #[cfg(test)]
@@ -174,31 +232,30 @@ mod tests {
             engine: engine.into(),
             timestep_ms: 2.0,
             pd_period_ms: 2.0,
+            train_gap: 0.0,
             held_out_gap: 0.0,
             reduction,
+            gain: reduction,
             prediction_shift: shift,
         }
     }
 
     #[test]
-    fn only_a_variant_whose_cut_clears_the_floor_is_a_numerics_mismatch() {
+    fn the_adopted_variant_is_the_one_the_stage_chose_and_shifts_are_read_off_every_variant() {
         let n = Numerics {
             engine: "mujoco".into(),
             timestep_ms: 2.0,
             pd_period_ms: 2.0,
-            // A 6 % cut whose interval reaches 1 %, and a variant that fits worse.
             variants: vec![variant("mujoco-rk4", 0.06, 0.01, 0.5), variant("mujoco-euler", -0.3, -0.5, 2.0)],
             shift_share_of_baseline: 0.1,
-            noise_floor: 0.03,
+            noise_floor: 0.05,
+            adopted: None,
+            finding: String::new(),
         };
         assert!(n.better_variant().is_none());
         assert_eq!(n.largest_shift(), 2.0);
         assert_eq!(n.largest_shift_variant().map(|v| v.engine.as_str()), Some("mujoco-euler"));
-        // The larger cut wins only if it clears the floor.
-        let n = Numerics {
-            variants: vec![variant("mujoco-rk4", 0.4, 0.3, 0.5), variant("mujoco-implicit", 0.5, 0.02, 0.2)],
-            ..n
-        };
+        let n = Numerics { adopted: Some(0), ..n };
         assert_eq!(n.better_variant().map(|v| v.engine.as_str()), Some("mujoco-rk4"));
     }
 
@@ -212,8 +269,10 @@ mod tests {
             engine: engine.into(),
             timestep_ms,
             pd_period_ms,
+            train_gap: 0.0,
             held_out_gap: 0.0,
             reduction: Estimate { value: 0.0, lo: 0.0, hi: 0.0 },
+            gain: Estimate { value: 0.0, lo: 0.0, hi: 0.0 },
             prediction_shift: 0.0,
         };
         assert_eq!(v("mujoco-rk4", 2.0, 2.0).diagnose_flags(), "--engine mujoco-rk4");

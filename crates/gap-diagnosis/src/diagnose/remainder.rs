@@ -7,7 +7,6 @@ use super::breakdown::{Baseline, Share};
 use super::replay::{Ctx, Scores};
 use super::stats::{mean, median, total, trim_order};
 use crate::log::Measurement;
-use crate::noise::{SIGMA_DQ, SIGMA_Q, SIGMA_TAU_FRAC};
 use crate::plant::Effects;
 use crate::GapError;
 use robot_model::RobotModel;
@@ -188,7 +187,7 @@ pub(super) fn remainder(
         .collect();
     by_joint.sort_by(|a, b| b.residual.total_cmp(&a.residual));
     by_joint.truncate(5);
-    let noise = noise_metric(ctx.model, &ctx.log.states);
+    let noise: f64 = super::stats::noise_per_joint(ctx.model, &ctx.log.states).iter().sum();
     let metric_after = mean(&after);
     let unexplained = Unexplained {
         metric_after,
@@ -198,34 +197,6 @@ pub(super) fn remainder(
         by_joint,
     };
     Ok(Remainder { windows, robust, unexplained })
-}
-
-/// Gap metric of sensor noise alone (joint columns), from the logged states: per channel, the noise standard
-/// deviation estimated from the median absolute second difference of its samples (white noise of deviation σ gives
-/// second differences of deviation √6 σ, whose median absolute value is 0.6745 times that; smooth motion hardly
-/// contributes at the log's rate, and the median ignores the jumps of torque when a new command arrives).
-fn noise_metric(model: &RobotModel, states: &[Measurement]) -> f64 {
-    if states.len() < 3 {
-        return 0.0;
-    }
-    let var = |f: &dyn Fn(usize) -> f64| -> f64 {
-        let d: Vec<f64> = (1..states.len() - 1).map(|k| (f(k + 1) - 2.0 * f(k) + f(k - 1)).abs()).collect();
-        let sigma = median(&d) / (0.674_489_75 * 6f64.sqrt());
-        sigma * sigma
-    };
-    let at = |v: &[f64], j: usize| v.get(j).copied().unwrap_or(0.0);
-    model
-        .joints
-        .iter()
-        .enumerate()
-        .map(|(j, joint)| {
-            let sigma_tau = SIGMA_TAU_FRAC * joint.torque_limit.max(1.0);
-            let vq = var(&|k| at(&states[k].q, j)) / (SIGMA_Q * SIGMA_Q);
-            let vdq = var(&|k| at(&states[k].dq, j)) / (SIGMA_DQ * SIGMA_DQ);
-            let vt = var(&|k| at(&states[k].tau, j)) / (sigma_tau * sigma_tau);
-            (vq + vdq + vt) / 3.0
-        })
-        .sum()
 }
 
 #[cfg(test)]
@@ -273,8 +244,8 @@ mod tests {
                 x.q[j] = 0.3 * (2.0 * std::f64::consts::PI * 0.5 * t).sin() + sq * n;
             }
         }
-        let expect = m.nj() as f64 * (sq / SIGMA_Q).powi(2) / 3.0;
-        let got = noise_metric(&m, &s);
+        let expect = m.nj() as f64 * (sq / crate::noise::SIGMA_Q).powi(2) / 3.0;
+        let got: f64 = super::super::stats::noise_per_joint(&m, &s).iter().sum();
         assert!((got / expect - 1.0).abs() < 0.1, "noise metric {got}, expected {expect}");
     }
 }

@@ -79,9 +79,9 @@ pub(super) struct Ctx<'a> {
     pub test: Vec<usize>,
     /// Group index of each joint ([`crate::plant::GROUPS`]).
     pub groups: Vec<usize>,
-    /// Per window (indexed like `starts`), which joints reach a range limit in it.
-    pub at_limit: Vec<Vec<bool>>,
     sigma_tau: Vec<f64>,
+    /// Per score column, the score the log's sensor noise alone would leave (joints; the IMU's: 0).
+    pub noise: Vec<f64>,
     null: Effects,
     /// Idle engines of the unmodified model.
     pool: std::sync::Mutex<Vec<Plant>>,
@@ -96,17 +96,11 @@ impl<'a> Ctx<'a> {
         plant: PlantKind,
         windows: Windows,
     ) -> Self {
-        let at_limit = windows
-            .starts
-            .iter()
-            .map(|&s| super::windows::joints_at_limit(model, super::windows::window_states(log, s, windows.len)))
-            .collect();
         Ctx {
             model,
             log,
             opts,
             plant,
-            at_limit,
             feet: windows.feet,
             dt_state: windows.dt_state,
             starts: windows.starts,
@@ -115,6 +109,7 @@ impl<'a> Ctx<'a> {
             test: windows.test,
             groups: joint_groups(model),
             sigma_tau: model.joints.iter().map(|j| SIGMA_TAU_FRAC * j.torque_limit.max(1.0)).collect(),
+            noise: super::stats::noise_per_joint(model, &log.states).into_iter().chain([0.0]).collect(),
             null: Effects::none(model.nj()),
             pool: std::sync::Mutex::new(Vec::new()),
         }
@@ -127,9 +122,25 @@ impl<'a> Ctx<'a> {
     where
         'a: 'b,
     {
+        self.rebind(self.log, opts)
+    }
+
+    /// The same windows of another version of the log (its commands moved in time: [`super::timing`]), with its own
+    /// pool.
+    pub(super) fn with_log<'b>(&self, log: &'b RobotLog) -> Ctx<'b>
+    where
+        'a: 'b,
+    {
+        self.rebind(log, self.opts)
+    }
+
+    fn rebind<'b>(&self, log: &'b RobotLog, opts: &'b DiagnoseOptions) -> Ctx<'b>
+    where
+        'a: 'b,
+    {
         Ctx {
             model: self.model,
-            log: self.log,
+            log,
             opts,
             plant: self.plant,
             feet: self.feet.clone(),
@@ -139,8 +150,8 @@ impl<'a> Ctx<'a> {
             train: self.train.clone(),
             test: self.test.clone(),
             groups: self.groups.clone(),
-            at_limit: self.at_limit.clone(),
             sigma_tau: self.sigma_tau.clone(),
+            noise: self.noise.clone(),
             null: self.null.clone(),
             pool: std::sync::Mutex::new(Vec::new()),
         }
@@ -148,16 +159,6 @@ impl<'a> Ctx<'a> {
 }
 
 impl Ctx<'_> {
-    /// Per held-out window: whether no joint comes within [`super::AT_LIMIT_RAD`] of its range in it (the off-limit
-    /// route of [`super::stats::judge`]). On the rig only: none on the floating plant, whose benchmark was not
-    /// re-measured with that route.
-    pub(super) fn off_limit_test(&self) -> Vec<bool> {
-        if self.plant != PlantKind::Rig {
-            return Vec::new();
-        }
-        self.test.iter().map(|&w| !self.at_limit.get(w).is_some_and(|l| l.iter().any(|&b| b))).collect()
-    }
-
     /// The logged states of window `w` (empty when there is no such window).
     pub(super) fn window_states(&self, w: usize) -> &[Measurement] {
         self.starts.get(w).map_or(&[], |&s| super::windows::window_states(self.log, s, self.len))
@@ -284,20 +285,6 @@ impl Ctx<'_> {
         let n = a.len().min(b.len()).max(1) as f64;
         s.iter_mut().take(self.nj()).for_each(|x| *x /= n);
         s
-    }
-
-    /// The change from prediction `a` to prediction `b` of one window, sample by sample and joint by joint (position,
-    /// velocity, torque), normalised as the gap metric normalises a residual; flattened.
-    pub(super) fn normalised_change(&self, a: &[Measurement], b: &[Measurement]) -> Vec<f64> {
-        let mut out = Vec::with_capacity(3 * self.nj() * a.len().min(b.len()));
-        for (m, p) in a.iter().zip(b) {
-            for j in 0..self.nj() {
-                out.push((p.q[j] - m.q[j]) / SIGMA_Q);
-                out.push((p.dq[j] - m.dq[j]) / SIGMA_DQ);
-                out.push((p.tau[j] - m.tau[j]) / self.sigma_tau[j]);
-            }
-        }
-        out
     }
 
     /// IMU residual of a window: the reading predicted from the logged joints on the rig vs the logged reading.

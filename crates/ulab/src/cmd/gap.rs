@@ -1,7 +1,7 @@
 //! `ulab gap`: sim-to-real gap diagnosis (the work is in the `gap-diagnosis` crate).
 //!
 //! - `ulab gap diagnose --log real.mcap --robot h1_2 [--engine E] [--plant auto|rig|floating] [--substeps N
-//!   [--pd-held]] --out DIR [--format json]`;
+//!   [--pd-held]] --out DIR [--format json] [--export-mjcf corrected.xml]`;
 //!   exit 0 diagnosed, 3 with `--plant rig` the log is not from a suspended robot (rig-assumption check; report
 //!   written, every effect abstained), 2 error. `--plant auto` (default) diagnoses such a log on the floating base.
 //! - `ulab gap excite --robot h1_2 --out plan.mcap [--duration S] [--rate HZ]`
@@ -90,6 +90,12 @@ struct DiagnoseArgs {
     effects: Vec<String>,
     #[command(flatten)]
     stepping: SteppingArgs,
+    /// Also write the robot's MJCF corrected by the named effects (armature, damping, frictionloss, motor
+    /// ctrlrange, link inertials; the drive's and sensors' effects as `ulab_*` custom numerics, explained in the
+    /// file's comment), and beside it FILE with `.nominal.xml` for its extension: the same model uncorrected, so that
+    /// a diff of the two shows the corrections.
+    #[arg(long, value_name = "FILE")]
+    export_mjcf: Option<PathBuf>,
 }
 
 #[derive(Debug, clap::Args)]
@@ -285,6 +291,13 @@ fn diagnose(a: DiagnoseArgs) -> Result<Exit> {
     };
     let report = gap_diagnosis::diagnose(&model, &log, &opts).context("diagnosing")?;
     gap_diagnosis::report::write_all(&report, &a.out).context("writing the report")?;
+    if let Some(path) = &a.export_mjcf {
+        let xml = gap_diagnosis::export::corrected_mjcf(&model, &report).context("writing the corrected model")?;
+        std::fs::write(path, xml).with_context(|| format!("writing {}", path.display()))?;
+        let nominal = path.with_extension("nominal.xml");
+        let xml = gap_diagnosis::export::nominal_mjcf(&model, &report).context("writing the nominal model")?;
+        std::fs::write(&nominal, xml).with_context(|| format!("writing {}", nominal.display()))?;
+    }
     let violated = report.outcome == Outcome::RigAssumptionViolated;
     if violated {
         eprintln!("gap diagnose: ABSTAINED (exit {}): {}", Exit::Abstained.code(), report.rig_check.message);
@@ -319,8 +332,15 @@ fn diagnose(a: DiagnoseArgs) -> Result<Exit> {
             "baseline held-out gap metric {:.3} [{:.3}, {:.3}]",
             report.baseline_metric.value, report.baseline_metric.lo, report.baseline_metric.hi
         );
+        if let Some(t) = &report.timing {
+            println!("timing: {}", t.finding);
+        }
+        if let Some(n) = &report.numerics {
+            println!("numerics: {}", n.finding);
+        }
         if report.unexplained {
-            println!("no effect clears the noise floor: the gap is unexplained (abstention)");
+            let why = report.steps.last().map(|s| s.reason.as_str()).unwrap_or("");
+            println!("no effect is named: the gap is unexplained (abstention): {why}");
         }
         for e in report.effects.iter().filter(|e| e.named) {
             let top = e.params.iter().max_by(|x, y| x.held_out_reduction.total_cmp(&y.held_out_reduction));
@@ -334,18 +354,9 @@ fn diagnose(a: DiagnoseArgs) -> Result<Exit> {
             );
         }
         for set in &report.ambiguous {
-            let n: Vec<&str> = set.effects.iter().map(|k| k.name()).collect();
-            let edge: Vec<&str> = set.at_bound.iter().map(|k| k.name()).collect();
-            println!(
-                "cannot tell apart on this log: {} (cosine magnitude {:.2}){}",
-                n.join(", "),
-                set.cosine,
-                if edge.is_empty() {
-                    String::new()
-                } else {
-                    format!("; fitted at the edge of its search range: {}", edge.join(", "))
-                }
-            );
+            let n: Vec<String> =
+                set.effects.iter().zip(&set.units).map(|(k, u)| format!("{} on {u}", k.name())).collect();
+            println!("cannot tell apart on this log: {}", n.join(", "));
         }
         println!("report: {}", a.out.join("report.md").display());
     }

@@ -1,0 +1,270 @@
+//! `ulab diff` end to end: a short run with the built-in input across the three engines writes the report
+//! files and reproducers that `ulab diff replay` reproduces bit for bit (a tampered one exits 1); fuzzing
+//! writes a corpus and a report; the shipped policy specs run (they read models through $ULAB_SHARED);
+//! bad arguments exit 2.
+
+use crate::common;
+
+use common::{root, tail, wait_with_timeout};
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::Duration;
+
+fn ulab(args: &[&str]) -> (Option<i32>, String, String) {
+    let child = Command::new(env!("CARGO_BIN_EXE_ulab"))
+        .args(args)
+        .current_dir(root())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start ulab");
+    let (status, out, err) = wait_with_timeout(child, Duration::from_secs(300));
+    (status.and_then(|s| s.code()), out, err)
+}
+
+fn tmp(name: &str) -> std::path::PathBuf {
+    let d = std::env::temp_dir().join(format!("ulab_diff_{name}_{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+fn reproducers(dir: &Path) -> Vec<std::path::PathBuf> {
+    let mut v: Vec<_> = std::fs::read_dir(dir)
+        .expect("out dir")
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.file_name().is_some_and(|n| n.to_string_lossy().starts_with("repro_")))
+        .collect();
+    v.sort();
+    v
+}
+
+#[test]
+fn builtin_input_report_and_bit_exact_replay() {
+    let out = tmp("run");
+    let o = out.to_string_lossy().to_string();
+    let (code, stdout, err) = ulab(&[
+        "diff",
+        "--robot",
+        "h1_2",
+        "--engines",
+        "mujoco,rapier-multibody,rapier-impulse",
+        "--episodes",
+        "2",
+        "--seconds",
+        "0.2",
+        "--seed",
+        "3",
+        "--window",
+        "25",
+        "--minimize",
+        "2",
+        "--out",
+        &o,
+    ]);
+    assert_eq!(code, Some(0), "{}\n{}", stdout, tail(&err));
+    let md = std::fs::read_to_string(out.join("report.md")).expect("report.md");
+    assert!(
+        md.contains("rapier_multibody") && md.contains("rapier_impulse") && md.contains("Triaged divergences"),
+        "{md}"
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).expect("report.json")).expect("json");
+    assert_eq!(json["schema_version"], 1);
+    assert_eq!(json["seeds"], serde_json::json!([3, 4]));
+    assert_eq!(json["engines"].as_array().map(|a| a.len()), Some(3));
+    for e in json["entries"].as_array().expect("entries") {
+        assert!(e["triage"]["class"].is_string(), "untriaged entry {e}");
+    }
+    for svg in ["one_step.svg", "k_step.svg", "per_joint.svg"] {
+        let t = std::fs::read_to_string(out.join(svg)).expect(svg);
+        assert!(t.contains("<svg") && t.contains("<polyline"), "{svg}");
+    }
+    let repros = reproducers(&out);
+    assert_eq!(
+        repros.len(),
+        json["entries"].as_array().map(|a| a.iter().filter(|e| !e["minimized"].is_null()).count()).unwrap_or(0)
+    );
+    for r in &repros {
+        let (code, stdout, err) = ulab(&["diff", "replay", &r.to_string_lossy()]);
+        assert_eq!(code, Some(0), "{}: {stdout}\n{}", r.display(), tail(&err));
+        assert!(stdout.contains("identical"), "{stdout}");
+    }
+    if let Some(r) = repros.first() {
+        // Flip the lowest bit of one expected state entry: the replay must notice.
+        let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(r).expect("read")).expect("json");
+        let x = v["expected"]["states"][0]["qpos"][9].as_str().expect("bits").to_string();
+        let flipped = format!("{:016x}", u64::from_str_radix(&x, 16).expect("hex") ^ 1);
+        v["expected"]["states"][0]["qpos"][9] = serde_json::Value::String(flipped);
+        let bad = out.join("tampered.json");
+        std::fs::write(&bad, v.to_string()).expect("write");
+        let (code, stdout, _) = ulab(&["diff", "replay", &bad.to_string_lossy()]);
+        assert_eq!(code, Some(1), "{stdout}");
+        assert!(stdout.contains("DIFFERS"), "{stdout}");
+    }
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+#[test]
+fn dart_runs_in_diff_and_replays_bit_for_bit() {
+    // DART against MuJoCo; every reproducer is replayed in a fresh process: DART's results must not depend on
+    // anything but the inputs (no collision-order or allocation-dependent state).
+    let out = tmp("dart");
+    let o = out.to_string_lossy().to_string();
+    let (code, stdout, err) = ulab(&[
+        "diff",
+        "--robot",
+        "h1_2",
+        "--engines",
+        "mujoco,dart",
+        "--episodes",
+        "1",
+        "--seconds",
+        "0.3",
+        "--seed",
+        "5",
+        "--window",
+        "25",
+        "--minimize",
+        "2",
+        "--out",
+        &o,
+    ]);
+    assert_eq!(code, Some(0), "{}\n{}", stdout, tail(&err));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).expect("report.json")).expect("json");
+    let names: Vec<&str> =
+        json["engines"].as_array().expect("engines").iter().filter_map(|e| e["name"].as_str()).collect();
+    assert_eq!(names, ["mujoco", "dart"], "{}", json["engines"]);
+    let repros = reproducers(&out);
+    for r in &repros {
+        let (code, stdout, err) = ulab(&["diff", "replay", &r.to_string_lossy()]);
+        assert_eq!(code, Some(0), "{}: {stdout}\n{}", r.display(), tail(&err));
+        assert!(stdout.contains("identical"), "{stdout}");
+    }
+    eprintln!("mujoco vs dart: {} reproducers replayed identically", repros.len());
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+#[test]
+fn fuzz_writes_corpus_and_triaged_report() {
+    let out = tmp("fuzz");
+    let o = out.to_string_lossy().to_string();
+    let (code, stdout, err) = ulab(&[
+        "diff",
+        "fuzz",
+        "--engines",
+        "mujoco,rapier-impulse",
+        "--iterations",
+        "6",
+        "--seconds",
+        "0.1",
+        "--window",
+        "10",
+        "--minimize",
+        "1",
+        "--seed",
+        "1",
+        "--jobs",
+        "2",
+        "--out",
+        &o,
+    ]);
+    assert_eq!(code, Some(0), "{stdout}\n{}", tail(&err));
+    assert!(stdout.contains("6 inputs evaluated"), "{stdout}");
+    let corpus = std::fs::read_dir(out.join("corpus")).expect("corpus").count();
+    assert!(corpus >= 1);
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).expect("report.json")).expect("json");
+    for e in json["entries"].as_array().expect("entries") {
+        assert!(e["triage"]["class"].is_string(), "untriaged entry {e}");
+    }
+    // With this seed the search finds at least one divergence; its reproducer replays bit for bit.
+    let repros = reproducers(&out);
+    assert!(!repros.is_empty(), "no reproducer written");
+    for r in &repros {
+        let (code, stdout, err) = ulab(&["diff", "replay", &r.to_string_lossy()]);
+        assert_eq!(code, Some(0), "{}: {stdout}\n{}", r.display(), tail(&err));
+        assert!(stdout.contains("identical"), "{stdout}");
+    }
+    // Flip the lowest bit of the recorded value: the replay must notice and exit 1.
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&repros[0]).expect("read")).expect("json");
+    let x = v["expected"]["value_bits"].as_str().expect("bits").to_string();
+    v["expected"]["value_bits"] =
+        serde_json::Value::String(format!("{:016x}", u64::from_str_radix(&x, 16).expect("hex") ^ 1));
+    let bad = out.join("tampered.json");
+    std::fs::write(&bad, v.to_string()).expect("write");
+    let (code, stdout, _) = ulab(&["diff", "replay", &bad.to_string_lossy()]);
+    assert_eq!(code, Some(1), "{stdout}");
+    assert!(stdout.contains("DIFFERS"), "{stdout}");
+    // The written corpus is a valid seed corpus.
+    let out2 = tmp("fuzz2");
+    let (code, stdout, err) = ulab(&[
+        "diff",
+        "fuzz",
+        "--engines",
+        "mujoco,rapier-impulse",
+        "--iterations",
+        "1",
+        "--seconds",
+        "0.05",
+        "--window",
+        "10",
+        "--minimize",
+        "0",
+        "--corpus",
+        &out.join("corpus").to_string_lossy(),
+        "--out",
+        &out2.to_string_lossy(),
+    ]);
+    assert_eq!(code, Some(0), "{stdout}\n{}", tail(&err));
+    let _ = std::fs::remove_dir_all(&out);
+    let _ = std::fs::remove_dir_all(&out2);
+}
+
+#[test]
+fn shipped_policies_run_across_engines() {
+    if std::env::var_os("ULAB_SHARED").is_none() {
+        eprintln!("skipped: ULAB_SHARED is not set (the policy models live in the shared reference folder)");
+        return;
+    }
+    for spec in ["gepetto_demo_rsl.toml", "unitree_rl_gym_lstm.toml"] {
+        let out = tmp(spec);
+        let p = root().join("robots/h1_2/policies").join(spec);
+        let (code, stdout, err) = ulab(&[
+            "diff",
+            "--policy",
+            &p.to_string_lossy(),
+            "--episodes",
+            "2",
+            "--seconds",
+            "0.2",
+            "--window",
+            "25",
+            "--minimize",
+            "1",
+            "--out",
+            &out.to_string_lossy(),
+        ]);
+        assert_eq!(code, Some(0), "{spec}: {stdout}\n{}", tail(&err));
+        let md = std::fs::read_to_string(out.join("report.md")).expect("report.md");
+        assert!(md.contains("Episode outcomes"), "{md}");
+        let _ = std::fs::remove_dir_all(&out);
+    }
+}
+
+#[test]
+fn bad_arguments_exit_2() {
+    for args in [
+        vec!["diff", "--engines", "mujoco", "--out", "/tmp/x"],
+        vec!["diff", "--engines", "mujoco,bogus", "--out", "/tmp/x"],
+        vec!["diff", "--seconds", "-1", "--out", "/tmp/x"],
+        vec!["diff", "--seconds", "0.1"],
+        vec!["diff", "replay", "/nonexistent/repro.json"],
+        vec!["diff", "--policy", "/nonexistent/spec.toml", "--out", "/tmp/x"],
+    ] {
+        let (code, _, err) = ulab(&args);
+        assert_eq!(code, Some(2), "{args:?}: {err}");
+        assert!(err.starts_with("error:"), "{err}");
+    }
+}
