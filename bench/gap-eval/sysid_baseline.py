@@ -40,10 +40,12 @@ logging.getLogger("absl").setLevel(logging.ERROR)
 
 # --- the decision model's numbers, as docs/gap/method.md states them -------------------------------------------------
 CONFIDENCE = 0.95
-MIN_CUT = 0.05
+MIN_GAIN = 0.3
 MIN_SIZE = 0.5
 MAX_EFFECTS = 3
 EXACT_CANDIDATES = 10
+JOINTS_PER_LIMB = 4
+SCORE_FLOOR = 0.01
 AT_BOUND_FRAC = 0.005
 RESOLUTION_FRAC = 0.02
 CEILING_MARGIN = 1.1
@@ -294,7 +296,7 @@ def modifier(kind, unit, spec):
 
 # ================================================================================================ the replay ==========
 class Replay:
-    """The log's windows on the three chains: initial states, controls on a 1 ms grid, measured samples."""
+    """The log's windows on the two chains: initial states, controls on a 1 ms grid, measured samples."""
 
     def __init__(self, log, win, shared):
         self.log, self.win = log, win
@@ -467,7 +469,11 @@ class ChainProblem:
         return r.reshape(len(models), nw, -1)
 
     def scores(self, model, latency):
-        return np.sum(self.residual([model], [latency])[0] ** 2, axis=1)
+        """(windows, chain joints): each joint's column of ulab's score (its residual's squares summed over the
+        window's samples and the three measurements)."""
+        r = self.residual([model], [latency])[0]
+        nj = len(CHAINS[self.chain])
+        return np.sum(r.reshape(len(self.windows), -1, nj, 3) ** 2, axis=(1, 3))
 
 
 # ================================================================================================ the judge ==========
@@ -513,19 +519,64 @@ def percentile(value, draws):
     return {"value": float(value), "lo": at(a), "hi": at(1.0 - a)}
 
 
+def bootstrap_mean(x, rng):
+    """The mean of `x` (one value per held-out window) with its percentile bootstrap interval over windows."""
+    x = np.asarray(x, float)
+    if len(x) < 2:
+        return {"value": float(x.mean()), "lo": float(x.mean()), "hi": float(x.mean())}
+    idx = rng.integers(0, len(x), size=(BOOTSTRAP, len(x)))
+    return percentile(x.mean(), x[idx].mean(1))
+
+
 def bootstrap_cut(before, after, rng):
+    """Relative cut of the gap metric (window totals), 1 − Σ after / Σ before, with its bootstrap interval: reported
+    beside the evidence, not decided on."""
     n = len(before)
     v = 1.0 - after.sum() / before.sum()
     idx = rng.integers(0, n, size=(BOOTSTRAP, n))
     return percentile(v, 1.0 - after[idx].sum(1) / before[idx].sum(1))
 
 
-def paired_difference(before, after_a, after_b, rng):
-    """Interval of candidate a's cut minus candidate b's (paired over held-out windows)."""
-    n = len(before)
-    v = (after_b.sum() - after_a.sum()) / before.sum()
-    idx = rng.integers(0, n, size=(BOOTSTRAP, n))
-    return percentile(v, (after_b[idx].sum(1) - after_a[idx].sum(1)) / before[idx].sum(1))
+def noise_per_joint(log, limit):
+    """Per joint, the score the log's sensor noise alone would leave (ulab's stats::noise_per_joint): per channel the
+    noise deviation from the median absolute second difference of its samples (white noise of deviation s gives
+    second differences of deviation sqrt(6) s, whose median absolute value is 0.6745 times that; smooth motion hardly
+    contributes at the log's rate), in the gap metric's scales, averaged over angle, speed and torque."""
+    if len(log.t) < 3:
+        return np.zeros(NJ)
+
+    def var(x):
+        d = np.abs(x[2:] - 2.0 * x[1:-1] + x[:-2])
+        sigma = np.median(d, axis=0) / (0.67448975 * np.sqrt(6.0))
+        return sigma * sigma
+
+    sigma_tau = SIGMA_TAU_FRAC * np.maximum(limit, 1.0)
+    return (var(log.q) / SIGMA_Q ** 2 + var(log.dq) / SIGMA_DQ ** 2 + var(log.tau) / sigma_tau ** 2) / 3.0
+
+
+def log_gain(before, after, nu, cols=None):
+    """Per window, the held-out log-likelihood gain of `after` over `before` (windows x columns: the joints, then the
+    IMU) on `cols` (None: every column), Σ_c ln((before + ν_c) / (after + ν_c)), in nats without the factor n/2
+    (ulab's stats::log_gain). With each column of each window given its own unknown variance, a window's Gaussian
+    log-likelihood is −(n/2) Σ_c ln(score_c): no window or joint with a large residual for other reasons outweighs the
+    rest, and an effect local to a few joints is not diluted. ν_c, the column's noise score (at least SCORE_FLOOR),
+    is what no model removes."""
+    nu = np.maximum(nu, SCORE_FLOOR)
+    g = np.log((before + nu) / (after + nu))
+    if cols is not None:
+        g = g[:, cols]
+    return g.sum(axis=1)
+
+
+def unit_columns(unit):
+    """The score columns a unit is judged on (ulab's Unit::score_columns): its limb's joints, every column for the
+    robot, the IMU's for the IMU."""
+    if unit == "robot":
+        return list(range(NJ + 1))
+    if unit == "imu":
+        return [NJ]
+    j = unit_joints(unit)[0]
+    return next(js for js in LIMBS.values() if j in js)
 
 
 def validity(rp, kind, unit, value):
@@ -567,6 +618,8 @@ class Judge:
         win = rp.win
         self.train = {c: ChainProblem(rp, c, rp.chains[c], win.train) for c in CHAINS}
         self.test = {c: ChainProblem(rp, c, rp.chains[c], win.test) for c in CHAINS}
+        # Per score column (the joints, then the IMU), what the log's sensor noise alone would leave (the IMU's: 0).
+        self.nu = np.append(noise_per_joint(rp.log, rp.limit), 0.0)
         self.fits = 0
 
     # --- the base: what the named effects leave -------------------------------------------------------------------
@@ -578,7 +631,16 @@ class Judge:
         self.base_imu_test = self.rp.imu.scores(self.rp.win.test, named.torso_offset, named.imu_bias)
 
     def before(self):
-        return sum(self.base_test[c] for c in CHAINS) + self.base_imu_test
+        """(held-out windows, columns) scores the named effects leave: the joints, then the IMU."""
+        m = np.zeros((len(self.rp.win.test), NJ + 1))
+        for c in CHAINS:
+            m[:, CHAINS[c]] = self.base_test[c]
+        m[:, NJ] = self.base_imu_test
+        return m
+
+    def train_residual(self, chain):
+        """Per joint of the chain, its training residual summed over windows (what ranks a limb's joints)."""
+        return dict(zip(CHAINS[chain], self.base_train[chain].sum(axis=0)))
 
     # --- fitting ----------------------------------------------------------------------------------------------------
     def optimize(self, params, fn):
@@ -624,11 +686,12 @@ class Judge:
         if below_resolution(kind, value):
             return None
         model = sysid.apply_param_modifiers(opt, spec)
-        delta = self.test[chain].scores(model, lat) - self.base_test[chain]
+        # The held-out columns the candidate changes: its chain's joints (and the IMU for the waist's offset).
+        cols = [(CHAINS[chain], self.test[chain].scores(model, lat))]
         if kind == "encoder_offset" and 12 in unit_joints(unit):
-            delta = delta + self.rp.imu.scores(self.rp.win.test, named.torso_offset + value, named.imu_bias) \
-                - self.base_imu_test
-        return {"kind": kind, "unit": unit, "value": value, "u": u, "chain": chain, "delta": delta,
+            imu = self.rp.imu.scores(self.rp.win.test, named.torso_offset + value, named.imu_bias)
+            cols.append(([NJ], imu[:, None]))
+        return {"kind": kind, "unit": unit, "value": value, "u": u, "chain": chain, "cols": cols,
                 "invalid": validity(self.rp, kind, unit, value), "opt": opt, "fn": fn, "spec": spec}
 
     def fit_latency(self, named):
@@ -649,8 +712,8 @@ class Judge:
         if below_resolution("latency", value):
             return None
         lat = named.latency + value
-        delta = sum(self.test[c].scores(models[c], lat) - self.base_test[c] for c in CHAINS)
-        return {"kind": "latency", "unit": "robot", "value": value, "chain": None, "delta": delta,
+        cols = [(CHAINS[c], self.test[c].scores(models[c], lat)) for c in CHAINS]
+        return {"kind": "latency", "unit": "robot", "value": value, "chain": None, "cols": cols,
                 "invalid": validity(self.rp, "latency", "robot", value), "opt": opt, "fn": fn}
 
     def fit_imu_bias(self, named):
@@ -674,7 +737,7 @@ class Judge:
             return None
         after = self.rp.imu.scores(self.rp.win.test, named.torso_offset, axes)
         return {"kind": "imu_bias", "unit": "imu", "value": float(np.linalg.norm(axes)), "axes": axes.tolist(),
-                "chain": None, "delta": after - self.base_imu_test, "invalid": validity(self.rp, "imu_bias", "imu", axes),
+                "chain": None, "cols": [([NJ], after[:, None])], "invalid": validity(self.rp, "imu_bias", "imu", axes),
                 "opt": opt, "fn": fn}
 
     # --- the selection ----------------------------------------------------------------------------------------------
@@ -688,15 +751,16 @@ class Judge:
         dirty = set(CHAINS)
         while True:
             if len(out) >= MAX_EFFECTS:
-                steps.append({"candidates": [], "abstention": "enough",
+                steps.append({"candidates": [], "winner": None, "rivals": [], "ambiguous": [], "abstention": "enough",
                               "reason": f"{MAX_EFFECTS} effects are named, the most the judge names"})
                 break
             done = {e["kind"] for e in out}
             open_kinds = [k for k in self.kinds if k not in done]
             for c in dirty:
                 cache[c] = []
+                units = units_of_chain(c, self.train_residual(c))
                 for kind in [k for k in open_kinds if k in JOINT_KINDS]:
-                    for unit in units_of_chain(c):
+                    for unit in units:
                         f = self.fit_joint_kind(named, kind, unit)
                         if f is not None:
                             cache[c].append(f)
@@ -709,13 +773,24 @@ class Judge:
                 cands += [f] if f else []
             before = self.before()
             for f in cands:
-                f["after"] = before + f["delta"]
-                f["cut"] = bootstrap_cut(before, f["after"], self.rng)
-                f["size"] = size_of(f["kind"], f.get("axes", f["value"]))
-            cands.sort(key=lambda f: -f["cut"]["value"])
+                after = before.copy()
+                for cs, v in f["cols"]:
+                    after[:, cs] = v
+                f["after"] = after
+                # ulab ranks its candidates for exact replay by the absolute held-out cut on the unit's own columns.
+                f["rank_cut"] = float((before - after)[:, unit_columns(f["unit"])].sum())
+            cands.sort(key=lambda f: -f["rank_cut"])
             exact = cands[:EXACT_CANDIDATES]
-            step = decide(exact, lambda a, b: paired_difference(before, exact[a]["after"], exact[b]["after"],
-                                                                self.rng))
+            gains = [log_gain(before, f["after"], self.nu) for f in exact]
+            for f, g in zip(exact, gains):
+                f["gain_w"] = g
+                f["gain"] = bootstrap_mean(g, self.rng)
+                f["local_gain"] = bootstrap_mean(log_gain(before, f["after"], self.nu, unit_columns(f["unit"])),
+                                                 self.rng)
+                f["cut"] = bootstrap_cut(before.sum(1), f["after"].sum(1), self.rng)
+                f["size"] = size_of(f["kind"], f.get("axes", f["value"]))
+            exact.sort(key=lambda f: -f["gain"]["value"])
+            step = decide(exact, lambda a, b: bootstrap_mean(exact[a]["gain_w"] - exact[b]["gain_w"], self.rng))
             step["candidates"] = [public(f) for f in exact]
             step["gap_before"] = float(before.sum())
             steps.append(step)
@@ -746,16 +821,18 @@ class Judge:
         return {w["chain"]}
 
 
-def units_of_chain(chain):
-    """ulab's units on a chain: each limb (the waist, a limb of one joint, by its joint's name) and each joint of a
-    limb of more than one."""
+def units_of_chain(chain, residual):
+    """ulab's units on a chain: each limb (the waist, a limb of one joint, by its joint's name) and, of each limb of
+    more than one joint, the JOINTS_PER_LIMB joints with the largest training `residual` (joint -> value; an effect at
+    a joint shows at that joint and the joints that carry its link, and a limb's wrists and ankle roll carry little)."""
     out = []
     for limb, js in LIMBS.items():
         if js[0] not in CHAINS[chain]:
             continue
         out.append(limb if len(js) > 1 else MOTORS[js[0]])
         if len(js) > 1:
-            out += [MOTORS[j] for j in js]
+            ranked = sorted(js, key=lambda j: -residual[j])
+            out += [MOTORS[j] for j in ranked[:JOINTS_PER_LIMB]]
     return out
 
 
@@ -776,49 +853,79 @@ def interval(f):
 
 
 def public(f):
-    return {k: v for k, v in f.items() if k in ("kind", "unit", "value", "axes", "size", "cut", "invalid")}
+    return {k: v for k, v in f.items()
+            if k in ("kind", "unit", "value", "axes", "size", "gain", "local_gain", "cut", "invalid")}
 
 
 def decide(c, diff):
-    """ulab's decision over `c` (best cut first): the winner, its rivals, and whether it is named."""
-    def step(winner, rivals, abstention, reason):
-        return {"winner": winner, "rivals": rivals, "abstention": abstention, "reason": reason}
+    """ulab's decision of one step (judge.rs, `decide`) over `c` (best gain first): `diff(a, b)` is the paired
+    interval of candidate a's gain minus candidate b's. Returns the winner, its rivals, the regions the log cannot
+    attribute, and the abstention (None: the winner is named)."""
+    def step(winner, rivals, ambiguous, abstention, reason):
+        return {"winner": winner, "rivals": rivals, "ambiguous": ambiguous, "abstention": abstention,
+                "reason": reason}
 
-    valid = [i for i, f in enumerate(c) if f["invalid"] is None]
-    if not valid:
-        return step(None, [], "no_candidate", "no effect of the library fits the log")
-    winner = valid[0]
-    for i in range(len(c)):
+    def of_interest(i):
+        return c[i]["invalid"] is None and c[i]["size"] >= MIN_SIZE
+
+    def name(i):
+        return f"{c[i]['kind']} on {c[i]['unit']}"
+
+    ambiguous, first_tie = [], None
+    for best in range(len(c)):
+        if not of_interest(best) or any(overlaps(c[k]["unit"], c[best]["unit"]) for r in ambiguous for k in r):
+            continue
+        # Of the same kind on nested units that the log cannot rank, the larger unit.
+        winner = best
+        for i in range(len(c)):
+            w = c[winner]
+            if i == winner or not of_interest(i) or c[i]["kind"] != w["kind"] or not contains(c[i]["unit"], w["unit"]):
+                continue
+            if diff(winner, i)["lo"] <= 0.0:
+                winner = i
         w = c[winner]
-        if i == winner or c[i]["invalid"] is not None or c[i]["kind"] != w["kind"] \
-                or not contains(c[i]["unit"], w["unit"]):
+        g = w["gain"]
+        if g["lo"] < MIN_GAIN:
+            tied = f"; {c[first_tie[0]]['kind']} was set aside, tied with rivals on its joints" if first_tie else ""
+            reason = (f"the best remaining effect of interest, {name(winner)} = {w['value']:.4g}, gains "
+                      f"{g['value']:.3f} [{g['lo']:.3f}, {g['hi']:.3f}] in held-out log-likelihood per window (cutting "
+                      f"{100 * w['cut']['value']:.1f} % of the remaining gap metric): its lower bound is under the "
+                      f"{MIN_GAIN} a named effect must gain{tied}")
+            tw, tr = first_tie if first_tie else (winner, [])
+            return step(tw, tr, ambiguous, "tied" if ambiguous else "gain_below_floor", reason)
+        wu = w["unit"]
+        rivals = []
+        for i in range(len(c)):
+            if i == winner:
+                continue
+            u = c[i]["unit"]
+            nested_same = c[i]["kind"] == w["kind"] and (contains(u, wu) or contains(wu, u))
+            if not nested_same and overlaps(u, wu) and diff(winner, i)["lo"] <= 0.0:
+                rivals.append(i)
+        if rivals:
+            ambiguous.append([winner] + rivals)
+            if first_tie is None:
+                first_tie = (winner, rivals)
             continue
-        if diff(winner, i)["lo"] <= 0.0:
-            winner = i
-    w = c[winner]
-    name = f"{w['kind']} on {w['unit']}"
-    if w["cut"]["lo"] < MIN_CUT:
-        return step(winner, [], "cut_below_floor",
-                    f"the best explanation, {name}, cuts {100 * w['cut']['value']:.1f} % "
-                    f"[{100 * w['cut']['lo']:.1f}, {100 * w['cut']['hi']:.1f}] of the remaining held-out gap")
-    if w["size"] < MIN_SIZE:
-        return step(winner, [], "too_small",
-                    f"the best explanation, {name} = {w['value']:.4g}, is {100 * w['size']:.0f} % of the size of "
-                    "interest")
-    rivals = []
-    for i in range(len(c)):
-        if i == winner or c[i]["invalid"] is not None:
-            continue
-        u, wu = c[i]["unit"], w["unit"]
-        nested_same = c[i]["kind"] == w["kind"] and (contains(u, wu) or contains(wu, u))
-        if not nested_same and overlaps(u, wu) and diff(winner, i)["lo"] <= 0.0:
-            rivals.append(i)
-    if rivals:
-        return step(winner, rivals, "tied",
-                    f"{name} cuts {100 * w['cut']['value']:.1f} % but the log cannot rank it above "
-                    + ", ".join(f"{c[i]['kind']} on {c[i]['unit']}" for i in rivals))
-    return step(winner, [], None, f"named: {name} = {w['value']:.4g} cuts {100 * w['cut']['value']:.1f} % "
-                f"[{100 * w['cut']['lo']:.1f}, {100 * w['cut']['hi']:.1f}] of the remaining held-out gap")
+        return step(winner, [], ambiguous, None,
+                    f"named: {name(winner)} = {w['value']:.4g} gains {g['value']:.3f} [{g['lo']:.3f}, {g['hi']:.3f}] "
+                    f"in held-out log-likelihood per window (cutting {100 * w['cut']['value']:.1f} % of the remaining "
+                    f"gap metric), at {100 * w['size']:.0f} % of the size the library resolves, and no other "
+                    "explanation of its joints gains as much")
+    if first_tie is not None:
+        winner, rivals = first_tie
+        return step(winner, rivals, ambiguous, "tied",
+                    f"{name(winner)} gains {c[winner]['gain']['value']:.3f} per window, but the log cannot rank it "
+                    f"above {', '.join(name(i) for i in rivals)} on the same joints (their gains' paired "
+                    f"{100 * CONFIDENCE:.0f} % interval holds 0), and no other effect of interest remains")
+    if not c:
+        return step(None, [], ambiguous, "no_candidate", "no effect of the library fits the log")
+    f = c[0]
+    why = f["invalid"] or (f"is {100 * f['size']:.0f} % of the size the library resolves, under the "
+                           f"{100 * MIN_SIZE:.0f} % of an effect of interest: a correction of that size is what one "
+                           "simulator needs to match another")
+    return step(None, [], ambiguous, "no_candidate",
+                f"no effect of interest remains: the best fit, {name(0)} = {f['value']:.4g}, {why}")
 
 
 # ================================================================================================= a log ==============
@@ -834,21 +941,25 @@ def diagnose(path, out_dir, shared, max_iters):
         effects.append({"kind": f["kind"], "named": True,
                         "params": [{"unit": f["unit"], "value": f["value"]}] if "axes" not in f else
                         [{"unit": f"imu_{a}", "value": v} for a, v in zip("xyz", f["axes"])],
-                        "interval_95": f.get("interval"), "size": f["size"], "cut": f["cut"]})
+                        "interval_95": f.get("interval"), "size": f["size"], "gain": f["gain"], "cut": f["cut"]})
     last = steps[-1]
     if last.get("winner") is not None and last["abstention"] not in (None, "enough"):
         f = last["candidates"][last["winner"]]
         effects.append({"kind": f["kind"], "named": False, "params": [{"unit": f["unit"], "value": f["value"]}],
-                        "size": f["size"], "cut": f["cut"], "why_not": last["abstention"]})
+                        "size": f["size"], "gain": f["gain"], "cut": f["cut"], "why_not": last["abstention"]})
     wall, cpu = time.time() - t0, time.process_time() - c0
     report = {
-        "schema": "ulab-gap-sysid-baseline/1",
+        "schema": "ulab-gap-sysid-baseline/2",
         "log": os.path.abspath(path),
         "method": "mujoco.sysid " + mujoco.__version__ + ": one sysid.Parameter per (kind x unit), fitted by "
                   "sysid.optimize (mujoco Gauss-Newton) on the training windows, judged on the held-out windows",
         "effects": effects,
         "verdict": last["reason"],
         "steps": steps,
+        "thresholds": {"confidence": CONFIDENCE, "min_gain": MIN_GAIN, "min_size": MIN_SIZE,
+                       "max_effects": MAX_EFFECTS, "exact_candidates": EXACT_CANDIDATES,
+                       "joints_per_limb": JOINTS_PER_LIMB, "score_floor": SCORE_FLOOR, "bootstrap": BOOTSTRAP},
+        "noise_per_joint": judge.nu[:NJ].tolist(),
         "windows": {"train": len(win.train), "test": len(win.test), "length_s": win.len * win.dt_state},
         "baseline_gap_test": baseline,
         "gains_vary": rp.gains_vary,
@@ -905,6 +1016,64 @@ def main():
     json.dump(dict(prev, **times), open(tpath, "w"), indent=1, sort_keys=True)
 
 
+def check_decide():
+    """The decision on hand-made candidates (the cases of ulab's judge.rs tests): returns the failures."""
+    def cand(kind, unit, gain, size, invalid=None):
+        e = {"value": gain, "lo": gain - 0.02, "hi": gain + 0.02}
+        return {"kind": kind, "unit": unit, "value": 1.0, "size": size, "gain": e, "cut": e, "invalid": invalid}
+
+    def diff(c, gap):
+        def d(a, b):
+            v = c[a]["gain"]["value"] - c[b]["gain"]["value"]
+            return {"value": v, "lo": v - gap, "hi": v + gap}
+        return d
+
+    cases = [
+        ("the best is named", [cand("friction", "left_elbow", 0.6, 1.5), cand("damping", "left_elbow", 0.3, 1.0)],
+         0.1, (0, None)),
+        ("a rival on the same joints", [cand("friction", "left_elbow", 0.6, 1.5), cand("damping", "left_arm", 0.55, 1.0)],
+         0.1, (0, "tied")),
+        ("no rival on other joints", [cand("friction", "left_elbow", 0.6, 1.5), cand("damping", "left_knee", 0.55, 1.0)],
+         0.1, (0, None)),
+        ("a tied region set aside", [cand("friction", "left_elbow", 0.9, 1.5), cand("damping", "left_arm", 0.85, 1.0),
+                                     cand("armature", "left_knee", 0.6, 2.0)], 0.1, (2, None)),
+        ("a small correction is a rival", [cand("damping", "left_elbow", 0.9, 0.3),
+                                           cand("friction", "left_elbow", 0.85, 1.5)], 0.1, (1, "tied")),
+        ("ranked above a small correction", [cand("friction", "left_elbow", 0.9, 1.5),
+                                             cand("damping", "left_elbow", 0.5, 0.3)], 0.1, (0, None)),
+        ("an invalid fit is a rival", [cand("armature", "left_elbow", 1.5, 8.0, "at the bound"),
+                                       cand("link_mass", "left_elbow", 0.7, 5.0)], 0.1, (1, "tied")),
+        ("nested units unranked: the larger", [cand("friction", "left_elbow", 0.6, 1.5),
+                                               cand("friction", "left_arm", 0.58, 1.2)], 0.1, (1, None)),
+        ("nested units ranked: the joint", [cand("friction", "left_elbow", 0.6, 1.5),
+                                            cand("friction", "left_arm", 0.58, 1.2)], 0.01, (0, None)),
+        ("a small gain", [cand("friction", "left_elbow", 0.31, 1.5)], 0.1, (0, "gain_below_floor")),
+        ("a small size", [cand("friction", "left_elbow", 0.6, 0.3)], 0.1, (None, "no_candidate")),
+        ("an invalid fit", [cand("friction", "left_elbow", 0.6, 1.5, "at the bound")], 0.1, (None, "no_candidate")),
+        ("the robot overlaps every joint", [cand("gain_scale", "left_knee", 0.6, 1.5),
+                                            cand("latency", "robot", 0.59, 1.0)], 0.1, (0, "tied")),
+        ("the IMU overlaps no joint", [cand("encoder_offset", "torso", 0.6, 1.5),
+                                       cand("imu_bias", "imu", 0.59, 1.0)], 0.1, (0, None)),
+    ]
+    failures = []
+    # The gain (ulab's stats.rs test): a column halved counts fully, an unchanged larger one not at all, a column at
+    # the noise level little.
+    before, after = np.tile([1.0, 10.0], (4, 1)), np.tile([0.5, 10.0], (4, 1))
+    ok = (np.allclose(log_gain(before, after, np.zeros(2)), np.log(1.01 / 0.51))
+          and np.allclose(log_gain(before, after, np.zeros(2), [1]), 0.0)
+          and np.allclose(log_gain(np.array([[0.2]]), np.array([[0.1]]), np.array([1.0])), np.log(1.2 / 1.1)))
+    print(f"log-likelihood gain: {'ok' if ok else 'FAIL'}", flush=True)
+    if not ok:
+        failures.append("log-likelihood gain")
+    for what, c, gap, want in cases:
+        s = decide(c, diff(c, gap))
+        got = (s["winner"], s["abstention"])
+        print(f"decision, {what}: {got} {'ok' if got == want else 'FAIL, want ' + str(want)}", flush=True)
+        if got != want:
+            failures.append(f"decision: {what}")
+    return failures
+
+
 def self_check(shared, out_dir):
     """Checks that can fail: (1) the CDR decoder reads what Unitree's SDK reads; (2) for every kind the baseline fits,
     the plant of tests/gap/suspended_plant.py run noise-free with that effect is replayed here to within float32
@@ -917,6 +1086,7 @@ def self_check(shared, out_dir):
 
     os.makedirs(out_dir, exist_ok=True)
     os.environ["ULAB_SHARED"] = shared
+    failures = check_decide()
     cases = [
         (None, None, None, []),
         ("damping", "left_knee", 2.0, ["--extra-damping", "left_knee_joint=2.0"]),
@@ -931,7 +1101,6 @@ def self_check(shared, out_dir):
         ("latency", "robot", 12.0, ["--latency-ms", "12"]),
         ("imu_bias", "imu", 0.1, ["--gyro-bias", "y=0.1"]),
     ]
-    failures = []
     for kind, unit, value, args in cases:
         path = os.path.join(out_dir, f"check_{kind or 'none'}.mcap")
         plant.main([path, "--duration", "3", "--chirp-scale", "1.0", "--seed", "3", "--shared", shared] + args)
@@ -976,7 +1145,7 @@ def self_check(shared, out_dir):
             if kind == "encoder_offset" and unit == "torso":
                 named.torso_offset = value
         judge.base_scores(named, CHAINS)
-        joints = float(sum(judge.base_test[c] for c in CHAINS).sum()) / len(win.test)
+        joints = float(sum(judge.base_test[c].sum() for c in CHAINS)) / len(win.test)
         imu = float(rp.imu.scores(win.test, named.torso_offset, bias).sum()) / len(win.test)
         # The same physics replays the joints to within float32 logging (~1e-9 a window); the IMU, predicted from the
         # logged waist as ulab predicts it, keeps the plant's one-step lag of its sensors (~0.05 a window).
