@@ -13,6 +13,8 @@ bash scripts/setup.sh
 phase setup
 source scripts/env.sh
 export CARGO_TERM_COLOR=never
+# A clean clone compiles everything once: incremental compilation's bookkeeping only costs time there.
+if [ "${CI:-}" = true ]; then export CARGO_INCREMENTAL=0; fi
 # Snapshot tests must fail on a mismatch, never write new snapshots.
 export INSTA_UPDATE=no
 # Hygiene gate (issue 18), before the tests: formatting; no dependency its sources never name (scripts/unused_deps.py);
@@ -30,7 +32,7 @@ cargo test --workspace --locked --no-run
 phase build
 # A failing test does not skip the doc tests or the fuzz smoke run: one CI log reports all; the exit status keeps the
 # failure. nextest runs each test in its own process, two at a time on two cores (.config/nextest.toml: the slow-test
-# report, no retries, each real-time test alone); it does not run doc tests, `cargo test --doc` does.
+# report, no retries, real-time tests one at a time); it does not run doc tests, `cargo test --doc` does.
 logs=target/test-logs
 mkdir -p "$logs"
 status=0

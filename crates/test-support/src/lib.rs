@@ -78,7 +78,8 @@ pub fn lease_domain() -> DomainLease {
     DomainLease::new()
 }
 
-/// Exclusive use of the machine for one real-time test (a simulator with its clients, a DDS rate measurement).
+/// The one real-time test of the machine (a simulator with its clients, a DDS rate measurement): no other real-time
+/// test runs beside it; ordinary tests may (nextest gives it a core of its own, `.config/nextest.toml`).
 /// Machine-wide and blocking: waits for the slot, released on drop or when the process dies.
 #[derive(Debug)]
 pub struct RealtimeSlot {
