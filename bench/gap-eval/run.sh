@@ -1,10 +1,12 @@
 #!/usr/bin/env bash
-# The gap diagnosis's development and evaluation sets (issue 57). The evaluation sets are fixed here before the
-# decision model they judge was designed, and are run only to report; the development sets are for looking at.
+# The gap diagnosis's development and evaluation sets (issue 57). An evaluation split is fixed here before the
+# decision model it judges is designed, and is run only to report; the development sets are for looking at.
+# `eval` judged the judge of 65e947d and has been read since; `eval2` (fixed at 2554d96, never run before a change)
+# judges any later change of the decision model, reported beside `eval` and `dev`.
 #
-#   bench/gap-eval/run.sh dev|eval [SET...]     generate the logs, diagnose them, score them strictly
-#   bench/gap-eval/run.sh rediagnose dev|eval [SET...]   diagnose the logs already there again (labels kept)
-#   bench/gap-eval/run.sh score dev|eval        score what is there
+#   bench/gap-eval/run.sh dev|eval|eval2 [SET...]     generate the logs, diagnose them, score them strictly
+#   bench/gap-eval/run.sh rediagnose dev|eval|eval2 [SET...]   diagnose the logs already there again (labels kept)
+#   bench/gap-eval/run.sh score dev|eval|eval2        score what is there
 #
 # Output: out/gap-eval/<split>/<set>/ (logs, labels, one report per trial) and out/gap-eval/<split>/score.{md,json}.
 # Sets: four of `ulab gap bench` (reference plants Rapier multibody and DART, each under the excitation plan and
@@ -16,7 +18,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 source scripts/env.sh
-split=${1:?usage: run.sh dev|eval [SET...] | run.sh score dev|eval}
+split=${1:?usage: run.sh dev|eval|eval2 [SET...] | run.sh score dev|eval|eval2}
 shift
 BIN=${ULAB_BIN:-target/release/ulab}
 JOBS=${ULAB_EVAL_JOBS:-1}
@@ -29,6 +31,13 @@ EVAL_SETS=(
   "dart-plan bench 9003 --reference-engine dart --trials 12 --out-of-library 2"
   "dart-chirp bench 9004 --reference-engine dart --trials 12 --out-of-library 2 --gentle-chirp"
   "mujoco-py mujoco 9005 --trials 16 --out-of-library 2"
+)
+EVAL2_SETS=(
+  "rapier-plan bench 9101 --reference-engine rapier_multibody --trials 12 --out-of-library 2"
+  "rapier-chirp bench 9102 --reference-engine rapier_multibody --trials 12 --out-of-library 2 --gentle-chirp"
+  "dart-plan bench 9103 --reference-engine dart --trials 12 --out-of-library 2"
+  "dart-chirp bench 9104 --reference-engine dart --trials 12 --out-of-library 2 --gentle-chirp"
+  "mujoco-py mujoco 9105 --trials 24 --out-of-library 4"
 )
 DEV_SETS=(
   "rapier-plan bench 101 --reference-engine rapier_multibody --trials 12 --out-of-library 2"
@@ -46,12 +55,13 @@ score() {
 }
 
 rediagnose=false
-if [ "$split" = rediagnose ]; then rediagnose=true; split=${1:?dev or eval}; shift; fi
+if [ "$split" = rediagnose ]; then rediagnose=true; split=${1:?dev, eval or eval2}; shift; fi
 case "$split" in
-  score) score "${1:?dev or eval}"; exit 0 ;;
+  score) score "${1:?dev, eval or eval2}"; exit 0 ;;
   eval) sets=("${EVAL_SETS[@]}") ;;
+  eval2) sets=("${EVAL2_SETS[@]}") ;;
   dev) sets=("${DEV_SETS[@]}") ;;
-  *) echo "usage: run.sh dev|eval [SET...] | run.sh rediagnose dev|eval [SET...] | run.sh score dev|eval" >&2; exit 2 ;;
+  *) echo "usage: run.sh dev|eval|eval2 [SET...] | run.sh rediagnose dev|eval|eval2 [SET...] | run.sh score dev|eval|eval2" >&2; exit 2 ;;
 esac
 [ -x "$BIN" ] || cargo build --release --locked -p ulab
 mkdir -p "out/gap-eval/$split"
