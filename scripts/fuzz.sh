@@ -8,7 +8,9 @@
 #                                       seed so that a red smoke run replays the same inputs on the same commit
 #   scripts/fuzz.sh smoke-all SECONDS   the same for every target, engine_divergence included (nightly: its
 #                                       release build of three engines with coverage takes minutes)
-# New crashes land in fuzz/artifacts/TARGET/; copy minimized ones to corpus/regressions/TARGET/.
+# Seeds: fuzz/corpus/TARGET/{seeds,regressions} (fuzz/corpus/README.md). New crashes land in fuzz/artifacts/TARGET/;
+# copy minimized ones to fuzz/corpus/TARGET/regressions/. With cargo-fuzz and nightly (address sanitizer):
+# `cargo +nightly fuzz run TARGET` (scripts/setup.sh --fuzz installs cargo-fuzz).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PROTOCOL_TARGETS=(decode_any crc roundtrip)
@@ -30,10 +32,11 @@ run() {
   local target=$1 seconds=$2 seed=${3:-0} work
   work=$(mktemp -d)
   mkdir -p "fuzz/artifacts/$target"
-  # Work corpus in a temp dir: the committed seeds and regressions are only read (if present:
-  # git does not keep empty folders, and libFuzzer refuses a missing one).
+  # Work corpus in a temp dir: the committed seeds and regressions are only read, and the inputs a local
+  # `cargo fuzz run` left beside them are not (a CI run starts from what is committed). Only folders that exist:
+  # git does not keep empty ones, and libFuzzer refuses a missing one.
   local dirs=("$work")
-  for d in "corpus/fuzz/$target" "corpus/regressions/$target"; do [ -d "$d" ] && dirs+=("$d"); done
+  for d in "fuzz/corpus/$target/seeds" "fuzz/corpus/$target/regressions"; do [ -d "$d" ] && dirs+=("$d"); done
   local status=0
   # -seed=0 asks libFuzzer for a random seed.
   "$BIN/$target" -seed="$seed" -max_total_time="$seconds" -print_final_stats=1 -artifact_prefix="fuzz/artifacts/$target/" \

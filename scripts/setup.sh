@@ -4,8 +4,18 @@
 # DART 6.12 with its URDF loader and ODE collision detector for the `dart` engine),
 # a Python venv with the oracle packages and a static ffmpeg (imageio-ffmpeg, for the videos), and the MuJoCo shared library from the PyPI wheel.
 # Idempotent: a second run only checks.
+#   scripts/setup.sh          what building, `scripts/test.sh` (CI) and `scripts/run.sh` need
+#   scripts/setup.sh --fuzz   the same, plus cargo-fuzz from crates.io for `cargo +nightly fuzz run TARGET` (kept out
+#                             of the default: its build costs CI minutes, and CI fuzzes on stable with scripts/fuzz.sh)
 set -euo pipefail
 cd "$(dirname "$0")/.."
+FUZZ=0
+for arg in "$@"; do
+  case "$arg" in
+    --fuzz) FUZZ=1 ;;
+    *) echo "usage: $0 [--fuzz]" >&2; exit 2 ;;
+  esac
+done
 source scripts/env.sh
 
 APT_PACKAGES=(cmake make g++ libclang-dev clang pkg-config cyclonedds-dev cyclonedds-tools
@@ -28,6 +38,20 @@ if ! cargo nextest --version >/dev/null 2>&1; then
   cargo install --locked --quiet cargo-nextest --version 0.9.143 --no-default-features --features default-no-update
 fi
 
+# cargo-fuzz (--fuzz only). Its address-sanitizer build needs a nightly toolchain, which rustup installs; without one
+# the stable path stays: scripts/fuzz.sh.
+if [ "$FUZZ" = 1 ]; then
+  if ! cargo fuzz --version >/dev/null 2>&1; then
+    echo "setup: installing cargo-fuzz from crates.io"
+    cargo install --locked --quiet cargo-fuzz --version 0.13.2
+  fi
+  if ! cargo +nightly --version >/dev/null 2>&1; then
+    echo "setup: installing the nightly toolchain (cargo fuzz's address sanitizer needs it)"
+    rustup toolchain install nightly --profile minimal \
+      || echo "setup: no nightly toolchain; fuzz on stable with scripts/fuzz.sh (no address sanitizer)" >&2
+  fi
+fi
+
 if [ ! -x "$ULAB_PYTHON" ]; then
   echo "setup: creating Python venv in .venv"
   python3 -m venv "$ULAB_VENV"
@@ -44,3 +68,4 @@ lib=$("$ULAB_PYTHON" -c "import mujoco, os, glob; print(sorted(glob.glob(os.path
 ln -sf "$lib" "$MUJOCO_DYNAMIC_LINK_DIR/libmujoco.so"
 ln -sf "$lib" "$MUJOCO_DYNAMIC_LINK_DIR/$(basename "$lib")"
 echo "setup: ok (MuJoCo: $lib)"
+[ "$FUZZ" = 0 ] || echo "setup: fuzzing: $(cargo fuzz --version), $(cargo +nightly --version 2>/dev/null || echo no nightly)"

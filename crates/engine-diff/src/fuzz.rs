@@ -180,10 +180,9 @@ pub fn oracle_findings(result: &EpisodeResult, allow: &AllowList) -> Vec<harness
 }
 
 /// The whole check of the `engine_divergence` cargo-fuzz target, kept here so that `cargo test` replays the
-/// saved inputs (`corpus/regressions/engine_divergence/`, `corpus/fuzz/engine_divergence/`) through exactly
-/// what the fuzzer runs. The input chooses the pair of engines ([`oracle_pair`]). Engines are built once per
-/// kind and ground friction and reset per input (`Engine::reset` is a true reset), because building them
-/// dominates a 40 ms rollout.
+/// saved inputs (`fuzz/corpus/engine_divergence/{regressions,seeds}/`) through exactly what the fuzzer runs.
+/// The input chooses the pair of engines ([`oracle_pair`]). Engines are built once per kind and ground friction
+/// and reset per input (`Engine::reset` is a true reset), because building them dominates a 40 ms rollout.
 pub struct DivergenceOracle {
     model: RobotModel,
     allow: AllowList,

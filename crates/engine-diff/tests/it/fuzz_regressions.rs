@@ -1,5 +1,6 @@
-//! Replays every saved `engine_divergence` fuzz input (`corpus/regressions/engine_divergence/`: inputs that
-//! once aborted the target, named for what they exercise; `corpus/fuzz/engine_divergence/`: the seeds)
+//! Replays every saved `engine_divergence` fuzz input (`fuzz/corpus/engine_divergence/regressions/`: inputs
+//! that once aborted the target, named for what they exercise; `fuzz/corpus/engine_divergence/seeds/`: the seeds;
+//! not the inputs a local `cargo fuzz run` wrote beside them)
 //! through the oracle the fuzz target runs, decoding the bytes the way libFuzzer's typed entry point does. Each
 //! input runs on every pair the target can choose in this build (every pair of its engines; an input
 //! chooses one pair when fuzzing; inputs saved before that choice existed were found on MuJoCo against Rapier
@@ -12,7 +13,7 @@ use std::path::Path;
 
 #[test]
 fn engine_divergence_inputs_raise_no_candidate_bug() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../corpus");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fuzz/corpus/engine_divergence");
     let mut oracle = DivergenceOracle::h1_2().expect("built-in oracle");
     let allow = engine_diff::triage::AllowList::builtin().expect("allow-list");
     // Largest ratio to its bound per (lead, engine, kind, quantity, phase) over every input: the figures the
@@ -23,10 +24,7 @@ fn engine_divergence_inputs_raise_no_candidate_bug() {
     > = Default::default();
     let (mut regressions, mut seeds) = (0, 0);
     let mut failures = Vec::new();
-    for (dir, count) in [
-        (root.join("regressions/engine_divergence"), &mut regressions),
-        (root.join("fuzz/engine_divergence"), &mut seeds),
-    ] {
+    for (dir, count) in [(root.join("regressions"), &mut regressions), (root.join("seeds"), &mut seeds)] {
         let mut paths: Vec<_> =
             std::fs::read_dir(&dir).expect("corpus folder").map(|e| e.expect("entry").path()).collect();
         paths.sort();
