@@ -63,21 +63,19 @@ done
 import collections, glob, json, os, sys
 out, n, load = sys.argv[1], int(sys.argv[2]), sys.argv[3] == "1"
 runs = sorted(glob.glob(os.path.join(out, "run_*", "report.json")))
-verdicts = collections.OrderedDict()
+verdicts = {}
 for path in runs:
     for r in json.load(open(path))["results"]:
         verdicts.setdefault(r["id"], []).append(r["status"])
-rows, agree = [], 0
-for check, vs in verdicts.items():
-    counts = collections.Counter(vs)
-    same = len(counts) == 1 and len(vs) == len(runs)
-    agree += same
-    rows.append({"check": check, "counts": dict(counts), "repeats": same})
+rows = [{"check": c, "counts": dict(collections.Counter(vs)), "repeats": len(set(vs)) == 1 and len(vs) == len(runs)}
+        for c, vs in verdicts.items()]
 json.dump({"runs": len(runs), "of": n, "load": load, "checks": rows}, open(os.path.join(out, "agreement.json"), "w"), indent=1)
-with open(os.path.join(out, "agreement.md"), "w") as f:
-    f.write(f"{len(runs)} reports of {n} runs, {'one core held by yes' if load else 'quiet'}; "
-            f"{agree} of {len(rows)} checks gave the same verdict every time\n\n| check | verdicts | repeats |\n|---|---|---|\n")
-    for r in rows:
-        f.write(f"| `{r['check']}` | {', '.join(f'{k} {v}' for k, v in sorted(r['counts'].items()))} | {'yes' if r['repeats'] else 'NO'} |\n")
-print(open(os.path.join(out, "agreement.md")).read())
+lines = [f"{len(runs)} reports of {n} runs, {'one core held by yes' if load else 'quiet'}; "
+         f"{sum(r['repeats'] for r in rows)} of {len(rows)} checks gave the same verdict every time",
+         "", "| check | verdicts | repeats |", "|---|---|---|"]
+lines += [f"| `{r['check']}` | {', '.join(f'{k} {v}' for k, v in sorted(r['counts'].items()))} | "
+          f"{'yes' if r['repeats'] else 'NO'} |" for r in rows]
+table = "\n".join(lines) + "\n"
+open(os.path.join(out, "agreement.md"), "w").write(table)
+print(table)
 PY
