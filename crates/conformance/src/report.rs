@@ -6,7 +6,8 @@ use std::collections::BTreeMap;
 /// Version of the `report.json` layout; bump on any incompatible change.
 /// 2: `discovery_type_information` replaced by the decisive `interop_cyclone_010` / `interop_cyclone_11` probes;
 /// `target` gains the peer's measured LowState rate, RTPS vendor and protocol version; `settings.checks`.
-pub const REPORT_SCHEMA_VERSION: u32 = 2;
+/// 3: each result gains `probes` and `margin` (a version-2 report still reads: 1 probe, no margin).
+pub const REPORT_SCHEMA_VERSION: u32 = 3;
 
 /// Outcome of one check (the verdict).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -238,11 +239,117 @@ pub struct CheckResult {
     pub summary: String,
     /// Figures, sample counts, offending bytes (hex).
     pub evidence: BTreeMap<String, serde_json::Value>,
+    /// Probes the verdict rests on (a probing check repeats a spoilt or failing probe: `checks::decision`); 1 for a
+    /// check decided once.
+    #[serde(default = "one_probe")]
+    pub probes: u32,
+    /// The statistic that decided the verdict and how far from its threshold it fell; `None` for a categorical
+    /// check (discovery, interop) or one that could not measure.
+    #[serde(default)]
+    pub margin: Option<Margin>,
+}
+
+fn one_probe() -> u32 {
+    1
+}
+
+/// How close a decision came to its threshold.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Margin {
+    /// What was compared (`rate_hz`, `fraction_of_unsafe_effect`, …).
+    pub statistic: String,
+    /// The measured value (a non-finite one is written `null` and read back as NaN).
+    #[serde(deserialize_with = "null_as_nan")]
+    pub value: f64,
+    /// `<=` or `>=`: the side of the threshold on which the check's condition holds.
+    pub holds_if: String,
+    pub threshold: f64,
+    /// Signed distance past the threshold, in units of the threshold (or of the value when the threshold is 0):
+    /// positive when the condition holds, negative when it does not; near 0, a close call. A non-finite value gives
+    /// minus infinity (it holds no condition), written `null` in JSON and read back as NaN.
+    #[serde(deserialize_with = "null_as_nan")]
+    pub relative: f64,
+}
+
+/// JSON has no non-finite numbers: serde_json writes them as `null`.
+fn null_as_nan<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
+}
+
+impl Margin {
+    /// The condition `value <= threshold`.
+    pub fn at_most(statistic: &str, value: f64, threshold: f64) -> Margin {
+        Margin::new(statistic, value, "<=", threshold, threshold - value)
+    }
+
+    /// The condition `value >= threshold`.
+    pub fn at_least(statistic: &str, value: f64, threshold: f64) -> Margin {
+        Margin::new(statistic, value, ">=", threshold, value - threshold)
+    }
+
+    fn new(statistic: &str, value: f64, holds_if: &str, threshold: f64, distance: f64) -> Margin {
+        let scale = if threshold != 0.0 { threshold.abs() } else { value.abs().max(1.0) };
+        // A non-finite value never satisfies its condition.
+        let relative = if distance.is_finite() { distance / scale } else { f64::NEG_INFINITY };
+        Margin { statistic: statistic.to_owned(), value, holds_if: holds_if.to_owned(), threshold, relative }
+    }
+
+    /// The opposite condition (`<=` becomes `>`), the same distance with the other sign.
+    #[must_use]
+    pub fn negated(self) -> Margin {
+        let holds_if = match self.holds_if.as_str() {
+            "<=" => ">",
+            ">=" => "<",
+            "<" => ">=",
+            _ => "<=",
+        };
+        Margin { holds_if: holds_if.to_owned(), relative: -self.relative, ..self }
+    }
+
+    /// `rate_hz 496.2 (>= 450, +10 %)`.
+    pub fn describe(&self) -> String {
+        let relative =
+            if self.relative.is_finite() { format!("{:+.0} %", self.relative * 100.0) } else { "never".to_owned() };
+        format!("{} {} ({} {}, {relative})", self.statistic, short(self.value), self.holds_if, short(self.threshold))
+    }
+}
+
+fn short(x: f64) -> String {
+    if x == 0.0 || (1e-3..1e5).contains(&x.abs()) {
+        format!("{}", (x * 1e4).round() / 1e4)
+    } else {
+        format!("{x:.3e}")
+    }
 }
 
 impl CheckResult {
     pub fn new(id: CheckId, status: Status, summary: impl Into<String>) -> Self {
-        CheckResult { id, group: id.group(), status, summary: summary.into(), evidence: BTreeMap::new() }
+        CheckResult {
+            id,
+            group: id.group(),
+            status,
+            summary: summary.into(),
+            evidence: BTreeMap::new(),
+            probes: 1,
+            margin: None,
+        }
+    }
+
+    /// Sets the number of probes (0: the check could not probe at all).
+    #[must_use]
+    pub fn with_probes(mut self, probes: u32) -> Self {
+        self.probes = probes;
+        self
+    }
+
+    /// Sets the deciding statistic's margin, given as the condition a pass needs or as the condition that decided
+    /// the verdict. A fail whose pass condition does not hold is stated as the opposite condition, so that a margin
+    /// always describes the verdict: positive for a pass or a fail, by how much; negative only when nothing was
+    /// decided (how far the nearest condition was from holding).
+    #[must_use]
+    pub fn with_margin(mut self, margin: Option<Margin>) -> Self {
+        self.margin = margin.map(|m| if self.status == Status::Fail && m.relative < 0.0 { m.negated() } else { m });
+        self
     }
 
     /// Adds one evidence item.
@@ -353,14 +460,24 @@ impl Report {
         groups.sort();
         groups.dedup();
         for g in groups {
-            out.push_str(&format!("## {}\n\n| check | status | summary |\n|---|---|---|\n", g.title()));
+            out.push_str(&format!(
+                "## {}\n\n| check | status | probes | margin | summary |\n|---|---|---|---|---|\n",
+                g.title()
+            ));
             for r in self.results.iter().filter(|r| r.group == g) {
                 let mark = match r.status {
                     Status::Pass => "pass",
                     Status::Fail => "**FAIL**",
                     Status::Inconclusive => "inconclusive",
                 };
-                out.push_str(&format!("| `{}` | {} | {} |\n", r.id, mark, r.summary.replace('|', "\\|")));
+                out.push_str(&format!(
+                    "| `{}` | {} | {} | {} | {} |\n",
+                    r.id,
+                    mark,
+                    r.probes,
+                    r.margin.as_ref().map_or_else(|| "-".to_owned(), Margin::describe).replace('|', "\\|"),
+                    r.summary.replace('|', "\\|")
+                ));
             }
             out.push('\n');
             for r in self.results.iter().filter(|r| r.group == g) {
@@ -431,6 +548,39 @@ mod tests {
         let back: Report = serde_json::from_str(&text).unwrap_or_else(|e| panic!("{e}"));
         assert_eq!(back, r);
         assert!(r.any_fail());
+    }
+
+    #[test]
+    fn margins_are_signed_by_whether_the_condition_holds() {
+        let m = Margin::at_least("rate_hz", 495.0, 450.0);
+        assert!((m.relative - 0.1).abs() < 1e-12);
+        assert_eq!(m.describe(), "rate_hz 495 (>= 450, +10 %)");
+        assert!(Margin::at_most("p99_ms", 25.0, 20.0).relative < 0.0);
+        // A zero threshold is measured in units of the value; a NaN never holds.
+        assert!((Margin::at_most("bad_crc", 3.0, 0.0).relative + 1.0).abs() < 1e-12);
+        assert_eq!(Margin::at_most("bad_crc", 0.0, 0.0).relative, 0.0);
+        assert_eq!(Margin::at_most("x", f64::NAN, 1.0).relative, f64::NEG_INFINITY);
+        let text = serde_json::to_string(&Margin::at_most("x", f64::NAN, 1.0)).unwrap_or_default();
+        let back: Margin = serde_json::from_str(&text).unwrap_or_else(|e| panic!("{text}: {e}"));
+        assert!(back.value.is_nan() && back.relative.is_nan());
+    }
+
+    #[test]
+    fn a_fail_states_the_condition_that_failed_it() {
+        let m = Margin::at_least("rate_hz", 300.0, 450.0);
+        let fail = CheckResult::new(CheckId::StateRate, Status::Fail, "slow").with_margin(Some(m.clone()));
+        let fm = fail.margin.unwrap_or_else(|| panic!("margin"));
+        assert_eq!((fm.holds_if.as_str(), fm.relative > 0.0), ("<", true));
+        // Undecided: the distance stays negative.
+        let open = CheckResult::new(CheckId::StateRate, Status::Inconclusive, "?").with_margin(Some(m));
+        assert!(open.margin.is_some_and(|m| m.relative < 0.0 && m.holds_if == ">="));
+    }
+
+    #[test]
+    fn a_version_2_result_reads_as_one_probe_without_margin() {
+        let v2 = r#"{"id":"state_crc","group":"state_stream","status":"pass","summary":"ok","evidence":{}}"#;
+        let r: CheckResult = serde_json::from_str(v2).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!((r.probes, r.margin), (1, None));
     }
 
     #[test]

@@ -16,9 +16,10 @@
 //! Probes a conformant peer refuses alternate 1:1 with the hold, so the peer always has a fresh valid command and a
 //! refused probe leaves the robot where it was.
 
+use super::decision::{self, strongest, weakest};
 use super::{decoded, max_gap, round, tail_pose, tilt, Timing, COMMAND_RATE};
 use crate::commands::{self, hex, wire};
-use crate::report::{CheckId, CheckResult, Status};
+use crate::report::{CheckId, CheckResult, Margin, Status};
 use crate::target::{StateSample, Target};
 use crate::ConformError;
 use lowlevel_codec::{crc, validate};
@@ -147,7 +148,7 @@ fn mean(values: impl Iterator<Item = f64>) -> f64 {
 }
 
 /// The outcome of a probe at one joint, or for a whole case.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 enum Effect {
     /// The probe acted as the unsafe interpretation predicts.
@@ -228,6 +229,42 @@ fn judge(fractions: &[Option<f64>]) -> Effect {
         Effect::Unsafe
     } else {
         Effect::Unclear
+    }
+}
+
+/// The margin of a check made of cases, from the fraction of the unsafe effect each joint showed (the statistic
+/// [`judge`] compares with [`NOT_APPLIED`] and [`APPLIED`]). A case is safe when one joint shows it safe and unsafe
+/// when one joint shows it unsafe: its margin is its most decisive joint's. A check passes when every case is safe
+/// (its margin: the weakest case's) and fails when one case is unsafe (the strongest unsafe case's). Cases decided
+/// on other evidence (a limp robot, a non-finite state) carry no fraction and no margin.
+fn verdict_margin(status: Status, outcomes: &[(String, Effect, serde_json::Value)]) -> Option<Margin> {
+    let case_margin = |effect: Effect, detail: &serde_json::Value| -> Option<Margin> {
+        let joints = detail["joints"].as_array()?;
+        let fractions = joints.iter().filter_map(|j| {
+            let f = j["fraction_of_unsafe_effect"].as_f64()?;
+            let e: Effect = serde_json::from_value(j["effect"].clone()).ok()?;
+            Some((f, e))
+        });
+        match effect {
+            Effect::Unsafe => strongest(
+                fractions
+                    .filter(|(_, e)| *e == Effect::Unsafe)
+                    .map(|(f, _)| Margin::at_least("fraction_of_unsafe_effect", f, APPLIED)),
+            ),
+            Effect::Safe => strongest(
+                fractions
+                    .filter(|(_, e)| *e == Effect::Safe)
+                    .map(|(f, _)| Margin::at_most("fraction_of_unsafe_effect", f, NOT_APPLIED)),
+            ),
+            Effect::Unclear | Effect::Undecidable => {
+                strongest(fractions.map(|(f, _)| Margin::at_most("fraction_of_unsafe_effect", f, NOT_APPLIED)))
+            }
+        }
+    };
+    let margins = outcomes.iter().filter_map(|(_, effect, detail)| Some((*effect, case_margin(*effect, detail)?)));
+    match status {
+        Status::Fail => strongest(margins.filter(|(e, _)| *e == Effect::Unsafe).map(|(_, m)| m)),
+        Status::Pass | Status::Inconclusive => weakest(margins.map(|(_, m)| m)),
     }
 }
 
@@ -386,9 +423,27 @@ impl<'a> Session<'a> {
     // -----------------------------------------------------------------------------------------
     // Calibration: joint choice and the valid step.
 
-    /// Picks the test joints from a settled hold and runs the valid step in both directions.
+    /// Picks the test joints from a settled hold and runs the valid step in both directions; when that leaves no
+    /// usable joint (none free, or none that showed the step by torque or by motion both ways), it probes again from
+    /// a new hold, up to [`decision::MAX_PROBES`] times: the later checks all need a usable joint.
     pub(super) fn calibrate(&mut self) -> Result<Calibration, ConformError> {
         let first = self.target.samples.len();
+        let mut statuses = Vec::new();
+        let mut result = loop {
+            self.joints.clear();
+            self.rejected.clear();
+            let result = self.calibrate_once()?;
+            statuses.push(result.status.name());
+            if self.joints.iter().any(TestJoint::usable) || statuses.len() >= decision::MAX_PROBES as usize {
+                break result;
+            }
+        };
+        result.probes = u32::try_from(statuses.len()).unwrap_or(u32::MAX);
+        let result = result.with("probe_statuses", statuses);
+        Ok(Calibration { result, driven: first..self.target.samples.len() })
+    }
+
+    fn calibrate_once(&mut self) -> Result<CheckResult, ConformError> {
         let held = self.settle_for(2.0 * self.timing.hold)?;
         self.choose_joints(&held);
         if self.joints.is_empty() {
@@ -399,7 +454,7 @@ impl<'a> Session<'a> {
             )
             .with("rejected_candidates", &self.rejected)
             .with("tilt_deg", self.tilt.map(f64::to_degrees));
-            return Ok(Calibration { result, driven: first..self.target.samples.len() });
+            return Ok(result);
         }
         let mut residual = vec![(Vec::new(), Vec::new(), Vec::new()); self.joints.len()];
         let mut bytes_example = Vec::new();
@@ -445,8 +500,7 @@ impl<'a> Session<'a> {
             j.torque = sep >= MIN_SEPARATION_NM && j.torque_residual_step_nm <= TORQUE_FIT * sep;
             j.motion = j.moved.iter().all(|m| m.is_some_and(|f| f >= MOVED_FRACTION));
         }
-        let driven = first..self.target.samples.len();
-        Ok(Calibration { result: self.valid_result(&bytes_example), driven })
+        Ok(self.valid_result(&bytes_example))
     }
 
     fn choose_joints(&mut self, held: &Held) {
@@ -593,7 +647,27 @@ impl<'a> Session<'a> {
                 ),
             )
         };
+        // A joint shows the step by torque (its tau_est fits the step's law) or by motion: the best-shown joint
+        // decides.
+        let margin = strongest(self.joints.iter().flat_map(|j| {
+            let torque = (j.torque_separation_nm >= MIN_SEPARATION_NM).then(|| {
+                Margin::at_most(
+                    "torque_residual_over_separation",
+                    j.torque_residual_step_nm / j.torque_separation_nm,
+                    TORQUE_FIT,
+                )
+            });
+            let motion = j
+                .moved
+                .iter()
+                .flatten()
+                .copied()
+                .reduce(f64::max)
+                .map(|m| Margin::at_least("fraction_of_step_moved", m, MOVED_FRACTION));
+            [torque, motion].into_iter().flatten()
+        }));
         CheckResult::new(CheckId::CmdValidMovesJoint, status, summary)
+            .with_margin(margin)
             .with("test_joints", self.joints_evidence())
             .with("rejected_candidates", &self.rejected)
             .with("tilt_deg", self.tilt.map(|t| round(t.to_degrees(), 1)))
@@ -618,7 +692,8 @@ impl<'a> Session<'a> {
                     "no test joint showed a valid command applied, by motion both ways or by tau_est (see cmd_valid_moves_joint): nothing to compare a refused command with".to_owned()
                 },
             )
-            .with("test_joints", self.joints_evidence()),
+            .with("test_joints", self.joints_evidence())
+            .with_probes(0),
         )
     }
 
@@ -806,7 +881,9 @@ impl<'a> Session<'a> {
                 format!("{what}: not applied where visible, but undecided in {}: {}", open.len(), open.join("; ")),
             )
         };
+        let margin = verdict_margin(status, &outcomes);
         CheckResult::new(id, status, summary)
+            .with_margin(margin)
             .with("cases", outcomes.into_iter().map(|o| o.2).collect::<Vec<_>>())
             .with("test_joints", self.joints_evidence())
     }
@@ -1107,7 +1184,8 @@ impl<'a> Session<'a> {
                     self.timing.gap_limit * 1e3
                 ),
             )
-            .with("max_gap_ms", round(gap * 1e3, 1)));
+            .with("max_gap_ms", round(gap * 1e3, 1))
+            .with_margin(Some(Margin::at_most("max_gap_ms", gap * 1e3, self.timing.gap_limit * 1e3))));
         }
         let window: Vec<&hg::LowState_> =
             decoded(&samples).filter(|(t, _)| *t >= stop_t + SILENCE_GRACE_S).map(|(_, s)| s).collect();
@@ -1115,6 +1193,7 @@ impl<'a> Session<'a> {
             self.joints.iter().filter(|j| j.torque).map(|j| (j.slot, j.name, j.limit)).collect();
         joints.extend(self.loaded.iter().map(|&s| (s, h1_2::JOINTS[s].name, f64::from(h1_2::JOINTS[s].torque_limit))));
         let mut votes = Vec::new();
+        let mut margins = Vec::new();
         let mut details = Vec::new();
         for (slot, name, limit) in joints {
             let m = &command.motor_cmd[slot];
@@ -1148,6 +1227,17 @@ impl<'a> Session<'a> {
             if decided {
                 votes.push(laws[best].0);
             }
+            // The decision's closeness: the best law of the other kind (keeping vs not keeping the command) against
+            // the residual it had to exceed.
+            let opposing = (0..4)
+                .filter(|&k| laws[k].0.keeps() != laws[best].0.keeps())
+                .map(|k| residual[k])
+                .fold(f64::INFINITY, f64::min);
+            margins.push((
+                laws[best].0,
+                decided,
+                Margin::at_least("opposing_law_rms_nm", opposing, 2.0 * residual[best] + 0.3),
+            ));
             details.push(json!({
                 "joint": name,
                 "residual_nm": laws.iter().zip(&residual).map(|((l, _), r)| json!({"law": l, "rms_nm": round(*r, 3)})).collect::<Vec<_>>(),
@@ -1185,7 +1275,15 @@ impl<'a> Session<'a> {
                 "after commands stop, no joint's tau_est told keeping the last command from damping or releasing it (no test or loaded joint reports torque by the PD law)".to_owned(),
             ),
         };
+        // A fail rests on the most clearly keeping joint, a pass on the most clearly releasing one; undecided, on the
+        // joint that came closest to deciding.
+        let margin = match status {
+            Status::Fail => strongest(margins.into_iter().filter(|(l, d, _)| *d && l.keeps()).map(|(_, _, m)| m)),
+            Status::Pass => strongest(margins.into_iter().filter(|(l, d, _)| *d && !l.keeps()).map(|(_, _, m)| m)),
+            Status::Inconclusive => strongest(margins.into_iter().map(|(_, _, m)| m)),
+        };
         Ok(CheckResult::new(CheckId::CmdTimeoutBehaviour, status, summary)
+            .with_margin(margin)
             .with("joints", details)
             .with("pulse_s", round(pulse, 3))
             .with("pulse_samples", sent.len())

@@ -14,8 +14,12 @@
 //!   (relative to its own measured rate) and keep the robot where it was;
 //! * **interop** ([`crate::interop`]): Cyclone DDS 0.10.2 and Cyclone 11 participants of our own try to read the
 //!   peer's state.
+//!
+//! How the probing checks turn probes into a verdict (a pass at once, a fail only when it repeats, at most three
+//! probes), and the margin every check reports, are in [`decision`].
 
 mod command;
+mod decision;
 mod discovery;
 mod robust;
 mod stream;
@@ -152,7 +156,7 @@ pub fn run_all(
             let why = "no reader of the target matched our rt/lowcmd writer";
             for id in sel.ids().into_iter().filter(|c| matches!(c.group(), Group::CommandHandling | Group::Robustness))
             {
-                results.push(CheckResult::new(id, Status::Inconclusive, why));
+                results.push(CheckResult::new(id, Status::Inconclusive, why).with_probes(0));
             }
         } else {
             let mut s = command::Session::start(target, mode_machine, timing)?;
@@ -163,18 +167,18 @@ pub fn run_all(
                 results.push(calibration.result.clone());
             }
             if sel.wants(CheckId::CmdBadCrcIgnored) {
-                results.push(s.bad_crc_ignored()?);
+                results.push(decision::settle(|| s.bad_crc_ignored())?);
             }
             if sel.wants(CheckId::CmdMode0NoTorque) {
-                results.push(s.mode0_no_torque()?);
+                results.push(decision::settle(|| s.mode0_no_torque())?);
             }
             if sel.wants(CheckId::CmdAbsurdGainsSafe) {
                 progress("command handling: absurd gains");
-                results.push(s.absurd_gains_safe()?);
+                results.push(decision::settle(|| s.absurd_gains_safe())?);
             }
             if sel.wants(CheckId::CmdNonFiniteRejected) {
                 progress("command handling: non-finite values");
-                results.push(s.non_finite_rejected()?);
+                results.push(decision::settle(|| s.non_finite_rejected())?);
             }
             if sel.wants_group(Group::Robustness) {
                 progress("robustness");
@@ -183,7 +187,7 @@ pub fn run_all(
             if sel.wants(CheckId::CmdTimeoutBehaviour) {
                 progress("command loss: stopping commands");
                 // Last of the command phases: after it the robot may legitimately collapse.
-                results.push(s.timeout_behaviour()?);
+                results.push(decision::settle(|| s.timeout_behaviour())?);
             }
         }
     }

@@ -6,7 +6,7 @@
 use super::command::Session;
 use super::{decoded, max_gap, round, span, tail_pose, StreamFacts, COMMAND_RATE};
 use crate::commands::{self, hex, wire};
-use crate::report::{CheckId, CheckResult, Status};
+use crate::report::{CheckId, CheckResult, Margin, Status};
 use crate::ConformError;
 use lowlevel_codec::{cdr, validate, Encoding, Endianness, Representation};
 use unitree_idl::h1_2;
@@ -33,14 +33,16 @@ pub(super) fn run(
             .iter()
             .map(|len| good[..(*len).min(good.len())].to_vec())
             .collect();
-        out.push(case(
-            s,
-            facts,
-            CheckId::RobustTruncated,
-            "truncated LowCmd samples (4 bytes up to one byte short)",
-            &truncated,
-            1,
-        )?);
+        out.push(super::decision::settle(|| {
+            case(
+                s,
+                facts,
+                CheckId::RobustTruncated,
+                "truncated LowCmd samples (4 bytes up to one byte short)",
+                &truncated,
+                1,
+            )
+        })?);
     }
     if sel.wants(CheckId::RobustBadHeader) {
         let bad_header: Vec<Vec<u8>> =
@@ -53,14 +55,16 @@ pub(super) fn run(
                     b
                 })
                 .collect();
-        out.push(case(
-            s,
-            facts,
-            CheckId::RobustBadHeader,
-            "wrong encapsulation headers (PL_CDR, XML, PL_CDR2, unknown ids)",
-            &bad_header,
-            1,
-        )?);
+        out.push(super::decision::settle(|| {
+            case(
+                s,
+                facts,
+                CheckId::RobustBadHeader,
+                "wrong encapsulation headers (PL_CDR, XML, PL_CDR2, unknown ids)",
+                &bad_header,
+                1,
+            )
+        })?);
     }
     if sel.wants(CheckId::RobustOversize) {
         let oversize: Vec<Vec<u8>> = [1024usize, 60 * 1024]
@@ -71,14 +75,16 @@ pub(super) fn run(
                 b
             })
             .collect();
-        out.push(case(
-            s,
-            facts,
-            CheckId::RobustOversize,
-            "oversize samples (valid command + 1 KiB and + 60 KiB of junk)",
-            &oversize,
-            1,
-        )?);
+        out.push(super::decision::settle(|| {
+            case(
+                s,
+                facts,
+                CheckId::RobustOversize,
+                "oversize samples (valid command + 1 KiB and + 60 KiB of junk)",
+                &oversize,
+                1,
+            )
+        })?);
     }
     if sel.wants(CheckId::RobustXcdr2) {
         let encodings: Vec<Vec<u8>> = [
@@ -89,17 +95,21 @@ pub(super) fn run(
         .iter()
         .map(|e| cdr::encode(&hold, *e))
         .collect();
-        out.push(case(s, facts, CheckId::RobustXcdr2, "the hold command in XCDR2 LE/BE and XCDR1 BE", &encodings, 1)?);
+        out.push(super::decision::settle(|| {
+            case(s, facts, CheckId::RobustXcdr2, "the hold command in XCDR2 LE/BE and XCDR1 BE", &encodings, 1)
+        })?);
     }
     if sel.wants(CheckId::RobustFlood) {
-        out.push(case(
-            s,
-            facts,
-            CheckId::RobustFlood,
-            "a flood of valid hold commands at 10x the control rate (5 kHz)",
-            std::slice::from_ref(&good),
-            10,
-        )?);
+        out.push(super::decision::settle(|| {
+            case(
+                s,
+                facts,
+                CheckId::RobustFlood,
+                "a flood of valid hold commands at 10x the control rate (5 kHz)",
+                std::slice::from_ref(&good),
+                10,
+            )
+        })?);
     }
     if sel.wants(CheckId::RobustDuplicatesReordering) {
         // Small variations of one arm joint around where it stands, each sent twice, pairs swapped.
@@ -123,14 +133,9 @@ pub(super) fn run(
                 shuffled.push(m.clone());
             }
         }
-        out.push(case(
-            s,
-            facts,
-            CheckId::RobustDuplicatesReordering,
-            "duplicated and reordered commands",
-            &shuffled,
-            1,
-        )?);
+        out.push(super::decision::settle(|| {
+            case(s, facts, CheckId::RobustDuplicatesReordering, "duplicated and reordered commands", &shuffled, 1)
+        })?);
     }
     Ok(out)
 }
@@ -196,6 +201,18 @@ fn case(
             }
         }
     }
+    // Every criterion must hold: the one closest to (or farthest past) its threshold is the margin. A non-finite
+    // state is categorical: it joins only when it happened.
+    let margin = super::decision::weakest(
+        [
+            Some(Margin::at_least("state_rate_hz", rate, MIN_RATE_FRACTION * own_rate)),
+            Some(Margin::at_most("max_gap_ms", gap * 1e3, timing.gap_limit * 1e3)),
+            Some(Margin::at_most("worst_settled_deviation_rad", f64::from(worst.0), f64::from(HOLD_TOLERANCE))),
+            (non_finite > 0).then(|| Margin::at_most("non_finite_states", non_finite as f64, 0.0)),
+        ]
+        .into_iter()
+        .flatten(),
+    );
     let publishing = gap <= timing.gap_limit && rate >= MIN_RATE_FRACTION * own_rate;
     let held_still = worst.0 <= HOLD_TOLERANCE;
     let status =
@@ -220,5 +237,6 @@ fn case(
     .with("worst_deviation_rad", f64::from(worst.0))
     .with("sent_kinds", bad.len())
     .with("samples_per_tick", burst)
-    .with("example_bytes_hex", bad.first().map(|b| hex(b, 48))))
+    .with("example_bytes_hex", bad.first().map(|b| hex(b, 48)))
+    .with_margin(margin))
 }

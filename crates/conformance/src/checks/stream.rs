@@ -3,7 +3,7 @@
 
 use super::{decoded, intervals, round};
 use crate::commands::hex;
-use crate::report::{CheckId, CheckResult, Status};
+use crate::report::{CheckId, CheckResult, Margin, Status};
 use crate::target::StateSample;
 use lowlevel_codec::{crc, validate};
 use unitree_idl::{h1_2, hg};
@@ -19,6 +19,9 @@ const MAX_P99_PERIODS: f64 = 5.0;
 /// ... or at most this long (s), whichever is longer: a 50 Hz policy loop (Unitree's RL deployments) still finds a
 /// state newer than its step, and arrival times on a loaded host carry our own scheduler's delays of a few ms.
 const MAX_P99_FLOOR_S: f64 = 0.02;
+/// A unit quaternion sent as f32 and renormalised by no one stays within a few ulps of norm 1; 1e-3 is far above that
+/// and far below a quaternion that is not one (a zero, an unnormalised or a mis-ordered one).
+const QUATERNION_TOLERANCE: f64 = 1e-3;
 /// `tick` counts milliseconds: it must advance at 1000 per second of reception time, within this fraction.
 const TICK_RATE_TOLERANCE: f64 = 0.1;
 
@@ -114,6 +117,7 @@ pub(super) fn rate(facts: Option<&StreamFacts>, nominal: f64) -> CheckResult {
     )
     .with("rate_hz", round(f.rate_hz, 2))
     .with("nominal_hz", nominal)
+    .with_margin(Some(Margin::at_least("rate_hz", f.rate_hz, MIN_RATE_FRACTION * nominal)))
     .with("samples", f.samples)
     .with("window_s", round(f.window_s, 3))
 }
@@ -145,6 +149,7 @@ pub(super) fn jitter(samples: &[StateSample], facts: Option<&StreamFacts>) -> Ch
     .with("interval_p99_ms", round(p99 * 1e3, 4))
     .with("interval_max_ms", round(max * 1e3, 4))
     .with("intervals", times.len() - 1)
+    .with_margin(Some(Margin::at_most("interval_p99_ms", p99 * 1e3, limit * 1e3)))
 }
 
 pub(super) fn tick(samples: &[StateSample]) -> CheckResult {
@@ -183,6 +188,14 @@ pub(super) fn tick(samples: &[StateSample]) -> CheckResult {
     .with("first_tick", ticks[0].1)
     .with("tick_per_s", round(tick_rate, 2))
     .with("tick_per_sample", round(per_sample, 3))
+    .with_margin(super::decision::weakest(
+        [
+            Some(Margin::at_most("tick_rate_error", (tick_rate / 1000.0 - 1.0).abs(), TICK_RATE_TOLERANCE)),
+            (!not_increasing.is_empty()).then(|| Margin::at_most("non_increasing_steps", not_increasing.len() as f64, 0.0)),
+        ]
+        .into_iter()
+        .flatten(),
+    ))
 }
 
 /// The part of a LowState that physics changes at every step: joint q/dq and the IMU.
@@ -223,6 +236,7 @@ pub(super) fn fresh(samples: &[StateSample]) -> CheckResult {
     .with("pairs", pairs)
     .with("identical_pairs", repeats.len())
     .with("first_identical_ticks", repeats.iter().take(5).map(|(a, b)| format!("{a}->{b}")).collect::<Vec<_>>())
+    .with_margin(Some(Margin::at_most("identical_pair_fraction", fraction, MAX_REPEAT_FRACTION)))
 }
 
 pub(super) fn finite(samples: &[StateSample]) -> CheckResult {
@@ -265,20 +279,21 @@ pub(super) fn quaternion(samples: &[StateSample]) -> CheckResult {
         .iter()
         .filter(|n| {
             let e = (*n - 1.0).abs();
-            e.is_nan() || e > 1e-3
+            e.is_nan() || e > QUATERNION_TOLERANCE as f32
         })
         .count();
     CheckResult::new(
         CheckId::StateQuaternion,
         if bad == 0 { Status::Pass } else { Status::Fail },
         format!(
-            "{bad} of {} IMU quaternions off unit norm by more than 1e-3 (worst |norm-1| = {worst:.2e})",
+            "{bad} of {} IMU quaternions off unit norm by more than {QUATERNION_TOLERANCE:e} (worst |norm-1| = {worst:.2e})",
             norms.len()
         ),
     )
     .with("samples", norms.len())
     .with("off_norm", bad)
     .with("worst_norm_error", f64::from(worst))
+    .with_margin(Some(Margin::at_most("worst_norm_error", f64::from(worst), QUATERNION_TOLERANCE)))
 }
 
 pub(super) fn joint_limits(samples: &[StateSample]) -> CheckResult {
@@ -286,12 +301,15 @@ pub(super) fn joint_limits(samples: &[StateSample]) -> CheckResult {
     let mut violations = 0usize;
     let mut worst: Option<(String, f32, f32, f32)> = None;
     let mut worst_excess = 0.0f32;
+    // Largest excess beyond a range over every joint and sample (negative: every joint inside its range).
+    let mut largest_excess = f32::NEG_INFINITY;
     for (_, s) in decoded(samples) {
         n += 1;
         let mut any = false;
         for j in &h1_2::JOINTS {
             let q = s.motor_state[j.slot].q;
             let excess = (j.lower - q).max(q - j.upper);
+            largest_excess = if excess.is_nan() { f32::INFINITY } else { largest_excess.max(excess) };
             if excess.is_nan() || excess > LIMIT_TOLERANCE {
                 any = true;
                 if excess.is_nan() || excess > worst_excess {
@@ -317,6 +335,9 @@ pub(super) fn joint_limits(samples: &[StateSample]) -> CheckResult {
     .with("samples", n)
     .with("violating_samples", violations)
     .with("worst", worst.map(|(name, q, lo, hi)| format!("{name} q={q} range [{lo}, {hi}]")))
+    .with_margin(
+        (n > 0).then(|| Margin::at_most("largest_excess_rad", f64::from(largest_excess), f64::from(LIMIT_TOLERANCE))),
+    )
 }
 
 #[cfg(test)]
