@@ -53,6 +53,9 @@ pub struct Target {
     kept_raw: usize,
     /// Commands written so far.
     pub sent: u64,
+    /// When each tick of the last [`Target::drive`] was sent, on the clock of [`StateSample::t`] (s): what was in
+    /// force at the peer when, as far as the sender decided it.
+    pub tick_times: Vec<f64>,
     /// Whether a reader of the target matched our LowCmd writer.
     pub command_reader_matched: bool,
 }
@@ -83,6 +86,7 @@ impl Target {
             samples: Vec::new(),
             kept_raw: 0,
             sent: 0,
+            tick_times: Vec::new(),
             command_reader_matched: false,
         };
         let deadline = Instant::now() + timeout;
@@ -176,6 +180,7 @@ impl Target {
         let begin = Instant::now();
         let period = 1.0 / rate_hz.max(1.0);
         let mut i = 0u64;
+        self.tick_times.clear();
         loop {
             let t = begin.elapsed().as_secs_f64();
             if t >= duration {
@@ -185,6 +190,7 @@ impl Target {
                 for bytes in tick(i) {
                     self.send(&bytes)?;
                 }
+                self.tick_times.push((now_ns() - self.epoch_ns) as f64 * 1e-9);
                 i += 1;
             }
             self.drain();

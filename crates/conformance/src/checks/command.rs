@@ -59,8 +59,13 @@ const MIN_SEPARABLE_SAMPLES: usize = 10;
 const APPLIED: f64 = 0.5;
 /// ... and as not applied at most at this fraction.
 const NOT_APPLIED: f64 = 0.25;
-/// Share of the probe phase during which the probe message is the latest (it alternates 1:1 with the hold).
+/// Share of the probe phase during which the probe message is the latest (it alternates 1:1 with the hold) when the
+/// sender keeps its schedule. A starved sender does not: the message sent last before a stall stays in force
+/// through it, so each probe measures its own share from the times it sent at ([`probe_duty`]).
 const DUTY: f64 = 0.5;
+/// A probe whose message was the latest for less than this share of the judged window is spoilt (undecided, probed
+/// again): half its nominal share leaves too few samples at which an applying peer could show it.
+const MIN_DUTY: f64 = 0.25;
 /// A joint's hold torque is a load worth watching from this magnitude (N·m) ...
 const LOAD_MIN_NM: f64 = 2.0;
 /// ... and when `tau_est` matches the hold's PD law within this fraction.
@@ -202,6 +207,23 @@ impl NonFiniteResponse {
             NonFiniteResponse::Undecided => "undecided",
         }
     }
+}
+
+/// Share of `[from, to]` during which the probe message (odd ticks of an alternating phase; even ticks carry the
+/// hold) was the latest one sent, from the send time of every tick.
+fn probe_duty(tick_times: &[f64], from: f64, to: f64) -> Option<f64> {
+    if !(to > from) {
+        return None;
+    }
+    let mut probe_time = 0.0;
+    for (k, t) in tick_times.iter().enumerate() {
+        let end = tick_times.get(k + 1).copied().unwrap_or(to);
+        let overlap = end.min(to) - t.max(from);
+        if k % 2 == 1 && overlap > 0.0 {
+            probe_time += overlap;
+        }
+    }
+    Some(probe_time / (to - from))
 }
 
 /// Combines per-joint effects: any unsafe joint makes the case unsafe.
@@ -714,10 +736,14 @@ impl<'a> Session<'a> {
             self.last_probe = Some((held.range.clone(), range.clone()));
             let hold_tail = self.tail_part(&held.range).to_vec();
             let probe = self.settled_part(&range).to_vec();
+            let duty = match (probe.first(), probe.last()) {
+                (Some(a), Some(b)) => probe_duty(&self.target.tick_times, a.t, b.t),
+                _ => None,
+            };
             let mut effects = Vec::new();
             let mut details = Vec::new();
             for j in &torque_joints {
-                let (effect, detail) = self.torque_effect(j, &case, &hold_tail, &probe);
+                let (effect, detail) = self.torque_effect(j, &case, &hold_tail, &probe, duty);
                 effects.push(effect);
                 details.push(detail);
             }
@@ -725,7 +751,8 @@ impl<'a> Session<'a> {
             return Ok((
                 effect,
                 json!({"case": case.name, "evidence": "tau_est", "effect": effect, "joints": details,
-                       "samples": probe.len(), "bytes_hex": hex(&case.bytes, 64)}),
+                       "samples": probe.len(), "probe_duty": duty.map(|d| round(d, 3)),
+                       "bytes_hex": hex(&case.bytes, 64)}),
             ));
         }
         let motion_joints: Vec<TestJoint> = self.joints.iter().filter(|j| j.motion).cloned().collect();
@@ -738,6 +765,7 @@ impl<'a> Session<'a> {
             ));
         };
         let mut displacement = vec![[f64::NAN; 2]; motion_joints.len()];
+        let mut duties = [None; 2];
         let mut name = String::new();
         for (pass, pass_sign) in [1.0f32, -1.0].into_iter().enumerate() {
             let held = self.settle()?;
@@ -745,6 +773,9 @@ impl<'a> Session<'a> {
             name = case.name.clone();
             let range = self.send(self.timing.probe, case.bytes.clone(), true)?;
             self.last_probe = Some((held.range.clone(), range.clone()));
+            // The end pose shows what was in force over the tail it is averaged on.
+            let last = self.target.samples[range.clone()].last().map(|s| s.t);
+            duties[pass] = last.and_then(|t| probe_duty(&self.target.tick_times, t - self.timing.tail, t));
             let end = tail_pose(&self.target.samples[range], self.timing.tail);
             for (k, j) in motion_joints.iter().enumerate() {
                 let d = j.dir * pass_sign;
@@ -754,10 +785,15 @@ impl<'a> Session<'a> {
         }
         let mut effects = Vec::new();
         let mut details = Vec::new();
+        // Both passes must have had their probe in force for its share; the fraction is scaled by the mean share.
+        let duty = match duties {
+            [Some(a), Some(b)] if a.min(b) >= MIN_DUTY => Some(0.5 * (a + b)),
+            _ => None,
+        };
         for (k, j) in motion_joints.iter().enumerate() {
             // Gravity and sag are the same in both runs; projected on opposite directions they cancel.
             let mean_disp = 0.5 * (displacement[k][0] + displacement[k][1]) * f64::from(sign);
-            let fraction = mean_disp / DUTY;
+            let fraction = duty.map_or(f64::NAN, |d| mean_disp / d);
             let effect = judge(&[Some(fraction)]);
             effects.push(effect);
             details.push(json!({"joint": j.name, "displacement_fraction": displacement[k].map(|d| round(d, 3)),
@@ -766,7 +802,8 @@ impl<'a> Session<'a> {
         let effect = combine(effects.into_iter());
         Ok((
             effect,
-            json!({"case": name, "evidence": "motion (two runs, opposite directions)", "effect": effect, "joints": details}),
+            json!({"case": name, "evidence": "motion (two runs, opposite directions)", "effect": effect, "joints": details,
+                   "probe_duty": duties.map(|d| d.map(|d| round(d, 3)))}),
         ))
     }
 
@@ -777,6 +814,7 @@ impl<'a> Session<'a> {
         case: &Case,
         hold_tail: &[StateSample],
         probe: &[StateSample],
+        duty: Option<f64>,
     ) -> (Effect, serde_json::Value) {
         let h = &self.hold.motor_cmd[j.slot];
         let u = &case.unsafe_.motor_cmd[j.slot];
@@ -834,8 +872,14 @@ impl<'a> Session<'a> {
                 follows_unsafe += 1;
             }
         }
-        // A peer applying the probe follows its law for about DUTY of the samples: scaled, 1 is full application.
-        let fraction = (separable >= MIN_SEPARABLE_SAMPLES).then(|| follows_unsafe as f64 / separable as f64 / DUTY);
+        // A peer applying the probe follows its law for the share of the time the probe was in force: scaled by that
+        // share, 1 is full application. A probe in force too little of the time (a starved sender) cannot show it.
+        let fraction = match duty {
+            Some(d) if d >= MIN_DUTY && separable >= MIN_SEPARABLE_SAMPLES => {
+                Some(follows_unsafe as f64 / separable as f64 / d)
+            }
+            _ => None,
+        };
         let effect = judge(&[fraction]);
         (
             effect,
@@ -1325,6 +1369,20 @@ impl Loss {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn probe_duty_is_the_time_share_of_the_odd_ticks() {
+        // Kept schedule: hold and probe alternate every 2 ms.
+        let even: Vec<f64> = (0..100).map(|k| f64::from(k) * 0.002).collect();
+        assert!(probe_duty(&even, 0.02, 0.18).is_some_and(|d| (d - 0.5).abs() < 0.02));
+        // A stall of 100 ms after a hold tick: the hold stays in force through it.
+        let mut stalled: Vec<f64> = (0..21).map(|k| f64::from(k) * 0.002).collect();
+        stalled.extend((0..20).map(|k| 0.14 + f64::from(k) * 0.002));
+        let d = probe_duty(&stalled, 0.0, 0.18).unwrap_or(f64::NAN);
+        // 40 ms of alternation and 40 ms after the stall, half probe each: 40 ms of 180.
+        assert!((d - 0.04 / 0.18).abs() < 0.02, "{d}");
+        assert_eq!(probe_duty(&even, 0.1, 0.1), None);
+    }
 
     #[test]
     fn pd_law_clamps_and_honours_mode0() {

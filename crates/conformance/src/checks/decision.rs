@@ -3,9 +3,10 @@
 //! A check that acts on the peer (the command-handling checks, the robustness cases, command loss) runs a *probe*:
 //! a hold, the probe's messages, and the state the peer publishes meanwhile. One probe can be spoilt by the machine
 //! it runs on: on two loaded cores the tester's commands and the peer's states arrive late and in bursts, which thins
-//! the evidence (too few samples that tell the interpretations apart: undecided) or looks like a defect (a stream
-//! that seems to stall). It never makes a defect disappear: a late sample does not make a peer that applies a
-//! corrupted command look as if it had refused it. So the probes are settled by [`settle`]:
+//! the evidence (too few samples that tell the interpretations apart: undecided), shifts the share of the time the
+//! probe message was in force (a stalled sender leaves its last message in force: each probe measures that share
+//! from its own send times and is undecided below half the nominal share), or looks like a defect (a stream that
+//! seems to stall). So the probes are settled by [`settle`]:
 //!
 //! | after a probe that | the check |
 //! |---|---|
@@ -13,11 +14,12 @@
 //! | failed, and one probe had failed before | fails: the defect repeated |
 //! | failed for the first time, or was inconclusive | probes again, up to [`MAX_PROBES`] in all |
 //!
-//! After [`MAX_PROBES`] without settling, the check fails if a probe failed and none passed, else it is inconclusive
-//! (with the last probe's reason). A check that cannot probe at all (no free joint to test with, no reader of our
-//! commands) says so at once with 0 probes. A verdict therefore rests on either one clean pass or a defect seen twice; a
-//! peer whose behaviour is what the check asks about gets the same verdict however loaded the machine is, unless
-//! every probe is spoilt (then it says inconclusive, not a wrong verdict).
+//! A pass settles at once: a conformant peer never follows a probe's unsafe law, and with the probe's share of the
+//! time measured an applying peer follows it in that share whatever the load, so a thinned probe reads as undecided,
+//! not as safe. A fail claims a defect and must show twice. After [`MAX_PROBES`] without settling, the check fails
+//! if a probe failed and none passed, else it is inconclusive (with the last probe's reason). A check that cannot
+//! probe at all (no free joint to test with, no reader of our commands) says so at once with 0 probes. A verdict
+//! therefore rests on one clean pass or on a defect seen twice.
 //!
 //! `cmd_valid_moves_joint` is the exception that the others rest on: it also chooses the test joints, so it probes
 //! again (from a new hold, up to [`MAX_PROBES`] times) while no joint has shown a valid step, and reports its last
