@@ -8,7 +8,8 @@
 #                                                    of unitreerobotics/unitree_mujoco (never committed); without it
 #                                                    the run is skipped with a message
 #
-# N defaults to 10. ULAB_REPEAT_LOAD=0 runs on a quiet machine (default 1: `taskset -c 1 yes` throughout).
+# N defaults to 10. ULAB_REPEAT_LOAD is how many cores `yes` holds throughout: 0 quiet, 1 (default) core 1, 2 both
+# cores (the tester and the peer then share the machine with two busy processes, as beside a CI build).
 # ULAB_BIN overrides the binary (default target/release/ulab, built if missing). Domain 57 unless ULAB_REPEAT_DOMAIN.
 # Output: out/conform-repeat/<peer>/run_NN/report.{json,md} and agreement.{md,json}.
 set -euo pipefail
@@ -36,10 +37,11 @@ mkdir -p "$out"
 pids=()
 cleanup() { for p in "${pids[@]}"; do kill "$p" 2> /dev/null || true; done; }
 trap cleanup EXIT
-if [ "${ULAB_REPEAT_LOAD:-1}" = 1 ]; then
-  taskset -c 1 yes > /dev/null &
+load=${ULAB_REPEAT_LOAD:-1}
+for ((core = 1; core >= 2 - load && core >= 0; core--)); do
+  taskset -c "$core" yes > /dev/null &
   pids+=($!)
-fi
+done
 for ((k = 1; k <= n; k++)); do
   run=$(printf "%s/run_%02d" "$out" "$k")
   mkdir -p "$run"
@@ -59,22 +61,30 @@ for ((k = 1; k <= n; k++)); do
   # The next peer must not meet this one's DDS participants.
   sleep 2
 done
-"$ULAB_PYTHON" - "$out" "$n" "${ULAB_REPEAT_LOAD:-1}" <<'PY'
+"$ULAB_PYTHON" - "$out" "$n" "$load" <<'PY'
 import collections, glob, json, os, sys
-out, n, load = sys.argv[1], int(sys.argv[2]), sys.argv[3] == "1"
+out, n, load = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
 runs = sorted(glob.glob(os.path.join(out, "run_*", "report.json")))
-verdicts = {}
+verdicts, probes, margins = {}, {}, {}
 for path in runs:
     for r in json.load(open(path))["results"]:
         verdicts.setdefault(r["id"], []).append(r["status"])
-rows = [{"check": c, "counts": dict(collections.Counter(vs)), "repeats": len(set(vs)) == 1 and len(vs) == len(runs)}
+        probes.setdefault(r["id"], []).append(r.get("probes", 1))
+        m = (r.get("margin") or {}).get("relative")
+        if isinstance(m, (int, float)):
+            margins.setdefault(r["id"], []).append(m)
+rows = [{"check": c, "counts": dict(collections.Counter(vs)), "repeats": len(set(vs)) == 1 and len(vs) == len(runs),
+         "probes": [min(probes[c]), max(probes[c])], "closest_margin": min(margins[c]) if c in margins else None}
         for c, vs in verdicts.items()]
 json.dump({"runs": len(runs), "of": n, "load": load, "checks": rows}, open(os.path.join(out, "agreement.json"), "w"), indent=1)
-lines = [f"{len(runs)} reports of {n} runs, {'one core held by yes' if load else 'quiet'}; "
+held = {0: "quiet", 1: "one core held by yes", 2: "both cores held by yes"}.get(load, f"{load} yes processes")
+lines = [f"{len(runs)} reports of {n} runs, {held}; "
          f"{sum(r['repeats'] for r in rows)} of {len(rows)} checks gave the same verdict every time",
-         "", "| check | verdicts | repeats |", "|---|---|---|"]
+         "", "| check | verdicts | repeats | probes | closest margin |", "|---|---|---|---|---|"]
+span = lambda p: str(p[0]) if p[0] == p[1] else f"{p[0]}-{p[1]}"
 lines += [f"| `{r['check']}` | {', '.join(f'{k} {v}' for k, v in sorted(r['counts'].items()))} | "
-          f"{'yes' if r['repeats'] else 'NO'} |" for r in rows]
+          f"{'yes' if r['repeats'] else 'NO'} | {span(r['probes'])} | "
+          f"{'-' if r['closest_margin'] is None else format(r['closest_margin'] * 100, '+.0f') + ' %'} |" for r in rows]
 table = "\n".join(lines) + "\n"
 open(os.path.join(out, "agreement.md"), "w").write(table)
 print(table)
