@@ -229,7 +229,7 @@ const SUMMARY_MUST_SAY: [(&str, &str, &str); 2] = [
 /// Compares a report with the case's expected table; returns the mismatches.
 fn mismatches(case: &Case, report: &serde_json::Value) -> Vec<String> {
     let mut problems = Vec::new();
-    assert_eq!(report["schema_version"], 2);
+    assert_eq!(report["schema_version"], conformance::report::REPORT_SCHEMA_VERSION);
     assert_eq!(report["target"]["robot"], "h1_2");
     let results = report["results"].as_array().expect("results");
     let got: BTreeMap<&str, (&str, &str)> = results
