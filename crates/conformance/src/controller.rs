@@ -22,9 +22,11 @@ pub const NOMINAL_RATE_HZ: f64 = 500.0;
 /// a mean 10 % off is a loop paced by something else (sleeps that add the loop's own work, another nominal rate).
 pub const RATE_TOLERANCE: f64 = 0.10;
 
-/// Largest relative deviation of the median command interval from the nominal period (`ctl_jitter`). The median
-/// ignores single late cycles (scheduling noise) and moves only when the loop's cadence itself is irregular.
-pub const MEDIAN_INTERVAL_TOLERANCE: f64 = 0.25;
+/// Smallest share of the robot's control periods (2 ms at the nominal rate) in which a fresh command was sent
+/// (`ctl_jitter`). The robot applies the latest command every period: a steady loop with scheduling noise covers
+/// nearly all of them, a loop that sends in bursts (ten commands at once every 20 ms) covers a tenth, one at half the
+/// rate a half. Under half, the robot sees a fresh command less often than every other period.
+pub const MIN_PERIOD_COVERAGE: f64 = 0.5;
 
 /// Largest gap between two commands (s) (`ctl_jitter`): half the robot's command timeout (0.1 s, after which the
 /// robot stops applying commands and damps, see `ulab sim --command-timeout`), leaving the other half for delivery.
@@ -96,7 +98,7 @@ pub const RULES: [Rule; 9] = [
     Rule {
         id: CheckId::CtlJitter,
         question: "is its command stream regular?",
-        pass_rule: "median interval within MEDIAN_INTERVAL_TOLERANCE of the period and no gap of MAX_GAP_S or more (inconclusive if the judge itself stalled as long)",
+        pass_rule: "a fresh command in at least MIN_PERIOD_COVERAGE of the robot's periods and no gap of MAX_GAP_S or more (a gap is inconclusive if the judge itself stalled as long)",
     },
     Rule {
         id: CheckId::CtlStartJump,
@@ -441,15 +443,18 @@ fn check_timing(trace: &Trace) -> [CheckResult; 2] {
     let median = percentile(&intervals, 0.5);
     let p99 = percentile(&intervals, 0.99);
     let max_gap = intervals.last().copied().unwrap_or(0.0);
-    let median_off = (median / period - 1.0).abs();
-    let (status, summary) = if median_off > MEDIAN_INTERVAL_TOLERANCE {
+    // Periods of the robot's clock (counted from the first send) that saw at least one fresh command.
+    let first = times.first().copied().unwrap_or(0.0);
+    let bins: std::collections::BTreeSet<i64> = times.iter().map(|t| ((t - first) / period).floor() as i64).collect();
+    let coverage = bins.len() as f64 / ((span / period).floor() + 1.0);
+    let (status, summary) = if coverage < MIN_PERIOD_COVERAGE {
         (
             Status::Fail,
             format!(
-                "median interval {:.2} ms is {:.0} % off the {:.1} ms period: the loop's cadence is irregular",
-                median * 1e3,
-                median_off * 100.0,
-                period * 1e3
+                "a fresh command in only {:.0} % of the robot's {:.1} ms periods (limit {:.0} %): the commands come in bursts",
+                coverage * 100.0,
+                period * 1e3,
+                MIN_PERIOD_COVERAGE * 100.0
             ),
         )
     } else if max_gap >= MAX_GAP_S && trace.judge_max_stall_s >= MAX_GAP_S {
@@ -474,7 +479,8 @@ fn check_timing(trace: &Trace) -> [CheckResult; 2] {
         (
             Status::Pass,
             format!(
-                "median interval {:.2} ms, p99 {:.2} ms, largest gap {:.1} ms",
+                "a fresh command in {:.0} % of the periods; median interval {:.2} ms, p99 {:.2} ms, largest gap {:.1} ms",
+                coverage * 100.0,
                 median * 1e3,
                 p99 * 1e3,
                 max_gap * 1e3
@@ -482,6 +488,7 @@ fn check_timing(trace: &Trace) -> [CheckResult; 2] {
         )
     };
     let jitter_result = result(CheckId::CtlJitter, status, summary)
+        .with("period_coverage", round(coverage, 3))
         .with("median_ms", round(median * 1e3, 3))
         .with("p99_ms", round(p99 * 1e3, 3))
         .with("max_gap_ms", round(max_gap * 1e3, 2))
@@ -832,6 +839,15 @@ mod tests {
         assert_eq!(status(&r, CheckId::CtlRate), Status::Pass, "{:?}", r[5]);
         t.judge_max_stall_s = 0.08;
         assert_eq!(status(&judge(&t), CheckId::CtlJitter), Status::Inconclusive);
+        // Bursts of ten commands every 20 ms: the mean rate is right, the robot sees a fresh command in a tenth of
+        // its periods.
+        let mut t = good();
+        for (k, r) in t.commands.iter_mut().enumerate() {
+            r.sent_s = Some(1000.0 + (k / 10) as f64 * 0.02);
+        }
+        let r = judge(&t);
+        assert_eq!(status(&r, CheckId::CtlJitter), Status::Fail, "{:?}", r[6]);
+        assert_eq!(status(&r, CheckId::CtlRate), Status::Pass, "{:?}", r[5]);
         // Nothing at all: every check inconclusive.
         let r = judge(&Trace { mode_machine: MM, silence_s: 2.0, ..Trace::default() });
         assert!(r.iter().all(|x| x.status == Status::Inconclusive), "{r:?}");
