@@ -11,6 +11,8 @@
 //! * [`wire`]: the peer's RTPS vendor and protocol version, from the header of its answer to an SPDP announcement.
 //! * [`fuzz`]: structure-aware mutation of LowCmd sequences with state feedback, minimisation
 //!   and reproducer files ([`fuzz::Reproducer`]).
+//! * [`controller`]: the other direction: verdicts on a controller's LowCmd stream, recorded while ulab plays
+//!   the robot (`ulab conform controller`), with the decision table in one place.
 //! * [`safety`]: the extra rule for fuzzing a non-loopback target (the network rule itself is
 //!   `dds_transport::DomainConfig::validate`).
 //!
@@ -19,6 +21,7 @@
 
 pub mod checks;
 pub mod commands;
+pub mod controller;
 pub mod fuzz;
 pub mod interop;
 pub mod report;

@@ -6,7 +6,8 @@ use std::collections::BTreeMap;
 /// Version of the `report.json` layout; bump on any incompatible change.
 /// 2: `discovery_type_information` replaced by the decisive `interop_cyclone_010` / `interop_cyclone_11` probes;
 /// `target` gains the peer's measured LowState rate, RTPS vendor and protocol version; `settings.checks`.
-/// 3: each result gains `probes` and `margin` (a version-2 report still reads: 1 probe, no margin).
+/// 3: each result gains `probes` and `margin` (a version-2 report still reads: 1 probe, no margin); the `controller`
+/// group and its `ctl_*` checks (`ulab conform controller`, mode `controller`).
 pub const REPORT_SCHEMA_VERSION: u32 = 3;
 
 /// Outcome of one check (the verdict).
@@ -39,6 +40,8 @@ pub enum Group {
     CommandHandling,
     Robustness,
     Fuzz,
+    /// The peer is a controller: ulab plays the robot and judges its `rt/lowcmd`.
+    Controller,
 }
 
 impl Group {
@@ -50,6 +53,7 @@ impl Group {
             Group::CommandHandling => "Command handling (rt/lowcmd)",
             Group::Robustness => "Robustness",
             Group::Fuzz => "Fuzzing",
+            Group::Controller => "Controller (its rt/lowcmd, judged by a simulated robot)",
         }
     }
 
@@ -62,6 +66,7 @@ impl Group {
             Group::CommandHandling => "command_handling",
             Group::Robustness => "robustness",
             Group::Fuzz => "fuzz",
+            Group::Controller => "controller",
         }
     }
 }
@@ -97,6 +102,15 @@ pub enum CheckId {
     Fuzz,
     /// The k-th failure found by fuzzing (`fuzz_failure_k`).
     FuzzFailure(u32),
+    CtlCrc,
+    CtlModeMachine,
+    CtlMotorModes,
+    CtlLimits,
+    CtlFinite,
+    CtlRate,
+    CtlJitter,
+    CtlStartJump,
+    CtlStaleState,
 }
 
 impl CheckId {
@@ -127,6 +141,19 @@ impl CheckId {
         CheckId::RobustDuplicatesReordering,
     ];
 
+    /// The checks of a controller run (`ulab conform controller`), in report order.
+    pub const CONTROLLER_RUN: [CheckId; 9] = [
+        CheckId::CtlCrc,
+        CheckId::CtlModeMachine,
+        CheckId::CtlMotorModes,
+        CheckId::CtlLimits,
+        CheckId::CtlFinite,
+        CheckId::CtlRate,
+        CheckId::CtlJitter,
+        CheckId::CtlStartJump,
+        CheckId::CtlStaleState,
+    ];
+
     /// The stable snake_case name.
     pub fn name(self) -> String {
         let fixed = match self {
@@ -154,6 +181,15 @@ impl CheckId {
             CheckId::RobustFlood => "robust_flood",
             CheckId::RobustDuplicatesReordering => "robust_duplicates_reordering",
             CheckId::Fuzz => "fuzz",
+            CheckId::CtlCrc => "ctl_crc",
+            CheckId::CtlModeMachine => "ctl_mode_machine",
+            CheckId::CtlMotorModes => "ctl_motor_modes",
+            CheckId::CtlLimits => "ctl_limits",
+            CheckId::CtlFinite => "ctl_finite",
+            CheckId::CtlRate => "ctl_rate",
+            CheckId::CtlJitter => "ctl_jitter",
+            CheckId::CtlStartJump => "ctl_start_jump",
+            CheckId::CtlStaleState => "ctl_stale_state",
             CheckId::FuzzFailure(k) => return format!("fuzz_failure_{k}"),
         };
         fixed.to_owned()
@@ -164,7 +200,7 @@ impl CheckId {
         if let Some(k) = name.strip_prefix("fuzz_failure_") {
             return k.parse().ok().map(CheckId::FuzzFailure);
         }
-        Self::DEFAULT_RUN.into_iter().chain([CheckId::Fuzz]).find(|c| c.name() == name)
+        Self::DEFAULT_RUN.into_iter().chain(Self::CONTROLLER_RUN).chain([CheckId::Fuzz]).find(|c| c.name() == name)
     }
 
     /// The group it belongs to.
@@ -193,6 +229,15 @@ impl CheckId {
             | CheckId::RobustFlood
             | CheckId::RobustDuplicatesReordering => Group::Robustness,
             CheckId::Fuzz | CheckId::FuzzFailure(_) => Group::Fuzz,
+            CheckId::CtlCrc
+            | CheckId::CtlModeMachine
+            | CheckId::CtlMotorModes
+            | CheckId::CtlLimits
+            | CheckId::CtlFinite
+            | CheckId::CtlRate
+            | CheckId::CtlJitter
+            | CheckId::CtlStartJump
+            | CheckId::CtlStaleState => Group::Controller,
         }
     }
 }
@@ -433,7 +478,20 @@ impl Report {
         let mut out = String::new();
         let c = self.counts();
         out.push_str("# Conformance report\n\n");
-        out.push_str(&format!(
+        if self.settings.mode == "controller" {
+            // ulab played the robot: the peer judged is the controller that connected.
+            out.push_str(&format!(
+                "Target: a controller of robot `{}` on DDS domain {} / `{}`{}, judged by ulab playing the robot  \nMode: controller; LowState published at {} against {} Hz nominal; run took {:.1} s.  \n",
+                self.target.robot,
+                self.target.domain,
+                self.target.interface,
+                self.target.participant.as_ref().map(|p| format!(", participant `{p}`")).unwrap_or_default(),
+                self.target.measured_state_rate_hz.map_or("?".to_owned(), |r| format!("{r:.1} Hz")),
+                self.settings.expected_state_rate_hz,
+                self.duration_s
+            ));
+        } else {
+            out.push_str(&format!(
             "Target: robot `{}` on DDS domain {} / `{}`{}{}  \nMode: {}; LowState measured at {} against {} Hz nominal; run took {:.1} s.  \n",
             self.target.robot,
             self.target.domain,
@@ -448,6 +506,7 @@ impl Report {
             self.settings.expected_state_rate_hz,
             self.duration_s
         ));
+        }
         let versions: Vec<String> = self.versions.iter().map(|(k, v)| format!("{k} {v}")).collect();
         out.push_str(&format!("Versions: {}.\n\n", versions.join(", ")));
         out.push_str(&format!(
@@ -600,9 +659,11 @@ mod id_tests {
     #[test]
     fn check_names_round_trip_and_are_unique() {
         let mut seen = std::collections::BTreeSet::new();
-        for id in
-            CheckId::DEFAULT_RUN.into_iter().chain([CheckId::Fuzz, CheckId::FuzzFailure(0), CheckId::FuzzFailure(12)])
-        {
+        for id in CheckId::DEFAULT_RUN.into_iter().chain(CheckId::CONTROLLER_RUN).chain([
+            CheckId::Fuzz,
+            CheckId::FuzzFailure(0),
+            CheckId::FuzzFailure(12),
+        ]) {
             assert_eq!(CheckId::parse(&id.name()), Some(id));
             assert!(seen.insert(id.name()), "{id}");
             let json = serde_json::to_string(&id).unwrap_or_default();

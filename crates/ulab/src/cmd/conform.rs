@@ -1,5 +1,6 @@
 //! `ulab conform`: how a peer that plays the robot side (publishes `rt/lowstate`, consumes
-//! `rt/lowcmd`) behaves on good and bad traffic. The checks, the fuzzer and the reports live in
+//! `rt/lowcmd`) behaves on good and bad traffic; `ulab conform controller` judges the other side, a controller,
+//! with ulab playing the robot (`conform_controller`). The checks, the fuzzer and the reports live in
 //! the `conformance` crate; this module parses arguments, applies the safety rules, shows
 //! progress and writes files. Exit codes: 0 every check passed (or was inconclusive), 1 a check
 //! failed / a failure was found or reproduced, 2 usage or connection error.
@@ -29,6 +30,10 @@ pub struct Args {
 pub enum Sub {
     /// Re-run a reproducer saved by `--fuzz` and report whether the failure reproduces.
     Replay(ReplayArgs),
+    /// Judge a CONTROLLER instead: ulab plays the robot (simulated, loopback and a non-zero domain by default) and
+    /// checks the LowCmd stream of the controller that connects (CRC, mode_machine, motor modes, limits, finite
+    /// values, rate and jitter, the start, what it does when LowState stops).
+    Controller(super::conform_controller::Args),
 }
 
 #[derive(Debug, clap::Args)]
@@ -100,6 +105,7 @@ pub struct ReplayArgs {
 pub fn run(args: Args) -> Result<Exit> {
     match args.command {
         Some(Sub::Replay(r)) => replay(r),
+        Some(Sub::Controller(c)) => super::conform_controller::run(c),
         None => run_target(args.run),
     }
 }
@@ -319,7 +325,7 @@ fn run_target(args: RunArgs) -> Result<Exit> {
     Ok(Exit::failed_if(report.any_fail()))
 }
 
-fn write_file(path: &Path, text: &str) -> Result<()> {
+pub(crate) fn write_file(path: &Path, text: &str) -> Result<()> {
     if let Some(dir) = path.parent() {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }

@@ -1,6 +1,7 @@
 //! Subcommands. One module per subcommand; each exposes `Args` and `run(Args) -> anyhow::Result<Exit>`.
 pub mod codec;
 pub mod conform;
+pub mod conform_controller;
 pub mod deploy;
 pub mod diff;
 pub mod doctor;

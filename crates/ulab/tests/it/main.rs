@@ -6,6 +6,7 @@ mod codec_cli;
 mod common;
 mod compressed_mcap;
 mod conform_cli;
+mod conform_controller;
 mod conform_matrix;
 mod conform_sim;
 mod deploy_sim;
