@@ -172,6 +172,8 @@ class Sim:
         self.gravity = np.array(c["gravity"], dtype=np.float64)
         self.shape_body = m.shape_body.numpy()
         self.shape_ke = s["contact_ke"]
+        self.shape_kd = s["contact_kd"]
+        self.contact_state = None
         self.shape_margin = 0.0
 
         self.state0, self.state1 = m.state(), m.state()
@@ -263,6 +265,7 @@ class Sim:
         self.solver = self._make_solver()
         if self.observables is not None:
             self.observables = self.solver.observables(["contact_f"], contacts=self.contacts)
+        self.contact_state = None
         if self.contacts is not None:
             self.contacts.clear()
         self.last_contacts = self._collide_and_read(forces=False)
@@ -287,7 +290,14 @@ class Sim:
         nrm = c.rigid_contact_normal.numpy()[:n].astype(np.float64)
         m0 = c.rigid_contact_margin0.numpy()[:n].astype(np.float64)
         m1 = c.rigid_contact_margin1.numpy()[:n].astype(np.float64)
-        body_q = self.state0.body_q.numpy().astype(np.float64)
+        if forces and self.contact_state is not None:
+            body_q, body_qd = self.contact_state
+        else:
+            body_q = self.state0.body_q.numpy().astype(np.float64)
+            body_qd = self.state0.body_qd.numpy().astype(np.float64)
+        stiff = c.rigid_contact_stiffness.numpy()[:n] if c.rigid_contact_stiffness is not None else None
+        damp = c.rigid_contact_damping.numpy()[:n] if c.rigid_contact_damping is not None else None
+        body_com = self.body_com
         f = None
         if forces and self.observables is not None:
             f = self.observables.contact_f.numpy()[:n].astype(np.float64)
@@ -312,8 +322,21 @@ class Sim:
             if f is not None:
                 fn = abs(float(np.dot(f[k][0:3], nrm[k])))
             else:
-                # Featherstone/SemiImplicit: the elastic part of Newton's penalty contact, ke · penetration.
-                fn = self.shape_ke * max(depth, 0.0)
+                # Featherstone/SemiImplicit: Newton's penalty law on the state the step started from,
+                # ke · penetration + kd · approach speed (per-contact ke/kd when the pipeline sets them).
+                ke = float(stiff[k]) if stiff is not None and stiff[k] > 0 else self.shape_ke
+                kd = float(damp[k]) if damp is not None and damp[k] > 0 else self.shape_kd
+
+                def vel(b, w):
+                    if b < 0:
+                        return np.zeros(3)
+                    t = body_q[b]
+                    R = quat_wxyz_to_R([t[6], t[3], t[4], t[5]])
+                    r = w - (t[0:3] + R @ body_com[b])
+                    return body_qd[b][0:3] + np.cross(body_qd[b][3:6], r)
+
+                vn = float(np.dot(nrm[k], vel(b1, w1) - vel(b0, w0)))
+                fn = ke * max(depth, 0.0) + (kd * max(-vn, 0.0) if depth > 0 else 0.0)
             normal = nrm[k]
             name = lambda b: "ground" if b < 0 or b not in self.bodies else self.link_name(b)  # noqa: E731
             a, bb = name(b0), name(b1)
@@ -341,6 +364,8 @@ class Sim:
                 if self.pipeline is not None:
                     self.pipeline.collide(self.state0, self.contacts)
                 h = self.dt / self.substeps
+                # The contacts of the last sub-step are read against the state they were applied at.
+                self.contact_state = (self.state0.body_q.numpy().astype(np.float64), self.state0.body_qd.numpy().astype(np.float64))
                 if self.observables is not None:
                     self.solver.step(self.state0, self.state1, self.control, self.contacts, h, observables=self.observables)
                 else:
@@ -443,18 +468,31 @@ class Sim:
         T = self.T(qpos)
         fN = np.linalg.solve(T.T, f)
         h = self.s["acceleration_probe_dt"]
-        probe_in, probe_out = self.model.state(), self.model.state()
-        probe_in.joint_q.assign(saved_q)
-        probe_in.joint_qd.assign(saved_qd)
-        self.newton.eval_fk(self.model, probe_in.joint_q, probe_in.joint_qd, probe_in)
-        ctrl = self.model.control()
-        ctrl.joint_f.assign(fN.astype(np.float32))
-        solver = self._make_solver()
-        solver.step(probe_in, probe_out, ctrl, None, h)
-        _, qvel1 = self.from_newton(probe_out)
-        if not np.isfinite(qvel1).all():
-            raise Diverged("non-finite acceleration probe")
-        return (qvel1 - qvel) / h
+
+        def probe(qd, force):
+            probe_in, probe_out = self.model.state(), self.model.state()
+            probe_in.joint_q.assign(saved_q)
+            probe_in.joint_qd.assign(qd)
+            self.newton.eval_fk(self.model, probe_in.joint_q, probe_in.joint_qd, probe_in)
+            ctrl = self.model.control()
+            ctrl.joint_f.assign(force.astype(np.float32))
+            self._make_solver().step(probe_in, probe_out, ctrl, None, h)
+            _, v1 = self.from_newton(probe_out)
+            if not np.isfinite(v1).all():
+                raise Diverged("non-finite acceleration probe")
+            return v1
+
+        # The dynamics are affine in the applied force: a(f) = a(0) + M⁻¹f. a(0) from the state itself; M⁻¹f
+        # from rest without gravity, where the probe's velocity is M⁻¹f·h alone (relative f32 rounding u instead
+        # of u·|v|/h, which swamps the small columns of M⁻¹ in a finite difference around a moving state).
+        a0 = (probe(saved_qd, np.zeros_like(fN)) - qvel) / h
+        g = self.model.gravity.numpy().copy()
+        self.model.set_gravity((0.0, 0.0, 0.0))
+        try:
+            am = probe(np.zeros_like(saved_qd), fN) / h
+        finally:
+            self.model.set_gravity(tuple(float(x) for x in g[0]))
+        return a0 + am
 
 
 def main():

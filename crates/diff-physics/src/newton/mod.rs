@@ -381,7 +381,7 @@ impl Engine for NewtonEngine {
                 "integrator: each solver's own (Featherstone/SemiImplicit semi-implicit Euler; Steel velocity-level; MuJoCo per settings.integrator)",
             ],
             "contact_force": "Steel: solver CONTACT_F observable along the normal; Featherstone/others: contact_ke x penetration (elastic part of the penalty law)",
-            "acceleration_method": "finite difference: one contact-free solver step of acceleration_probe_dt from the current state",
+            "acceleration_method": "finite difference: contact-free solver steps of acceleration_probe_dt, a(f) = a(0) from the state + M^-1 f from rest without gravity",
             "mass_matrix": "newton.eval_mass_matrix (with the model's armature), mapped T^T H T",
             "energy": "1/2 qd^T H qd with eval_mass_matrix; -m g.com",
         })
@@ -407,9 +407,7 @@ impl Engine for NewtonEngine {
         if n <= 1e-9 {
             return Err(EngineError::Input("zero base quaternion".into()));
         }
-        for k in 3..7 {
-            qpos[k] /= n;
-        }
+        qpos[3..7].iter_mut().for_each(|x| *x /= n);
         let mut payload = qpos;
         payload.extend(s.v());
         let b = self.request(protocol::OP_RESET, &f64_bytes(&payload), "reset")?;
