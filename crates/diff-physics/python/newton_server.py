@@ -316,12 +316,15 @@ class Sim:
             w0, w1 = world(b0, p0[k]), world(b1, p1[k])
             # Newton's normal points from shape 0 to shape 1; the margins are the shapes' surface offsets.
             dist = float(np.dot(nrm[k], w1 - w0) - m0[k] - m1[k])
-            if dist > self.s["contact_report_distance"]:
-                continue
             depth = -dist
             if f is not None:
+                # Steel solves speculative contacts too: a row carrying force counts even while separated.
                 fn = abs(float(np.dot(f[k][0:3], nrm[k])))
-            else:
+                if dist > self.s["contact_report_distance"] and fn == 0.0:
+                    continue
+            elif dist > self.s["contact_report_distance"]:
+                continue
+            if f is None:
                 # Featherstone/SemiImplicit: Newton's penalty law on the state the step started from,
                 # ke · penetration + kd · approach speed (per-contact ke/kd when the pipeline sets them).
                 ke = float(stiff[k]) if stiff is not None and stiff[k] > 0 else self.shape_ke

@@ -512,6 +512,16 @@ pub fn f32_tolerance(check: &str, _f64_tolerance: f64) -> Option<f64> {
 
 /// Checks a Newton solver cannot meet for a reason inside Newton (measured; see docs/newton.md).
 pub fn known_difference(engine: &str, check: &str) -> Option<&'static str> {
-    let _ = (engine, check);
-    None
+    match (engine, check) {
+        // Measured 2026-12-02 (seed 1): 1.36e-2 of KE0 and 5.3e-3 of the angular momentum lost over 1 s of
+        // zero-g free flight; Featherstone, on the same state, stays at 1.2e-3 / 1.1e-3. Steel's velocity-level
+        // step dissipates; not a translation error (mass matrix and bias forces agree to 1e-7).
+        ("newton_steel", "energy drift, free flight 1 s, zero g") => {
+            Some("Steel's velocity-level integration dissipates energy in free flight (1.4e-2 of KE0 in 1 s)")
+        }
+        ("newton_steel", "angular momentum drift, zero g 1 s") => {
+            Some("Steel's velocity-level integration loses angular momentum in free flight (5.3e-3 in 1 s)")
+        }
+        _ => None,
+    }
 }
