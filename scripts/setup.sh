@@ -7,13 +7,19 @@
 #   scripts/setup.sh          what building, `scripts/test.sh` (CI) and `scripts/run.sh` need
 #   scripts/setup.sh --fuzz   the same, plus cargo-fuzz from crates.io for `cargo +nightly fuzz run TARGET` (kept out
 #                             of the default: its build costs CI minutes, and CI fuzzes on stable with scripts/fuzz.sh)
+#   scripts/setup.sh --newton the same, plus Newton 1.8.0 (NVIDIA Warp, ~575 MB with warp-lang and numpy) in its own
+#                             venv .venv-newton ($ULAB_NEWTON_VENV), for the `newton_*` engines of
+#                             `cargo build -p ulab --features newton`: the main venv's pinned numpy and mujoco stay
+#                             untouched. CI neither installs nor builds Newton.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 FUZZ=0
+NEWTON=0
 for arg in "$@"; do
   case "$arg" in
     --fuzz) FUZZ=1 ;;
-    *) echo "usage: $0 [--fuzz]" >&2; exit 2 ;;
+    --newton) NEWTON=1 ;;
+    *) echo "usage: $0 [--fuzz] [--newton]" >&2; exit 2 ;;
   esac
 done
 source scripts/env.sh
@@ -63,9 +69,22 @@ if ! "$ULAB_PYTHON" -c "import importlib.util as u, mujoco, cyclonedds, mcap, nu
   "$ULAB_PYTHON" -m pip install -q --disable-pip-version-check --no-deps unitree_sdk2==1.0.1
 fi
 
+# Newton (--newton only), in a venv of its own: its numpy (2.x) and Warp must not move the main venv's pins.
+if [ "$NEWTON" = 1 ]; then
+  if [ ! -x "$ULAB_NEWTON_PYTHON" ]; then
+    echo "setup: creating the Newton venv in $ULAB_NEWTON_VENV"
+    python3 -m venv "$ULAB_NEWTON_VENV"
+  fi
+  if ! "$ULAB_NEWTON_PYTHON" -c "import importlib.metadata as m, sys; sys.exit(m.version('newton') != '1.8.0')" 2>/dev/null; then
+    echo "setup: installing newton==1.8.0 (with warp-lang and numpy, ~575 MB)"
+    "$ULAB_NEWTON_PYTHON" -m pip install -q --disable-pip-version-check newton==1.8.0
+  fi
+fi
+
 mkdir -p "$MUJOCO_DYNAMIC_LINK_DIR"
 lib=$("$ULAB_PYTHON" -c "import mujoco, os, glob; print(sorted(glob.glob(os.path.join(os.path.dirname(mujoco.__file__), 'libmujoco.so.*')))[-1])")
 ln -sf "$lib" "$MUJOCO_DYNAMIC_LINK_DIR/libmujoco.so"
 ln -sf "$lib" "$MUJOCO_DYNAMIC_LINK_DIR/$(basename "$lib")"
 echo "setup: ok (MuJoCo: $lib)"
+[ "$NEWTON" = 0 ] || echo "setup: Newton: $("$ULAB_NEWTON_PYTHON" -c 'import importlib.metadata as m; print(m.version("newton"))') in $ULAB_NEWTON_VENV"
 [ "$FUZZ" = 0 ] || echo "setup: fuzzing: $(cargo fuzz --version), $(cargo +nightly --version 2>/dev/null || echo no nightly)"

@@ -51,10 +51,27 @@ pub enum EngineKind {
     Dart,
     /// PhysX reduced-coordinate articulation (f32), feature `physx`.
     Physx,
+    /// Newton's `SolverFeatherstone` (f32, Python server), feature `newton`.
+    #[cfg(feature = "newton")]
+    NewtonFeatherstone,
+    /// Newton's experimental `SolverSteel`, feature `newton`.
+    #[cfg(feature = "newton")]
+    NewtonSteel,
+    /// Newton's `SolverXPBD`: only when named (see [`EngineKind::EXPLICIT_ONLY`]).
+    #[cfg(feature = "newton")]
+    NewtonXpbd,
+    /// Newton's `SolverSemiImplicit`: only when named.
+    #[cfg(feature = "newton")]
+    NewtonSemiImplicit,
+    /// Newton's `SolverMuJoCo` (MuJoCo Warp): only when named.
+    #[cfg(feature = "newton")]
+    NewtonMujoco,
 }
 
 impl EngineKind {
-    /// Every engine the project knows, compiled in or not.
+    /// Every engine the project knows, compiled in or not: the default set of commands that run "every engine".
+    /// The Newton kinds exist only with feature `newton` (a build without it lists exactly what it did before).
+    #[cfg(not(feature = "newton"))]
     pub const ALL: [EngineKind; 6] = [
         EngineKind::Mujoco,
         EngineKind::RapierMultibody,
@@ -63,6 +80,25 @@ impl EngineKind {
         EngineKind::Dart,
         EngineKind::Physx,
     ];
+    #[cfg(feature = "newton")]
+    pub const ALL: [EngineKind; 8] = [
+        EngineKind::Mujoco,
+        EngineKind::RapierMultibody,
+        EngineKind::RapierImpulse,
+        EngineKind::Bullet,
+        EngineKind::Dart,
+        EngineKind::Physx,
+        EngineKind::NewtonFeatherstone,
+        EngineKind::NewtonSteel,
+    ];
+    /// Engines that run only when named (`--engines newton-xpbd`): never in a default list. Newton's XPBD and
+    /// SemiImplicit diverge on this robot within 0.01 s with torques in `joint_f`; SolverMuJoCo would duplicate
+    /// the MuJoCo engine in every campaign.
+    #[cfg(not(feature = "newton"))]
+    pub const EXPLICIT_ONLY: [EngineKind; 0] = [];
+    #[cfg(feature = "newton")]
+    pub const EXPLICIT_ONLY: [EngineKind; 3] =
+        [EngineKind::NewtonXpbd, EngineKind::NewtonSemiImplicit, EngineKind::NewtonMujoco];
     /// Command-line name.
     pub fn name(self) -> &'static str {
         match self {
@@ -72,11 +108,21 @@ impl EngineKind {
             EngineKind::Bullet => "bullet",
             EngineKind::Dart => "dart",
             EngineKind::Physx => "physx",
+            #[cfg(feature = "newton")]
+            EngineKind::NewtonFeatherstone => "newton_featherstone",
+            #[cfg(feature = "newton")]
+            EngineKind::NewtonSteel => "newton_steel",
+            #[cfg(feature = "newton")]
+            EngineKind::NewtonXpbd => "newton_xpbd",
+            #[cfg(feature = "newton")]
+            EngineKind::NewtonSemiImplicit => "newton_semi_implicit",
+            #[cfg(feature = "newton")]
+            EngineKind::NewtonMujoco => "newton_mujoco",
         }
     }
     /// Parses a command-line name (`rapier_multibody` and `rapier-multibody` alike).
     pub fn parse(s: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|k| k.name() == s || k.name().replace('_', "-") == s)
+        Self::ALL.into_iter().chain(Self::EXPLICIT_ONLY).find(|k| k.name() == s || k.name().replace('_', "-") == s)
     }
     /// Parses an engine named by a user into one compiled into this build: an unknown name or an engine this build
     /// lacks is an error that lists the engines it has.
@@ -97,6 +143,12 @@ impl EngineKind {
             EngineKind::Bullet => cfg!(feature = "bullet"),
             EngineKind::Dart => cfg!(feature = "dart"),
             EngineKind::Physx => cfg!(feature = "physx"),
+            #[cfg(feature = "newton")]
+            EngineKind::NewtonFeatherstone
+            | EngineKind::NewtonSteel
+            | EngineKind::NewtonXpbd
+            | EngineKind::NewtonSemiImplicit
+            | EngineKind::NewtonMujoco => true,
         }
     }
     /// The engines compiled into this build, in [`EngineKind::ALL`] order: the default set of every command

@@ -37,6 +37,9 @@ pub mod dart;
 // PhysX 5 reduced-coordinate articulation (f32), feature `physx`.
 #[cfg(feature = "physx")]
 pub mod physx;
+// Newton (NVIDIA Warp) through a Python server (python/newton_server.py), feature `newton`.
+#[cfg(feature = "newton")]
+pub mod newton;
 
 pub use engine::{CommonSettings, Contact, Energy, Engine, EngineError, EngineKind, LinkPose, State};
 pub use pd::{pd_torques, PdTarget};
@@ -67,6 +70,21 @@ pub fn make_engine(
         EngineKind::Dart => Ok(Box::new(dart::DartEngine::new(model, common, &dart::DartSettings::default())?)),
         #[cfg(feature = "physx")]
         EngineKind::Physx => Ok(Box::new(physx::PhysxEngine::new(model, common, &physx::PhysxSettings::default())?)),
+        #[cfg(feature = "newton")]
+        EngineKind::NewtonFeatherstone
+        | EngineKind::NewtonSteel
+        | EngineKind::NewtonXpbd
+        | EngineKind::NewtonSemiImplicit
+        | EngineKind::NewtonMujoco => {
+            let solver = match kind {
+                EngineKind::NewtonSteel => newton::NewtonSolver::Steel,
+                EngineKind::NewtonXpbd => newton::NewtonSolver::Xpbd,
+                EngineKind::NewtonSemiImplicit => newton::NewtonSolver::SemiImplicit,
+                EngineKind::NewtonMujoco => newton::NewtonSolver::Mujoco,
+                _ => newton::NewtonSolver::Featherstone,
+            };
+            Ok(Box::new(newton::NewtonEngine::new(model, common, &newton::NewtonSettings::for_solver(solver))?))
+        }
         #[allow(unreachable_patterns)]
         other => {
             // Without any engine feature, nothing uses the model and settings.

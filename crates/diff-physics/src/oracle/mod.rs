@@ -129,6 +129,10 @@ pub fn known_difference(engine: &str, check: &str) -> Option<&'static str> {
     if engine == "physx" {
         return crate::physx::known_difference(check);
     }
+    #[cfg(feature = "newton")]
+    if engine.starts_with("newton_") {
+        return crate::newton::known_difference(engine, check);
+    }
     let _ = (engine, check);
     None
 }
@@ -139,6 +143,11 @@ pub fn precision_tolerance(engine: &str, check: &str, tolerance: f64) -> f64 {
     #[cfg(feature = "physx")]
     if engine == "physx" {
         return crate::physx::f32_tolerance(check, tolerance).unwrap_or(tolerance);
+    }
+    // Newton (f32 Warp state): derivations next to the engine (newton/mod.rs).
+    #[cfg(feature = "newton")]
+    if engine.starts_with("newton_") {
+        return crate::newton::f32_tolerance(check, tolerance).unwrap_or(tolerance);
     }
     let _ = (engine, check);
     tolerance

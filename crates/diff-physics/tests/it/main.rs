@@ -6,6 +6,7 @@ mod base_wrench;
 mod bullet_engine;
 mod dart_engine;
 mod mujoco_oracles;
+mod newton_engine;
 mod physx_engine;
 mod rapier_engines;
 mod unitree_reference;
