@@ -35,6 +35,10 @@ pub const STREAM_LOST_S: f64 = 0.25;
 pub const DISTURBANCE_RAD: f32 = 0.3;
 /// Largest joint motion (rad) over the end of the hold for the robot to count as settled.
 pub const SETTLED_RAD: f32 = 0.05;
+/// Longest pause of our sender (s) under which motion is blamed on the commands sent: half the robot's command
+/// timeout (0.1 s on the H1-2's motor layer and in `ulab sim`), after which a robot stops applying a silent
+/// controller's command and damps, so that a tester descheduled on a loaded machine does not find its own stall.
+pub const SENDER_STALL_S: f64 = 0.05;
 const HOLD_S: f64 = 0.4;
 const SETTLE_S: f64 = 0.3;
 const RATE: f64 = 500.0;
@@ -137,6 +141,10 @@ pub struct Observation {
     /// Largest range of any joint over the end of the hold before the sequence (rad): a robot
     /// that is still moving (falling, thrashing) gives no baseline to judge disturbance by.
     pub baseline_motion_rad: f32,
+    /// Longest pause of our own sender while the sequence ran (s): through a longer one than [`SENDER_STALL_S`] the
+    /// robot's command timeout may have acted, so motion then says nothing about the commands.
+    #[serde(default)]
+    pub sender_max_gap_s: f64,
 }
 
 impl Observation {
@@ -177,6 +185,7 @@ pub fn failure(o: &Observation) -> Option<FailureKind> {
         Some(FailureKind::InvalidState)
     } else if o.all_refusable
         && o.baseline_motion_rad <= SETTLED_RAD
+        && o.sender_max_gap_s <= SENDER_STALL_S
         && (o.max_deviation_rad > DISTURBANCE_RAD || o.max_speed_ratio > 1.0)
     {
         Some(FailureKind::RefusedCommandApplied)
@@ -234,6 +243,7 @@ pub fn execute(target: &mut Target, hold: &hg::LowCmd_, steps: &[(Vec<u8>, u32)]
         max_speed_ratio: 0.0,
         all_refusable,
         baseline_motion_rad: baseline_motion,
+        sender_max_gap_s: target.tick_times.windows(2).map(|w| w[1] - w[0]).fold(0.0, f64::max),
     };
     o.max_gap_s = samples.windows(2).map(|w| w[1].t - w[0].t).fold(0.0, f64::max);
     for (_, s) in decoded(samples) {
@@ -742,6 +752,7 @@ mod tests {
             max_speed_ratio: 0.1,
             all_refusable: false,
             baseline_motion_rad: 0.0,
+            sender_max_gap_s: 0.002,
         };
         assert_eq!(failure(&base), None, "a valid command may move the robot");
         assert_eq!(
@@ -753,6 +764,12 @@ mod tests {
             failure(&Observation { all_refusable: true, baseline_motion_rad: 0.2, ..base.clone() }),
             None,
             "unsettled baseline"
+        );
+        // A sender that paused past the robot's command timeout lets the robot damp on its own: no finding.
+        assert_eq!(
+            failure(&Observation { all_refusable: true, sender_max_gap_s: 0.2, ..base.clone() }),
+            None,
+            "stalled sender"
         );
         assert_eq!(
             failure(&Observation { max_gap_s: 1.0, non_finite_states: 3, ..base.clone() }),
@@ -774,6 +791,7 @@ mod tests {
             max_speed_ratio: 0.1,
             all_refusable: true,
             baseline_motion_rad: 0.0,
+            sender_max_gap_s: 0.002,
         };
         let kind = FailureKind::RefusedCommandApplied;
         assert_eq!(failure(&o), Some(kind), "0.35 rad is a failure");
@@ -815,6 +833,7 @@ mod tests {
             max_speed_ratio: 0.0,
             all_refusable: true,
             baseline_motion_rad: 0.0,
+            sender_max_gap_s: 0.002,
         };
         let r = Reproducer::new(
             5,
