@@ -221,11 +221,7 @@ fn check_mode_machine(trace: &Trace) -> CheckResult {
     }
     let total: usize = seen.values().sum();
     let wrong: usize = seen.iter().filter(|(m, _)| **m != trace.mode_machine).map(|(_, n)| n).sum();
-    let status = match (total, wrong) {
-        (0, _) => Status::Inconclusive,
-        (_, 0) => Status::Pass,
-        _ => Status::Fail,
-    };
+    let status = count_verdict(total, wrong);
     let summary = match status {
         Status::Inconclusive => "no decodable LowCmd".to_owned(),
         Status::Pass => format!("all {total} commands echo mode_machine {}", trace.mode_machine),
@@ -239,6 +235,16 @@ fn check_mode_machine(trace: &Trace) -> CheckResult {
     result(CheckId::CtlModeMachine, status, summary)
         .with("robot_mode_machine", trace.mode_machine)
         .with("mode_machine_counts", counts)
+}
+
+/// The verdict of a check that counts offending commands: nothing to judge without commands, a pass only when none
+/// offends.
+fn count_verdict(commands: usize, offending: usize) -> Status {
+    match (commands, offending) {
+        (0, _) => Status::Inconclusive,
+        (_, 0) => Status::Pass,
+        _ => Status::Fail,
+    }
 }
 
 /// Whether a used slot's command asks the motor to do anything.
@@ -281,11 +287,7 @@ fn check_motor_modes(trace: &Trace) -> CheckResult {
         }
         bad_commands += usize::from(bad);
     }
-    let status = match (total, bad_commands) {
-        (0, _) => Status::Inconclusive,
-        (_, 0) => Status::Pass,
-        _ => Status::Fail,
-    };
+    let status = count_verdict(total, bad_commands);
     let summary = match status {
         Status::Inconclusive => "no decodable LowCmd".to_owned(),
         Status::Pass => format!(
@@ -339,11 +341,7 @@ fn check_limits(trace: &Trace) -> CheckResult {
         }
         bad += usize::from(any);
     }
-    let status = match (total, bad) {
-        (0, _) => Status::Inconclusive,
-        (_, 0) => Status::Pass,
-        _ => Status::Fail,
-    };
+    let status = count_verdict(total, bad);
     let summary = match status {
         Status::Inconclusive => "no decodable LowCmd".to_owned(),
         Status::Pass => format!("gains and targets within the H1-2's limits in all {total} commands"),
@@ -373,11 +371,7 @@ fn check_finite(trace: &Trace) -> CheckResult {
             }
         }
     }
-    let status = match (total, bad) {
-        (0, _) => Status::Inconclusive,
-        (_, 0) => Status::Pass,
-        _ => Status::Fail,
-    };
+    let status = count_verdict(total, bad);
     let summary = match status {
         Status::Inconclusive => "no decodable LowCmd".to_owned(),
         Status::Pass => format!("every float finite in all {total} commands"),
