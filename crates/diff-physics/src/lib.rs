@@ -14,6 +14,7 @@
 pub mod engine;
 pub mod oracle;
 pub mod pd;
+pub mod precision;
 
 #[cfg(feature = "mujoco")]
 pub mod mujoco;

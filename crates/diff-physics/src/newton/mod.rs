@@ -489,24 +489,14 @@ impl Engine for NewtonEngine {
     }
 }
 
-/// Oracle tolerances for Newton's f32 state, derived like PhysX's (u = 2⁻²⁴ ≈ 6e-8).
+/// Oracle tolerances for Newton's f32 state: those of any f32 engine ([`crate::precision::f32_state_tolerance`]), and
+/// its bias forces, which PhysX does not report.
 pub fn f32_tolerance(check: &str, _f64_tolerance: f64) -> Option<f64> {
     match check {
-        // Masses pass through f32 once (|δm| ≤ u·m, m < 20 kg per link; the total sums 28 of them ≤ u·70 kg).
-        "per-link mass" | "total mass" => Some(1e-5),
-        // Limits rounded once to f32: ≤ u·π.
-        "joint limits" => Some(4e-7),
-        // Newton's FK composes ≤ 9 f32 transforms from the f32 joint state, as PhysX's (derivation in
-        // physx::f32_tolerance): ≤ 65u of rotation, ≤ 7.5e-6 m of position.
-        "link-frame FK position" | "centre of mass" => Some(2e-5),
-        "link-frame FK orientation" | "joint axes (world)" => Some(1e-5),
-        // eval_mass_matrix in f32 from those transforms and f32 inertias, mapped in f64: ≤ 2·65u + u ≈ 8e-6.
-        "mass matrix (engine's own)" | "mass matrix (engine's own) (with armature)" => Some(5e-5),
-        // Bias forces: gravity terms carry the f32 COM positions (65u relative) and the velocity products two
-        // more roundings of f32 velocities: 5e-5 as for M.
+        // Gravity terms carry the f32 COM positions (65u relative) and the velocity products two more roundings of
+        // f32 velocities: 5e-5 as for the mass matrix.
         "bias forces C(q,v)v + g" => Some(5e-5),
-        "kinetic energy at reset" | "potential energy at reset" => Some(5e-5),
-        _ => None,
+        other => crate::precision::f32_state_tolerance(other),
     }
 }
 
