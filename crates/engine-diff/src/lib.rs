@@ -16,6 +16,7 @@
 #![forbid(unsafe_code)]
 
 pub mod bench;
+pub mod determinism;
 pub mod excitation;
 pub mod fuzz;
 pub mod gait;

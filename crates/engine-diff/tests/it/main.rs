@@ -4,6 +4,7 @@
 
 mod allowlist_evidence;
 mod campaign_triage;
+mod determinism;
 mod fuzz_regressions;
 mod harness;
 mod planted_bug;

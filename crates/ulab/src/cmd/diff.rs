@@ -12,6 +12,8 @@
 //! - `ulab diff bench`: rollouts per second per engine, on one thread and on all cores.
 //! - `ulab diff search [--budget N] [--methods cem,mutation,random]`: CEM over perturbations of the rollout
 //!   against the mutation fuzzer and uniform random inputs, at equal compute.
+//! - `ulab diff hash [--check TABLE] [--write TABLE]`: every engine's hash of a fixed episode
+//!   (`engine_diff::determinism`), compared with a committed table: bit-for-bit reproducibility, measured.
 //!
 //! Exit codes: 0 report written (or replay identical), 1 candidate engine bugs with `--fail-on-bug` (or a
 //! replay that differs), 2 errors.
@@ -46,6 +48,33 @@ enum Sub {
     /// Compare search methods at equal compute: CEM over perturbations of the rollout, the mutation fuzzer,
     /// uniform random perturbations (findings, largest normalised divergence, divergence per unit).
     Search(SearchArgs),
+    /// Hash every step's state of a fixed episode per engine; compare with a committed table (exit 1 when an
+    /// engine of the same version on the same machine class gives another hash).
+    Hash(HashArgs),
+}
+
+#[derive(Debug, clap::Args)]
+struct HashArgs {
+    /// Built-in robot name.
+    #[arg(long, default_value = "h1_2")]
+    robot: String,
+    #[arg(long, help = super::engines_help("Engines (comma-separated); default: every engine of this build:"))]
+    engines: Option<String>,
+    /// Seed of the fixed episode (built-in excitation input).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Length of the fixed episode (s).
+    #[arg(long, default_value_t = 2.0)]
+    seconds: f64,
+    /// Worker threads (engines run in parallel); the hashes must not depend on it.
+    #[arg(long, default_value_t = 1)]
+    threads: usize,
+    /// Committed table to compare with (corpus/determinism/h1_2.json).
+    #[arg(long)]
+    check: Option<PathBuf>,
+    /// Write this run's table here (JSON).
+    #[arg(long)]
+    write: Option<PathBuf>,
 }
 
 #[derive(Debug, clap::Args)]
@@ -180,6 +209,7 @@ pub fn run(args: Args) -> Result<Exit> {
         Some(Sub::Replay(a)) => replay(a),
         Some(Sub::Bench(a)) => bench(a),
         Some(Sub::Search(a)) => search(a),
+        Some(Sub::Hash(a)) => hash(a),
         None => diff(args.run),
     }
 }
@@ -521,4 +551,40 @@ fn search(a: SearchArgs) -> Result<Exit> {
 /// Every engine compiled into this build, MuJoCo (the lead) first.
 pub(crate) fn default_engines() -> String {
     diff_physics::EngineKind::available().iter().map(|k| k.name()).collect::<Vec<_>>().join(",")
+}
+
+fn hash(a: HashArgs) -> Result<Exit> {
+    use engine_diff::determinism::{compare, hash_table, Comparison, HashTable, Probe};
+    check_seconds(a.seconds)?;
+    if !robot_model::BUILTIN_ROBOTS.contains(&a.robot.as_str()) {
+        bail!("--robot must be a built-in robot ({})", robot_model::BUILTIN_ROBOTS.join(", "));
+    }
+    let model = load_model(&a.robot)?;
+    let factories = builtin_factories(&engine_names(a.engines.as_deref())).context("--engines")?;
+    let ctrl = excitation_factory(&model);
+    let probe = Probe { seed: a.seed, seconds: a.seconds };
+    let run = hash_table(&factories, &a.robot, &model, ctrl.as_ref(), probe, a.threads).context("hashing")?;
+    println!("machine class {}; {} over {} s, seed {}", run.machine, run.robot, probe.seconds, probe.seed);
+    for e in &run.engines {
+        println!("{:<18} {:>5} steps  {}  {}", e.engine, e.steps, e.sha256, e.version);
+    }
+    if let Some(path) = &a.write {
+        let text = serde_json::to_string_pretty(&run)? + "\n";
+        std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))?;
+    }
+    let Some(path) = &a.check else { return Ok(Exit::Success) };
+    let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let table: HashTable = serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
+    let mut differs = 0;
+    for (engine, c) in compare(&table, &run).with_context(|| format!("comparing with {}", path.display()))? {
+        match c {
+            Comparison::Reproduced => println!("{engine}: reproduced"),
+            Comparison::Differs { expected, got } => {
+                differs += 1;
+                println!("{engine}: DIFFERS: table {expected}, this run {got}");
+            }
+            Comparison::NotCompared { why } => println!("{engine}: not compared: {why}"),
+        }
+    }
+    Ok(Exit::failed_if(differs > 0))
 }

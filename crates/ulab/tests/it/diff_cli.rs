@@ -268,3 +268,40 @@ fn bad_arguments_exit_2() {
         assert!(err.starts_with("error:"), "{err}");
     }
 }
+
+/// `ulab diff hash --check` reproduces the committed determinism table from its own process (the library test
+/// `engine-diff`'s `determinism::` checks it in the test's process on one and two threads), and a copy of the table
+/// with MuJoCo's hash changed makes it exit 1. On a machine of another class than the table's, the engines are
+/// reported as not compared and the tampered check cannot fail: the test then says so and checks only that.
+#[test]
+fn hash_table_reproduces_from_the_cli_and_a_tampered_table_differs() {
+    let (code, out, err) = ulab(&["diff", "hash", "--check", "corpus/determinism/h1_2.json"]);
+    assert_eq!(code, Some(0), "stdout:\n{out}\nstderr:\n{}", tail(&err, 2000));
+    let other_class = out.contains("not compared: table measured on");
+    if !other_class {
+        for engine in ["mujoco", "rapier_multibody", "rapier_impulse", "bullet", "dart"] {
+            assert!(out.contains(&format!("{engine}: reproduced")), "{engine} not reproduced:\n{out}");
+        }
+    }
+    let table = std::fs::read_to_string(root().join("corpus/determinism/h1_2.json")).expect("table");
+    let mut json: serde_json::Value = serde_json::from_str(&table).expect("table parses");
+    let entries = json["engines"].as_array_mut().expect("engines");
+    let mujoco = entries.iter_mut().find(|e| e["engine"] == "mujoco").expect("mujoco entry");
+    let hash = mujoco["sha256"].as_str().expect("hash").to_string();
+    let flipped = if hash.starts_with('0') { format!("1{}", &hash[1..]) } else { format!("0{}", &hash[1..]) };
+    mujoco["sha256"] = serde_json::Value::String(flipped);
+    let dir = tmp("hash");
+    std::fs::create_dir_all(&dir).expect("tmp dir");
+    let tampered = dir.join("tampered.json");
+    std::fs::write(&tampered, serde_json::to_string(&json).expect("json")).expect("write");
+    let (code, out, err) = ulab(&["diff", "hash", "--engines", "mujoco", "--check", &tampered.to_string_lossy()]);
+    if other_class {
+        eprintln!("machine class differs from the table's: the tampered table cannot be detected here\n{out}");
+        assert_eq!(code, Some(0), "stdout:\n{out}\nstderr:\n{}", tail(&err, 2000));
+    } else {
+        assert_eq!(code, Some(1), "a changed hash must exit 1; stdout:\n{out}\nstderr:\n{}", tail(&err, 2000));
+        assert!(out.contains("mujoco: DIFFERS"), "{out}");
+    }
+    let (code, _, err) = ulab(&["diff", "hash", "--seconds", "0", "--engines", "mujoco"]);
+    assert_eq!(code, Some(2), "--seconds 0 is an input error: {err}");
+}
