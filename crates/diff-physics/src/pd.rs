@@ -1,9 +1,10 @@
 //! Unitree's joint PD law, computed outside the engines so that every engine receives the same torques:
 //! `tau = tau_ff + kp (q_des − q) + kd (dq_des − dq)`, clamped to ±torque_limit per joint.
 use robot_model::RobotModel;
+use serde::{Deserialize, Serialize};
 
 /// Per-joint command (slot order), as in a LowCmd's motor_cmd entries.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PdTarget {
     pub q_des: Vec<f64>,
     pub dq_des: Vec<f64>,

@@ -136,7 +136,7 @@ pub fn one_step_checks(b: &Bounds, d: &Div) -> [(&'static str, f64, f64); 3] {
 
 /// Everything needed to replay one window in any engine: the start state, the targets that become active at
 /// given step offsets (offset 0 always present) and the pushes.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct WindowInput {
     pub start: State,
     pub steps: usize,
@@ -153,7 +153,7 @@ pub struct EngineDiv {
 }
 
 /// One window of an episode.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct WindowRecord {
     pub index: usize,
     pub t0: f64,
@@ -278,8 +278,8 @@ pub struct Timing {
     pub steps: u64,
 }
 
-/// One episode's results.
-#[derive(Debug, Clone)]
+/// One episode's results: what a sharded `ulab diff` stores per episode for the analysis at merge time.
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct EpisodeResult {
     pub scenario: Scenario,
     pub engines: Vec<String>,
@@ -290,7 +290,8 @@ pub struct EpisodeResult {
     /// Distinct contact patterns seen at window starts (fuzzing novelty).
     pub contact_patterns: std::collections::BTreeSet<String>,
     /// Per engine, the free run's states when [`HarnessConfig::record_fps`] asks for them (for rendering, not for
-    /// the report).
+    /// the report; not stored: only an unsharded run renders).
+    #[serde(skip)]
     pub trajectories: Vec<Trajectory>,
 }
 

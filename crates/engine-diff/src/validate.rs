@@ -315,8 +315,24 @@ pub fn episode_score_recorded(
     Ok(EpisodeScore { engine: name, case: case.name.clone(), seed, score, outcome })
 }
 
+/// One episode of the grid: engine (index into [`ValidateSetup::factories`]), command (index into
+/// [`ValidateSetup::commands`]) and seed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Task {
+    pub engine: usize,
+    pub command: usize,
+    pub seed: u64,
+}
+
 /// Runs every (engine, command, seed) episode in parallel and summarises.
 pub fn validate(s: &ValidateSetup<'_>) -> Result<ValidationReport, DiffError> {
+    let tasks = tasks(s)?;
+    let episodes = run_tasks(s, &tasks)?;
+    report(s, episodes)
+}
+
+/// The training engine's index among the factories, after checking the setup.
+fn check(s: &ValidateSetup<'_>) -> Result<usize, DiffError> {
     if !(s.seconds.is_finite() && s.seconds > 0.0) {
         return Err(DiffError::Input(format!("episode length {} s must be positive", s.seconds)));
     }
@@ -327,20 +343,57 @@ pub fn validate(s: &ValidateSetup<'_>) -> Result<ValidationReport, DiffError> {
     if let Some(dup) = names.iter().enumerate().find(|(i, n)| names[..*i].contains(n)).map(|(_, n)| n) {
         return Err(DiffError::Input(format!("engine {dup} is listed twice")));
     }
-    let Some(train_ix) = names.iter().position(|n| n == s.train_engine) else {
-        return Err(DiffError::Input(format!(
-            "training engine {} is not among the engines ({})",
-            s.train_engine,
-            names.join(", ")
-        )));
-    };
+    names.iter().position(|n| n == s.train_engine).ok_or_else(|| {
+        DiffError::Input(format!("training engine {} is not among the engines ({})", s.train_engine, names.join(", ")))
+    })
+}
+
+/// The grid's episodes in the order of [`ValidationReport::episodes`]: engine, then command, then seed. A sharded
+/// validation deals these.
+pub fn tasks(s: &ValidateSetup<'_>) -> Result<Vec<Task>, DiffError> {
+    check(s)?;
     // Check once that the initial state is valid for the model (a bad model fails here, not in every task).
     initial_state(s.model, &scenario_for(&s.commands[0], s.seeds[0], s.seconds))?;
-    let tasks: Vec<(usize, &CommandCase, u64)> = (0..s.factories.len())
-        .flat_map(|e| s.commands.iter().flat_map(move |c| s.seeds.iter().map(move |&seed| (e, c, seed))))
-        .collect();
-    let episodes =
-        tasks.par_iter().map(|&(e, c, seed)| run_one(s, &s.factories[e], c, seed)).collect::<Result<Vec<_>, _>>()?;
+    Ok((0..s.factories.len())
+        .flat_map(|engine| {
+            (0..s.commands.len())
+                .flat_map(move |command| s.seeds.iter().map(move |&seed| Task { engine, command, seed }))
+        })
+        .collect())
+}
+
+/// The episodes of `tasks`, in parallel, in the order given.
+pub fn run_tasks(s: &ValidateSetup<'_>, tasks: &[Task]) -> Result<Vec<EpisodeScore>, DiffError> {
+    tasks
+        .par_iter()
+        .map(|t| {
+            let (f, c) = s
+                .factories
+                .get(t.engine)
+                .zip(s.commands.get(t.command))
+                .ok_or_else(|| DiffError::Input(format!("task {t:?} outside the grid")))?;
+            run_one(s, f, c, t.seed)
+        })
+        .collect()
+}
+
+/// The report from every episode of [`tasks`] in its order (an unsharded run's, or merged shards').
+pub fn report(s: &ValidateSetup<'_>, episodes: Vec<EpisodeScore>) -> Result<ValidationReport, DiffError> {
+    let train_ix = check(s)?;
+    let names: Vec<String> = s.factories.iter().map(|f| f.name()).collect();
+    let grid = tasks(s)?;
+    let matches = |t: &Task, e: &EpisodeScore| {
+        names.get(t.engine) == Some(&e.engine)
+            && s.commands.get(t.command).is_some_and(|c| c.name == e.case)
+            && t.seed == e.seed
+    };
+    if grid.len() != episodes.len() || !grid.iter().zip(&episodes).all(|(t, e)| matches(t, e)) {
+        return Err(DiffError::Input(format!(
+            "{} episode results do not match the grid of {} (engine, command, seed) episodes",
+            episodes.len(),
+            grid.len()
+        )));
+    }
     let train = &names[train_ix];
     let train_scores: Vec<&EpisodeScore> = episodes.iter().filter(|e| &e.engine == train).collect();
     let train_fall_rate = fall_rate(&train_scores);

@@ -42,6 +42,8 @@ enum Command {
     Validate(cmd::validate::Args),
     /// Sim-to-real gap diagnosis from robot logs (diagnose, excite, bench).
     Gap(cmd::gap::Args),
+    /// The report of a sharded campaign (`--shard K/N` runs of diff or validate): what the unsharded run writes.
+    Merge(cmd::merge::Args),
     /// Why an SDK client sees nothing: interfaces, DDS participants (vendor, version), topics, QoS, diagnosis.
     Doctor(cmd::doctor::Args),
 }
@@ -61,6 +63,7 @@ fn main() -> ExitCode {
         Command::Deploy(args) => cmd::deploy::run(args),
         Command::Validate(args) => cmd::validate::run(args),
         Command::Gap(args) => cmd::gap::run(args),
+        Command::Merge(args) => cmd::merge::run(args),
         Command::Doctor(args) => cmd::doctor::run(args),
     };
     match result {

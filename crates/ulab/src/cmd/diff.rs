@@ -15,11 +15,17 @@
 //! - `ulab diff hash [--check TABLE] [--write TABLE]`: every engine's hash of a fixed episode
 //!   (`engine_diff::determinism`), compared with a committed table: bit-for-bit reproducibility, measured.
 //!
+//! `--shard K/N` runs only the episodes dealt to shard K (`campaign`: episode i goes to shard i mod N + 1) and
+//! writes `DIR/shard-K-of-N.cbor` instead of the report; `ulab merge` (`super::merge`) runs the analysis on every
+//! shard's episodes in the unsharded order and writes the unsharded run's report.
+//!
 //! Exit codes: 0 report written (or replay identical), 1 candidate engine bugs with `--fail-on-bug` (or a
 //! replay that differs), 2 errors.
 use crate::exit::Exit;
 use anyhow::{bail, Context, Result};
-use engine_diff::harness::{builtin_factories, excitation_factory, ControllerFactory, EngineFactory, HarnessConfig};
+use engine_diff::harness::{
+    builtin_factories, excitation_factory, ControllerFactory, EngineFactory, EpisodeResult, HarnessConfig,
+};
 use engine_diff::report::{analyse, write_outputs, Analysis};
 use engine_diff::scenario::Scenario;
 use engine_diff::triage::{AllowList, Class};
@@ -159,6 +165,56 @@ struct RunArgs {
     video: Option<PathBuf>,
     #[command(flatten)]
     video_args: super::video::VideoArgs,
+    /// Run only the episodes dealt to shard K of N (episode i to shard i mod N + 1) and write
+    /// `OUT/shard-K-of-N.cbor`; `ulab merge` turns the N shards into this run's report.
+    #[arg(long, value_name = "K/N", conflicts_with = "video")]
+    shard: Option<campaign::Shard>,
+}
+
+/// The shard files' kind of `ulab diff` campaigns.
+pub(crate) const SHARD_KIND: &str = "diff";
+
+/// Everything that decides a `ulab diff` report: what the shards of one campaign share (`--jobs` and `--out` do
+/// not change a result).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub(crate) struct DiffCampaign {
+    robot: String,
+    /// The model the episodes ran on (a sidecar path may name another model on another machine).
+    model_hash: String,
+    policy: Option<PathBuf>,
+    /// Canonical engine names, lead first.
+    engines: Vec<String>,
+    window: usize,
+    episodes: usize,
+    seconds: f64,
+    seed: u64,
+    minimize: usize,
+    fail_on_bug: bool,
+}
+
+impl DiffCampaign {
+    /// The episodes' inputs, in report order.
+    fn scenarios(&self, is_policy: bool) -> Vec<Scenario> {
+        (0..self.episodes as u64)
+            .map(|i| {
+                if is_policy {
+                    Scenario::policy(self.seed + i, self.seconds)
+                } else {
+                    Scenario::excitation(self.seed + i, self.seconds)
+                }
+            })
+            .collect()
+    }
+
+    fn common(&self) -> Common {
+        Common {
+            robot: self.robot.clone(),
+            policy: self.policy.clone(),
+            engines: Some(self.engines.join(",")),
+            window: self.window,
+            jobs: None,
+        }
+    }
 }
 
 #[derive(Debug, clap::Args)]
@@ -314,39 +370,39 @@ fn diff(a: RunArgs) -> Result<Exit> {
         bail!("--episodes must be in 1..=10000");
     }
     let s = setup(&a.common)?;
-    let scenarios: Vec<Scenario> = (0..a.episodes as u64)
-        .map(|i| {
-            if s.is_policy {
-                Scenario::policy(a.seed + i, a.seconds)
-            } else {
-                Scenario::excitation(a.seed + i, a.seconds)
-            }
-        })
-        .collect();
+    let campaign = DiffCampaign {
+        robot: a.common.robot.clone(),
+        model_hash: engine_diff::model_hash(&s.model),
+        policy: a.common.policy.clone(),
+        engines: s.factories.iter().map(|f| f.name()).collect(),
+        window: a.common.window,
+        episodes: a.episodes,
+        seconds: a.seconds,
+        seed: a.seed,
+        minimize: a.minimize,
+        fail_on_bug: a.fail_on_bug,
+    };
+    let scenarios = campaign.scenarios(s.is_policy);
+    let items: Vec<usize> = match a.shard {
+        Some(shard) => shard.items(scenarios.len()).collect(),
+        None => (0..scenarios.len()).collect(),
+    };
     // The video's episode keeps its free runs' states (the windowed runs restart every engine from the lead's
     // state each window, so only the free runs show how far the engines drift apart).
     let video_cfg = HarnessConfig { record_fps: Some(a.video_args.fps), ..s.cfg.clone() };
-    let episodes = scenarios
+    let episodes = items
         .par_iter()
-        .enumerate()
-        .map(|(i, sc)| {
+        .map(|&i| {
             let cfg = if i == 0 && a.video.is_some() { &video_cfg } else { &s.cfg };
-            engine_diff::harness::run_episode(&s.model, &s.factories, s.ctrl.as_ref(), sc, cfg)
+            engine_diff::harness::run_episode(&s.model, &s.factories, s.ctrl.as_ref(), &scenarios[i], cfg)
         })
         .collect::<Result<Vec<_>, _>>()
         .context("running episodes")?;
-    let allow = AllowList::builtin().context("allow-list")?;
-    let an = Analysis {
-        model: &s.model,
-        factories: &s.factories,
-        controller: s.ctrl.as_ref(),
-        controller_name: &s.ctrl_name,
-        cfg: &s.cfg,
-        allow: &allow,
-        minimize_limit: a.minimize,
-    };
-    let (report, repros) = analyse(&an, &episodes).context("analysing")?;
-    write_outputs(&out, &report, &repros, &episodes).with_context(|| format!("writing {}", out.display()))?;
+    if let Some(shard) = a.shard {
+        let results = items.into_iter().zip(episodes).collect();
+        return super::merge::write_shard(&out, SHARD_KIND, shard, scenarios.len(), campaign, results);
+    }
+    let report = report(&out, &s, a.minimize, &episodes)?;
     if let (Some(path), Some(first)) = (&a.video, episodes.first()) {
         let ends = super::video::render_trajectories(&s.model, path, &a.video_args, &first.trajectories)
             .with_context(|| format!("rendering {}", path.display()))?;
@@ -355,6 +411,43 @@ fn diff(a: RunArgs) -> Result<Exit> {
         }
     }
     Ok(summarize(&out, &report, a.fail_on_bug))
+}
+
+/// Analyses every episode of a run (in report order) and writes the report into `out`.
+fn report(out: &Path, s: &Setup, minimize: usize, episodes: &[EpisodeResult]) -> Result<engine_diff::report::Report> {
+    let allow = AllowList::builtin().context("allow-list")?;
+    let an = Analysis {
+        model: &s.model,
+        factories: &s.factories,
+        controller: s.ctrl.as_ref(),
+        controller_name: &s.ctrl_name,
+        cfg: &s.cfg,
+        allow: &allow,
+        minimize_limit: minimize,
+    };
+    let (report, repros) = analyse(&an, episodes).context("analysing")?;
+    write_outputs(out, &report, &repros, episodes).with_context(|| format!("writing {}", out.display()))?;
+    Ok(report)
+}
+
+/// `ulab merge` of `ulab diff --shard` files: the analysis of the unsharded run on the shards' episodes.
+pub(crate) fn merge(files: &[PathBuf], out: &Path) -> Result<Exit> {
+    let (c, episodes): (DiffCampaign, Vec<EpisodeResult>) = super::merge::read_shards(files, SHARD_KIND)?;
+    let s = setup(&c.common())?;
+    if engine_diff::model_hash(&s.model) != c.model_hash {
+        bail!("robot {}: not the model the shards ran (its hash differs)", c.robot);
+    }
+    if episodes.len() != c.episodes {
+        bail!("the shards hold {} episodes, their campaign {}", episodes.len(), c.episodes);
+    }
+    // The shards ran the campaign's inputs: each episode is the one the configuration makes.
+    for (i, (e, sc)) in episodes.iter().zip(c.scenarios(s.is_policy)).enumerate() {
+        if e.scenario != sc {
+            bail!("episode {i} of the shards is not the input the campaign makes (seed {})", e.scenario.seed);
+        }
+    }
+    let report = report(out, &s, c.minimize, &episodes)?;
+    Ok(summarize(out, &report, c.fail_on_bug))
 }
 
 fn read_corpus(dir: &Path) -> Result<Vec<Scenario>> {

@@ -7,6 +7,7 @@ pub mod diff;
 pub mod doctor;
 pub mod gap;
 pub mod log;
+pub mod merge;
 pub mod model;
 pub mod record;
 pub mod recording;

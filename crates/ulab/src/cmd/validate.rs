@@ -10,13 +10,20 @@
 //! (`engine_diff::validate::episode_score_recorded`, so the same deterministic rollout), every engine's panel
 //! captioned with its divergence from the training engine (`super::video::render_trajectories`).
 //!
+//! `--shard K/N` runs only the grid's episodes dealt to shard K (grid order: engine, command, seed; episode i to
+//! shard i mod N + 1) and writes `DIR/shard-K-of-N.cbor`; `ulab merge` summarises every shard's episodes into
+//! the unsharded run's report.
+//!
 //! Exit codes: 0 report written, 1 some engine degrades or fails and `--fail-on-degrade` was given, 2 errors.
 use crate::exit::Exit;
 use anyhow::{bail, Context, Result};
 use engine_diff::harness::{builtin_factories, HarnessConfig};
 use engine_diff::triage::AllowList;
-use engine_diff::validate::{standard_commands, validate as run_validation, write_validation, ValidateSetup};
-use std::path::PathBuf;
+use engine_diff::validate::{
+    report as validation_report, run_tasks, standard_commands, tasks, validate as run_validation, write_validation,
+    CommandCase, EpisodeScore, ValidateSetup, ValidationReport,
+};
+use std::path::{Path, PathBuf};
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -68,6 +75,97 @@ pub struct Args {
     video: Option<PathBuf>,
     #[command(flatten)]
     video_args: super::video::VideoArgs,
+    /// Run only the grid's episodes dealt to shard K of N (episode i of the engine x command x seed grid to shard
+    /// i mod N + 1) and write `OUT/shard-K-of-N.cbor`; `ulab merge` turns the N shards into this run's report.
+    #[arg(long, value_name = "K/N", conflicts_with_all = ["video", "gait_search"])]
+    shard: Option<campaign::Shard>,
+}
+
+/// The shard files' kind of `ulab validate` campaigns.
+pub(crate) const SHARD_KIND: &str = "validate";
+
+/// Everything that decides a `ulab validate` report: what the shards of one campaign share.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub(crate) struct ValidateCampaign {
+    robot: String,
+    model_hash: String,
+    policy: PathBuf,
+    train_engine: String,
+    /// Canonical engine names, the training engine among them.
+    engines: Vec<String>,
+    commands: Vec<String>,
+    episodes: u64,
+    seconds: f64,
+    seed: u64,
+    evidence: bool,
+    fail_on_degrade: bool,
+}
+
+/// `--commands`: the named commands of the standard grid.
+fn resolve_commands(list: &str) -> Result<Vec<CommandCase>> {
+    let grid = standard_commands();
+    let mut commands = Vec::new();
+    for name in list.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+        let c = grid.iter().find(|c| c.name == name).with_context(|| {
+            format!(
+                "--commands: unknown command {name} (known: {})",
+                grid.iter().map(|c| c.name.as_str()).collect::<Vec<_>>().join(", ")
+            )
+        })?;
+        commands.push(c.clone());
+    }
+    if commands.is_empty() {
+        bail!("--commands names no command");
+    }
+    Ok(commands)
+}
+
+/// Writes the report and prints a line per engine.
+fn write_and_print(out: &Path, report: &ValidationReport) -> Result<()> {
+    write_validation(out, report).with_context(|| format!("writing {}", out.display()))?;
+    for e in &report.engines {
+        println!(
+            "{:<18} {:<15} score {:.3}  drop {}  falls {:.0} %",
+            e.engine,
+            e.verdict.label(),
+            e.score.map_or(f64::NAN, |s| s.mean),
+            e.drop.map_or("-".into(), |d| format!("{:+.3} (p {:.3})", d.mean, e.p_value.unwrap_or(1.0))),
+            100.0 * e.fall_rate
+        );
+    }
+    println!("report in {}", out.join("report.md").display());
+    Ok(())
+}
+
+/// `ulab merge` of `ulab validate --shard` files: the unsharded run's summary of the shards' episodes.
+pub(crate) fn merge(files: &[PathBuf], out: &Path) -> Result<Exit> {
+    let (c, episodes): (ValidateCampaign, Vec<EpisodeScore>) = super::merge::read_shards(files, SHARD_KIND)?;
+    let model = super::diff::load_model(&c.robot)?;
+    if engine_diff::model_hash(&model) != c.model_hash {
+        bail!("robot {}: not the model the shards ran (its hash differs)", c.robot);
+    }
+    let commands = resolve_commands(&c.commands.join(","))?;
+    let factories = builtin_factories(&c.engines).context("engines of the shards")?;
+    let cfg = HarnessConfig::default();
+    let (ctrl_name, ctrl) = super::diff::policy_factory(&c.policy)?;
+    let seeds: Vec<u64> = (0..c.episodes).map(|i| c.seed + i).collect();
+    let allow = AllowList::builtin().context("allow-list")?;
+    let setup = ValidateSetup {
+        model: &model,
+        factories: &factories,
+        train_engine: &c.train_engine,
+        controller: ctrl.as_ref(),
+        controller_name: &ctrl_name,
+        commands: &commands,
+        seeds: &seeds,
+        seconds: c.seconds,
+        cfg: &cfg,
+        allow: &allow,
+        evidence: c.evidence,
+    };
+    let report = validation_report(&setup, episodes).context("summarising the shards' episodes")?;
+    write_and_print(out, &report)?;
+    Ok(Exit::failed_if(c.fail_on_degrade && !report.flagged().is_empty()))
 }
 
 pub fn run(a: Args) -> Result<Exit> {
@@ -81,20 +179,7 @@ pub fn run(a: Args) -> Result<Exit> {
         bail!("--gait-iterations must be in 1..=1000");
     }
     super::diff::set_jobs(a.jobs)?;
-    let grid = standard_commands();
-    let mut commands = Vec::new();
-    for name in a.commands.split(',').map(str::trim).filter(|s| !s.is_empty()) {
-        let c = grid.iter().find(|c| c.name == name).with_context(|| {
-            format!(
-                "--commands: unknown command {name} (known: {})",
-                grid.iter().map(|c| c.name.as_str()).collect::<Vec<_>>().join(", ")
-            )
-        })?;
-        commands.push(c.clone());
-    }
-    if commands.is_empty() {
-        bail!("--commands names no command");
-    }
+    let commands = resolve_commands(&a.commands)?;
     let model = super::diff::load_model(&a.robot)?;
     // Canonical engine names (`rapier-multibody` is `rapier_multibody`): reports and the pairing use them.
     let canonical = |n: &str| -> Result<String> {
@@ -135,26 +220,35 @@ pub fn run(a: Args) -> Result<Exit> {
         allow: &allow,
         evidence: !a.no_evidence,
     };
-    let report = run_validation(&setup).context("running the validation episodes")?;
-    write_validation(&a.out, &report).with_context(|| format!("writing {}", a.out.display()))?;
-    for e in &report.engines {
-        println!(
-            "{:<18} {:<15} score {:.3}  drop {}  falls {:.0} %",
-            e.engine,
-            e.verdict.label(),
-            e.score.map_or(f64::NAN, |s| s.mean),
-            e.drop.map_or("-".into(), |d| format!("{:+.3} (p {:.3})", d.mean, e.p_value.unwrap_or(1.0))),
-            100.0 * e.fall_rate
-        );
+    if let Some(shard) = a.shard {
+        // A gait search is not dealt to shards (clap refuses both): a shard campaign names its policy file.
+        let policy = a.policy.clone().context("--shard needs --policy")?;
+        let campaign = ValidateCampaign {
+            robot: a.robot.clone(),
+            model_hash: engine_diff::model_hash(&model),
+            policy,
+            train_engine: train.clone(),
+            engines: names.clone(),
+            commands: commands.iter().map(|c| c.name.clone()).collect(),
+            episodes: a.episodes,
+            seconds: a.seconds,
+            seed: a.seed,
+            evidence: !a.no_evidence,
+            fail_on_degrade: a.fail_on_degrade,
+        };
+        let grid = tasks(&setup).context("the validation grid")?;
+        let mine: Vec<usize> = shard.items(grid.len()).collect();
+        let dealt: Vec<_> = mine.iter().map(|&i| grid[i]).collect();
+        let episodes = run_tasks(&setup, &dealt).context("running the validation episodes")?;
+        let results = mine.into_iter().zip(episodes).collect();
+        return super::merge::write_shard(&a.out, SHARD_KIND, shard, grid.len(), campaign, results);
     }
-    println!("report in {}", a.out.join("report.md").display());
+    let report = run_validation(&setup).context("running the validation episodes")?;
+    write_and_print(&a.out, &report)?;
     if let Some(path) = &a.video {
         render_rollout(&setup, path, &a.video_args).with_context(|| format!("rendering {}", path.display()))?;
     }
-    if a.fail_on_degrade && !report.flagged().is_empty() {
-        return Ok(Exit::Failed);
-    }
-    Ok(Exit::Success)
+    Ok(Exit::failed_if(a.fail_on_degrade && !report.flagged().is_empty()))
 }
 
 /// The video of `--video`: the first command's first-seed rollout recomputed in every engine, the training

@@ -18,6 +18,7 @@ mod model_cli;
 mod record_crash;
 mod record_replay;
 mod render_cli;
+mod shard_cli;
 mod sim_c010_client;
 mod sim_loco_client;
 mod sim_robustness;
