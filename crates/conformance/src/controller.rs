@@ -445,7 +445,7 @@ fn check_timing(trace: &Trace) -> [CheckResult; 2] {
         (
             Status::Fail,
             format!(
-                "a fresh command in only {:.0} % of the robot's {:.1} ms periods (limit {:.0} %): the commands come in bursts",
+                "a fresh command in only {:.0} % of the robot's {:.1} ms periods (limit {:.0} %): the loop is too slow or sends in bursts",
                 coverage * 100.0,
                 period * 1e3,
                 MIN_PERIOD_COVERAGE * 100.0

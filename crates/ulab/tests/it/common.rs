@@ -18,6 +18,33 @@ pub fn python() -> PathBuf {
     std::env::var_os("ULAB_PYTHON").map(PathBuf::from).unwrap_or_else(|| root().join(".venv/bin/python"))
 }
 
+/// The Cyclone DDS 0.10.2 C clients of `tests/clients/c010` (`sim_client`, `controller`), built once per test binary
+/// into cargo's per-target scratch directory (tests run on parallel threads: one build, then every test reads it).
+/// Needs `make`, a C compiler, Debian's cyclonedds-dev and cyclonedds-tools (idlc) 0.10.2.
+pub fn c010_client(name: &str) -> PathBuf {
+    static DIR: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    DIR.get_or_init(|| {
+        let src = root().join("tests/clients/c010");
+        let out = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("c010-clients");
+        let child = Command::new("make")
+            .arg("-s")
+            .arg("-f")
+            .arg(src.join("Makefile"))
+            .arg(format!("OUT={}", out.display()))
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("run make (needs make and a C compiler)");
+        let (status, stdout, stderr) = wait_with_timeout(child, Duration::from_secs(120));
+        assert!(
+            status.is_some_and(|s| s.success()),
+            "building the Cyclone 0.10.2 clients failed (needs Debian's cyclonedds-dev and cyclonedds-tools):\n{stdout}\n{stderr}"
+        );
+        out
+    })
+    .join(name)
+}
+
 /// Runs the `ulab` binary with `args`, output piped, killed after `timeout`: (exit code if it exited in time,
 /// stdout, stderr).
 pub fn run_ulab(args: &[&str], timeout: Duration) -> (Option<i32>, String, String) {

@@ -1,17 +1,18 @@
 //! `ulab conform controller`: ulab plays the robot and judges a controller written on Unitree's official Python SDK
-//! (`tests/clients/sdk_controller.py`, unitree_sdk2py on Cyclone DDS 11). Two real-time runs: the good controller,
-//! and the same controller with every defect flag at once (each defect changes one thing, and each check reads only
-//! the part of the commands its defect touches, so one run shows all of them). Each run's WHOLE verdict table is
+//! (`tests/clients/sdk_controller.py`, unitree_sdk2py on Cyclone DDS 11), one in C on Cyclone DDS 0.10.2
+//! (`tests/clients/c010/controller.c`) and `ulab deploy`. Real-time runs: the good SDK controller, the same controller
+//! with every defect flag at once (each defect changes one thing, and each check reads only the part of the commands
+//! its defect touches, so one run shows all of them), the C controller with its own defects, and `ulab deploy`. Each run's WHOLE verdict table is
 //! asserted, derived from what the controller does; the one verdict the rules allow to depend on the machine
 //! (`ctl_jitter` is inconclusive when the judge itself stalled as long as the controller's gap) is derived from the
 //! report's own evidence. A missing controller and bad arguments are usage / connection errors (2).
 //!
-//! What is independent here: the controller (Unitree's SDK serialises the commands and computes their CRC; the
-//! project's CRC and decoder judge them), and the physics of the simulated robot (MuJoCo).
+//! What is independent here: the controllers (Unitree's SDK, or Cyclone 0.10.2 and a CRC written in C, serialise the
+//! commands and seal them; the project's CRC and decoder judge them), and the physics of the simulated robot (MuJoCo).
 
 use crate::common;
 
-use common::{python, root, run_ulab, spawn_ulab, tail, wait_with_timeout, KillOnDrop};
+use common::{c010_client, python, root, run_ulab, spawn_ulab, tail, wait_with_timeout, KillOnDrop};
 use serde_json::Value;
 use std::collections::BTreeMap;
 use std::process::{Command, Stdio};
@@ -25,7 +26,18 @@ struct Run {
     controller: Value,
 }
 
+/// The Python SDK controller with `flags`, judged.
 fn judge(name: &str, flags: &[&str]) -> Run {
+    judge_controller(name, |domain| {
+        let mut c = Command::new(python());
+        c.arg(root().join("tests/clients/sdk_controller.py")).args(["--domain", domain]).args(flags);
+        c
+    })
+}
+
+/// The controller that `controller(domain)` starts, judged. Its account is its last stdout line (JSON, after a
+/// `RESULT ` prefix where it prints one).
+fn judge_controller(name: &str, controller: impl FnOnce(&str) -> Command) -> Run {
     let _slot = RealtimeSlot::acquire();
     let lease = lease_domain();
     let domain = lease.arg();
@@ -41,14 +53,11 @@ fn judge(name: &str, flags: &[&str]) -> Run {
         "--out",
         dir.to_str().expect("utf-8 path"),
     ])));
-    let client = Command::new(python())
-        .arg(root().join("tests/clients/sdk_controller.py"))
-        .args(["--domain", &domain])
-        .args(flags)
+    let client = controller(&domain)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
-        .expect("start the Python SDK controller");
+        .unwrap_or_else(|e| panic!("{name}: start the controller: {e}"));
     let (status, out, err) = wait_with_timeout(client, Duration::from_secs(180));
     assert!(status.is_some_and(|s| s.success()), "{name}: controller failed ({status:?}): {}\n{out}", tail(&err));
     let mut judge = judge;
@@ -59,7 +68,8 @@ fn judge(name: &str, flags: &[&str]) -> Run {
     let md = std::fs::read_to_string(dir.join("report.md")).expect("report.md");
     assert!(md.contains("ctl_stale_state") && md.contains("Mode: controller"), "{md}");
     let _ = std::fs::remove_dir_all(&dir);
-    let controller: Value = serde_json::from_str(out.lines().last().unwrap_or(""))
+    let last = out.lines().last().unwrap_or("");
+    let controller: Value = serde_json::from_str(last.strip_prefix("RESULT ").unwrap_or(last))
         .unwrap_or_else(|e| panic!("{name}: controller output {out}: {e}"));
     eprintln!("{name}: controller {controller}\n{}", tail(&jerr));
     Run { code: jstatus.and_then(|s| s.code()), report, controller }
@@ -173,6 +183,50 @@ fn defective_sdk_controller_fails_exactly_its_defects() {
     assert_eq!(ev("ctl_finite")["paths"], serde_json::json!(["motor_cmd[20].tau"]), "--non-finite");
     assert_eq!(ev("ctl_stale_state")["behaviour"], "stale_pose", "--ignore-stale-state");
     assert_eq!(run.controller["damp_cycles"], 0);
+}
+
+/// A controller in C on Cyclone DDS 0.10.2 (`tests/clients/c010/controller.c`: the DDS of Unitree's C++ SDK, its
+/// CRC computed in C over the idlc struct), with defects the SDK controller above does not have: commands at 400 Hz
+/// (deadline-paced: a steady stream, a fresh command in 80 % of the robot's periods, 20 % off the rate), slot 30 enabled,
+/// the torso's kd beyond the limit, and every motor switched off when LowState stops. Everything else passes:
+/// its CRC, mode_machine echo, finite values and its ramped start.
+#[test]
+fn c010_controller_fails_exactly_its_defects() {
+    let flags = ["--rate", "400", "--stale", "limp", "--unused-slot-on", "--kd-beyond-limit"];
+    let bin = c010_client("controller");
+    let run = judge_controller("c010", |domain| {
+        let mut c = Command::new(&bin);
+        c.arg(domain).args(flags);
+        c
+    });
+    let r = &run.report;
+    assert_eq!(run.controller["version"], "0.10.2", "{}", run.controller);
+    let jitter = expected_jitter(r);
+    expect(
+        r,
+        &[
+            ("ctl_crc", "pass"),
+            ("ctl_mode_machine", "pass"),
+            ("ctl_motor_modes", "fail"),
+            ("ctl_limits", "fail"),
+            ("ctl_finite", "pass"),
+            ("ctl_rate", "fail"),
+            ("ctl_jitter", jitter),
+            ("ctl_start_jump", "pass"),
+            ("ctl_stale_state", "fail"),
+        ],
+    );
+    assert_eq!(run.code, Some(1));
+    let ev = |id: &str| &result(r, id)["evidence"];
+    assert_eq!(ev("ctl_motor_modes")["unused_slots_not_off"], serde_json::json!({"30": 1}), "--unused-slot-on");
+    let findings = ev("ctl_limits")["findings"].as_array().expect("findings");
+    assert!(
+        findings.len() == 1 && findings[0].as_str().is_some_and(|f| f.contains("torso_joint") && f.contains("kd")),
+        "--kd-beyond-limit: only the torso's kd: {findings:?}"
+    );
+    let rate = ev("ctl_rate")["rate_hz"].as_f64().unwrap_or(f64::NAN);
+    assert!((rate - 400.0).abs() < 20.0, "--rate 400: judged {rate} Hz");
+    assert_eq!(ev("ctl_stale_state")["behaviour"], "limp", "--stale limp");
 }
 
 #[test]

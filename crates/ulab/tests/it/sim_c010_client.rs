@@ -18,40 +18,12 @@
 
 use crate::common;
 
-use common::{interrupt, lease_domain, root, sim_summary, wait_with_timeout, KillOnDrop, RealtimeSlot};
+use common::{c010_client, interrupt, lease_domain, sim_summary, wait_with_timeout, KillOnDrop, RealtimeSlot};
 use serde_json::Value;
-use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
-use std::sync::OnceLock;
 use std::time::Duration;
 
 const STATE_RATE: f64 = 500.0;
-
-/// Builds the C client once per test binary, into cargo's per-target scratch directory.
-fn client_binary() -> PathBuf {
-    static CLIENT: OnceLock<PathBuf> = OnceLock::new();
-    CLIENT
-        .get_or_init(|| {
-            let src = root().join("tests/clients/c010");
-            let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("c010-sim-client");
-            let child = Command::new("make")
-                .arg("-s")
-                .arg("-f")
-                .arg(src.join("Makefile"))
-                .arg(format!("OUT={}", out.display()))
-                .stdout(Stdio::piped())
-                .stderr(Stdio::piped())
-                .spawn()
-                .expect("run make (needs make and a C compiler)");
-            let (status, stdout, stderr) = wait_with_timeout(child, Duration::from_secs(120));
-            assert!(
-                status.is_some_and(|s| s.success()),
-                "building the Cyclone 0.10.2 client failed (needs Debian's cyclonedds-dev and cyclonedds-tools):\n{stdout}\n{stderr}"
-            );
-            out.join("sim_client")
-        })
-        .clone()
-}
 
 /// The number after `key ` in the bridge's final status line.
 fn counter(line: &str, key: &str) -> u64 {
@@ -66,7 +38,7 @@ fn counter(line: &str, key: &str) -> u64 {
 
 /// One run of the 0.10.2 client against `ulab sim --engine <engine>`.
 fn drive(engine: &str) {
-    let client_bin = client_binary();
+    let client_bin = c010_client("sim_client");
     let _slot = RealtimeSlot::acquire();
     let domain = lease_domain();
     let sim = Command::new(env!("CARGO_BIN_EXE_ulab"))
