@@ -9,7 +9,9 @@
 #   - a policy-driven benchmark trial whose saturation the logged torque contradicts (`policy_trials`) and the
 #     walking plant's contact stiffness (`floating_diagnose`; CI runs its leg damping, control and fallen windows);
 #   - the control of the planted cheat (a gait optimised in MuJoCo transfers; CI runs the cheat itself);
-#   - every fuzz target, `engine_divergence` included (a release build of three engines with coverage).
+#   - every fuzz target, `engine_divergence` included (a release build of three engines with coverage);
+#   - a `ulab diff` and a `ulab validate` campaign sharded over a local Ray cluster (head + 2 workers), merged and
+#     compared with the unsharded run (tests/campaign/ray_local.py; Ray is ~285 MB, installed by setup.sh --ray).
 # Run after scripts/test.sh on the same checkout (it reuses its set-up); ~60–90 min on 2 cores.
 #   ULAB_FUZZ_SECONDS (default 60) per fuzz target.
 set -euo pipefail
@@ -37,6 +39,10 @@ phase "policy trials, floating diagnosis"
 cargo test --locked -p engine-diff --test it -- --ignored planted_cheat::a_gait_optimised_in_mujoco_transfers \
   || status=$?
 phase "planted cheat control"
+bash scripts/setup.sh --ray
+cargo build --locked -p ulab
+"$ULAB_RAY_PYTHON" tests/campaign/ray_local.py --ulab target/debug/ulab || status=$?
+phase "Ray campaign"
 bash scripts/fuzz.sh smoke-all "${ULAB_FUZZ_SECONDS:-60}" || status=$?
 phase "fuzz smoke-all"
 exit "$status"

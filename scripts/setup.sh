@@ -11,15 +11,19 @@
 #                             venv .venv-newton ($ULAB_NEWTON_VENV), for the `newton_*` engines of
 #                             `cargo build -p ulab --features newton`: the main venv's pinned numpy and mujoco stay
 #                             untouched. CI neither installs nor builds Newton.
+#   scripts/setup.sh --ray    the same, plus Ray 2.x (~285 MB) in its own venv .venv-ray ($ULAB_RAY_VENV), for
+#                             multi-machine campaigns (scripts/campaign.py, docs/campaigns.md); not in CI.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 FUZZ=0
 NEWTON=0
+RAY=0
 for arg in "$@"; do
   case "$arg" in
     --fuzz) FUZZ=1 ;;
     --newton) NEWTON=1 ;;
-    *) echo "usage: $0 [--fuzz] [--newton]" >&2; exit 2 ;;
+    --ray) RAY=1 ;;
+    *) echo "usage: $0 [--fuzz] [--newton] [--ray]" >&2; exit 2 ;;
   esac
 done
 source scripts/env.sh
@@ -81,10 +85,23 @@ if [ "$NEWTON" = 1 ]; then
   fi
 fi
 
+# Ray (--ray only), in a venv of its own: its pins (protobuf, grpc) must not move the main venv's.
+if [ "$RAY" = 1 ]; then
+  if [ ! -x "$ULAB_RAY_PYTHON" ]; then
+    echo "setup: creating the Ray venv in $ULAB_RAY_VENV"
+    python3 -m venv "$ULAB_RAY_VENV"
+  fi
+  if ! "$ULAB_RAY_PYTHON" -c "import ray" 2>/dev/null; then
+    echo "setup: installing ray 2.60.0 (~285 MB)"
+    "$ULAB_RAY_PYTHON" -m pip install -q --disable-pip-version-check ray==2.60.0
+  fi
+fi
+
 mkdir -p "$MUJOCO_DYNAMIC_LINK_DIR"
 lib=$("$ULAB_PYTHON" -c "import mujoco, os, glob; print(sorted(glob.glob(os.path.join(os.path.dirname(mujoco.__file__), 'libmujoco.so.*')))[-1])")
 ln -sf "$lib" "$MUJOCO_DYNAMIC_LINK_DIR/libmujoco.so"
 ln -sf "$lib" "$MUJOCO_DYNAMIC_LINK_DIR/$(basename "$lib")"
 echo "setup: ok (MuJoCo: $lib)"
 [ "$NEWTON" = 0 ] || echo "setup: Newton: $("$ULAB_NEWTON_PYTHON" -c 'import importlib.metadata as m; print(m.version("newton"))') in $ULAB_NEWTON_VENV"
+[ "$RAY" = 0 ] || echo "setup: Ray: $("$ULAB_RAY_PYTHON" -c 'import ray; print(ray.__version__)') in $ULAB_RAY_VENV"
 [ "$FUZZ" = 0 ] || echo "setup: fuzzing: $(cargo fuzz --version), $(cargo +nightly --version 2>/dev/null || echo no nightly)"
