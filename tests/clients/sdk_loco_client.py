@@ -43,6 +43,8 @@ ROBOT_API_ID_LOCO_ENABLE_ODOM = 8201
 ROBOT_API_ID_LOCO_DISABLE_ODOM = 8202
 ROBOT_API_ID_LOCO_GET_ODOM = 8203
 WALL_LIMIT = 240.0
+# unitree_sdk2py/rpc/internal.py: the client's own timeout waiting for a response.
+RPC_ERR_CLIENT_API_TIMEOUT = 3104
 
 
 class H1LocoClient(Client):
@@ -50,6 +52,17 @@ class H1LocoClient(Client):
 
     def __init__(self):
         super().__init__(LOCO_SERVICE_NAME, False)
+        self.retries = []
+
+    def _Call(self, api, parameter):
+        """The SDK's call, sent once more when no response came in time. The SDK reads responses with Cyclone's
+        default reader QoS, best-effort, so a response dropped by a busy loopback socket (LowState arrives at
+        500 Hz beside it) is never resent; a program using the SDK retries. Every retry is reported."""
+        code, data = super()._Call(api, parameter)
+        if code == RPC_ERR_CLIENT_API_TIMEOUT:
+            self.retries.append(api)
+            code, data = super()._Call(api, parameter)
+        return code, data
 
     def Init(self):
         self._SetApiVerson(LOCO_API_VERSION)
@@ -179,6 +192,7 @@ def main():
         out["codes"]["invalid_fsm"] = client.SetFsmId(7)
     except Exception as e:  # noqa: BLE001 (reported, the test decides)
         out["error"] = repr(e)
+    out["retried_apis"] = client.retries
     print(json.dumps(out), flush=True)
 
 
