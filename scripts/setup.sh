@@ -73,29 +73,22 @@ if ! "$ULAB_PYTHON" -c "import importlib.util as u, mujoco, cyclonedds, mcap, nu
   "$ULAB_PYTHON" -m pip install -q --disable-pip-version-check --no-deps unitree_sdk2==1.0.1
 fi
 
-# Newton (--newton only), in a venv of its own: its numpy (2.x) and Warp must not move the main venv's pins.
-if [ "$NEWTON" = 1 ]; then
-  if [ ! -x "$ULAB_NEWTON_PYTHON" ]; then
-    echo "setup: creating the Newton venv in $ULAB_NEWTON_VENV"
-    python3 -m venv "$ULAB_NEWTON_VENV"
+# A package in a venv of its own, whose dependencies must not move the main venv's pins: creates VENV if missing,
+# installs PACKAGE==VERSION unless that version is there.   own_venv LABEL VENV PYTHON PACKAGE VERSION SIZE
+own_venv() {
+  local label=$1 venv=$2 py=$3 pkg=$4 version=$5 size=$6
+  if [ ! -x "$py" ]; then
+    echo "setup: creating the $label venv in $venv"
+    python3 -m venv "$venv"
   fi
-  if ! "$ULAB_NEWTON_PYTHON" -c "import importlib.metadata as m, sys; sys.exit(m.version('newton') != '1.8.0')" 2>/dev/null; then
-    echo "setup: installing newton==1.8.0 (with warp-lang and numpy, ~575 MB)"
-    "$ULAB_NEWTON_PYTHON" -m pip install -q --disable-pip-version-check newton==1.8.0
+  if ! "$py" -c "import importlib.metadata as m, sys; sys.exit(m.version('$pkg') != '$version')" 2>/dev/null; then
+    echo "setup: installing $pkg==$version ($size)"
+    "$py" -m pip install -q --disable-pip-version-check "$pkg==$version"
   fi
-fi
-
-# Ray (--ray only), in a venv of its own: its pins (protobuf, grpc) must not move the main venv's.
-if [ "$RAY" = 1 ]; then
-  if [ ! -x "$ULAB_RAY_PYTHON" ]; then
-    echo "setup: creating the Ray venv in $ULAB_RAY_VENV"
-    python3 -m venv "$ULAB_RAY_VENV"
-  fi
-  if ! "$ULAB_RAY_PYTHON" -c "import ray" 2>/dev/null; then
-    echo "setup: installing ray 2.60.0 (~285 MB)"
-    "$ULAB_RAY_PYTHON" -m pip install -q --disable-pip-version-check ray==2.60.0
-  fi
-fi
+}
+# Newton (--newton only): its numpy (2.x) and Warp. Ray (--ray only): its protobuf and grpc.
+[ "$NEWTON" = 0 ] || own_venv Newton "$ULAB_NEWTON_VENV" "$ULAB_NEWTON_PYTHON" newton 1.8.0 "with warp-lang and numpy, ~575 MB"
+[ "$RAY" = 0 ] || own_venv Ray "$ULAB_RAY_VENV" "$ULAB_RAY_PYTHON" ray 2.60.0 "~285 MB"
 
 mkdir -p "$MUJOCO_DYNAMIC_LINK_DIR"
 lib=$("$ULAB_PYTHON" -c "import mujoco, os, glob; print(sorted(glob.glob(os.path.join(os.path.dirname(mujoco.__file__), 'libmujoco.so.*')))[-1])")

@@ -28,12 +28,12 @@ def main() -> int:
     a = ap.parse_args()
     from ray.cluster_utils import Cluster
 
-    args = ["diff", "--engines", "mujoco,rapier-multibody", "--jobs", "1", "--episodes", str(a.episodes), "--seconds",
-            str(a.seconds)]
+    base = ["diff", "--engines", "mujoco,rapier-multibody", "--jobs", "1"]
+    args = [*base, "--episodes", str(a.episodes), "--seconds", str(a.seconds)]
     with tempfile.TemporaryDirectory(prefix="ulab-tp-") as tmp:
         plain = Path(tmp) / "plain"
         # Warm-up: the first run of a process pays for loading the engines' libraries and the model from disk.
-        subprocess.run([a.ulab, *args[:-4], "--episodes", "1", "--seconds", "0.2", "--out", str(Path(tmp) / "warm")],
+        subprocess.run([a.ulab, *base, "--episodes", "1", "--seconds", "0.2", "--out", str(Path(tmp) / "warm")],
                        cwd=ROOT, check=True, capture_output=True)
         t = time.monotonic()
         subprocess.run([a.ulab, *args, "--out", str(plain)], cwd=ROOT, check=True, capture_output=True)

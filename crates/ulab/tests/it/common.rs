@@ -52,6 +52,20 @@ pub fn run_ulab(args: &[&str], timeout: Duration) -> (Option<i32>, String, Strin
     (status.and_then(|s| s.code()), out, err)
 }
 
+/// [`run_ulab`] with the repository root as working directory (where relative policy and robot paths resolve),
+/// killed after 300 s.
+pub fn run_ulab_from_root(args: &[&str]) -> (Option<i32>, String, String) {
+    let child = Command::new(env!("CARGO_BIN_EXE_ulab"))
+        .args(args)
+        .current_dir(root())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start ulab");
+    let (status, out, err) = wait_with_timeout(child, Duration::from_secs(300));
+    (status.and_then(|s| s.code()), out, err)
+}
+
 /// Starts the `ulab` binary with `args`, stdout and stderr piped (read them with [`wait_with_timeout`]).
 pub fn spawn_ulab(args: &[&str]) -> Child {
     Command::new(env!("CARGO_BIN_EXE_ulab"))

@@ -5,21 +5,12 @@
 
 use crate::common;
 
-use common::{root, tail, wait_with_timeout};
+use common::{root, tail};
 use std::path::Path;
-use std::process::{Command, Stdio};
-use std::time::Duration;
 
 fn ulab(args: &[&str]) -> (Option<i32>, String, String) {
-    let child = Command::new(env!("CARGO_BIN_EXE_ulab"))
-        .args(args)
-        .current_dir(root())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("start ulab");
-    let (status, out, err) = wait_with_timeout(child, Duration::from_secs(300));
-    (status.and_then(|s| s.code()), out, err)
+    // From the repository root: relative policy paths resolve there (in every shard and the merge, too).
+    common::run_ulab_from_root(args)
 }
 
 fn tmp(name: &str) -> std::path::PathBuf {

@@ -5,23 +5,13 @@
 
 use crate::common;
 
-use common::{root, tail, wait_with_timeout};
+use common::tail;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
-use std::time::Duration;
 
 fn ulab(args: &[&str]) -> (Option<i32>, String, String) {
-    // From the repository root: the campaigns' relative policy paths resolve there, in every shard and the merge.
-    let child = Command::new(env!("CARGO_BIN_EXE_ulab"))
-        .args(args)
-        .current_dir(root())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("start ulab");
-    let (status, out, err) = wait_with_timeout(child, Duration::from_secs(300));
-    (status.and_then(|s| s.code()), out, err)
+    // From the repository root: relative policy paths resolve there (in every shard and the merge, too).
+    common::run_ulab_from_root(args)
 }
 
 fn ok(args: &[&str]) -> String {
