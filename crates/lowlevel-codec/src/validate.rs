@@ -87,6 +87,12 @@ pub enum Finding {
         /// The norm found.
         norm: f32,
     },
+    /// An hg LowCmd whose `mode_pr` is neither 0 (ankle pitch/roll) nor 1 (ankle A/B motors).
+    #[error("`mode_pr` is {mode_pr}, neither 0 (ankle pitch/roll) nor 1 (ankle A/B motors)")]
+    UnknownAnkleMode {
+        /// The value found.
+        mode_pr: u8,
+    },
     /// A go LowCmd whose `head` is not `FE EF`.
     #[error("`head` is {head:02X?}, not FE EF")]
     BadHead {
@@ -109,6 +115,7 @@ impl Finding {
             Finding::UnknownMode { .. } => "unknown_mode",
             Finding::OutOfLimits { .. } => "out_of_limits",
             Finding::UnusedSlotNotZero { .. } => "unused_slot_not_zero",
+            Finding::UnknownAnkleMode { .. } => "unknown_ankle_mode",
             Finding::QuaternionNotNormalized { .. } => "quaternion_not_normalized",
             Finding::BadHead { .. } => "bad_head",
             Finding::BadLevelFlag { .. } => "bad_level_flag",
@@ -179,10 +186,51 @@ impl Visitor for NonFiniteFinder {
     fn string(&mut self, _name: &'static str, _value: &str) {}
 }
 
+/// What the H1-2's ankle slots (4, 5, 10, 11) command: `LowCmd.mode_pr`. Each ankle is a parallel linkage of two
+/// motors (A and B) that turns the pitch and roll joints of Unitree's robot models.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AnkleMode {
+    /// `mode_pr` = 0: the slots command the pitch and roll joints; the robot solves the linkage.
+    PitchRoll,
+    /// `mode_pr` = 1: the slots command the A and B motors directly; their position targets are motor angles.
+    MotorsAb,
+}
+
+impl AnkleMode {
+    /// The mode a command asks for (`None` for a `mode_pr` other than 0 and 1).
+    pub const fn of(cmd: &hg::LowCmd_) -> Option<AnkleMode> {
+        match cmd.mode_pr {
+            0 => Some(AnkleMode::PitchRoll),
+            1 => Some(AnkleMode::MotorsAb),
+            _ => None,
+        }
+    }
+}
+
+/// Slack on a joint's position range (rad). Unitree publishes the H1-2's ranges to six decimals, cut rather than
+/// rounded (30° = 0.5235988 rad appears as 0.523598), so a target at the true limit exceeds the published number
+/// by up to 1e-6 rad; its float32 encoding adds up to 6e-8 rad.
+pub const RANGE_SLACK_RAD: f32 = 2e-6;
+
 /// Checks an H1-2 hg LowCmd: non-finite values; for every enabled used slot, targets within
 /// the joint's position, speed and torque limits and gains within [0, KP_MAX] / [0, KD_MAX];
-/// modes other than 0/1; unused slots (27..35) entirely zero.
+/// modes other than 0/1; unused slots (27..35) entirely zero; `mode_pr` other than 0/1. In the ankles'
+/// A/B mode the ankle slots' position targets are motor angles, whose range the published models do not give:
+/// they are not checked (their speeds, torques and gains are).
 pub fn h1_2_lowcmd(cmd: &hg::LowCmd_) -> Vec<Finding> {
+    match AnkleMode::of(cmd) {
+        Some(mode) => h1_2_lowcmd_in(cmd, mode),
+        None => {
+            let mut findings = h1_2_lowcmd_in(cmd, AnkleMode::PitchRoll);
+            findings.push(Finding::UnknownAnkleMode { mode_pr: cmd.mode_pr });
+            findings
+        }
+    }
+}
+
+/// [`h1_2_lowcmd`] with the ankle slots read in `mode` whatever `mode_pr` says: a simulator of the serial pitch/roll
+/// model applies every ankle target to those joints, so it checks them in [`AnkleMode::PitchRoll`].
+pub fn h1_2_lowcmd_in(cmd: &hg::LowCmd_, mode: AnkleMode) -> Vec<Finding> {
     let mut findings = non_finite(cmd);
     for (slot, m) in cmd.motor_cmd.iter().enumerate() {
         let Some(joint) = h1_2::JOINTS.get(slot) else {
@@ -210,13 +258,16 @@ pub fn h1_2_lowcmd(cmd: &hg::LowCmd_) -> Vec<Finding> {
             }
         }
         let mut limit = |field: CmdField, value: f32, min: f32, max: f32| {
+            let slack = if field == CmdField::Q { RANGE_SLACK_RAD } else { 0.0 };
             // NaN fails both comparisons and is already reported as non-finite.
-            if value.is_finite() && !(min..=max).contains(&value) {
+            if value.is_finite() && !(min - slack..=max + slack).contains(&value) {
                 findings.push(Finding::OutOfLimits { slot, joint: joint.name, field, value, min, max });
             }
         };
-        // A position target only matters when it is stiffly tracked.
-        if m.kp != 0.0 {
+        // A position target only matters when it is stiffly tracked, and is a joint angle unless it is an ankle
+        // motor's.
+        let motor_angle = mode == AnkleMode::MotorsAb && h1_2::ANKLE_SLOTS.contains(&slot);
+        if m.kp != 0.0 && !motor_angle {
             limit(CmdField::Q, m.q, joint.lower, joint.upper);
         }
         limit(CmdField::Dq, m.dq, -joint.speed_limit, joint.speed_limit);
@@ -277,4 +328,74 @@ const QUATERNION_TOLERANCE: f32 = 1e-3;
 fn quaternion(q: [f32; 4]) -> Option<Finding> {
     let norm = q.iter().map(|x| x * x).sum::<f32>().sqrt();
     (norm.is_finite() && (norm - 1.0).abs() > QUATERNION_TOLERANCE).then_some(Finding::QuaternionNotNormalized { norm })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every used slot enabled and holding `q` with moderate gains.
+    fn holding(q: [f32; h1_2::NUM_JOINTS], mode_pr: u8) -> hg::LowCmd_ {
+        let mut cmd = hg::LowCmd_ { mode_pr, ..Default::default() };
+        for (m, q) in cmd.motor_cmd.iter_mut().zip(q) {
+            *m = hg::MotorCmd_ { mode: 1, q, kp: 50.0, kd: 2.0, ..Default::default() };
+        }
+        cmd
+    }
+
+    fn out_of_limits(findings: &[Finding]) -> Vec<(usize, CmdField)> {
+        findings
+            .iter()
+            .filter_map(|f| match f {
+                Finding::OutOfLimits { slot, field, .. } => Some((*slot, *field)),
+                _ => None,
+            })
+            .collect()
+    }
+
+    /// Unitree's H1-2 example drives the ankle pitch to 30° (0.5235988 rad as float32) where the published range
+    /// ends at 0.523598: a target at a limit passes, one a tenth of a milliradian beyond it does not.
+    #[test]
+    fn a_target_at_a_published_limit_passes_and_beyond_it_fails() {
+        for j in h1_2::JOINTS.iter() {
+            for (q, ok) in [(j.lower, true), (j.upper, true), (j.upper + 1e-4, false), (j.lower - 1e-4, false)] {
+                let mut pose = [0.0_f32; h1_2::NUM_JOINTS];
+                pose[j.slot] = q;
+                let found = out_of_limits(&h1_2_lowcmd(&holding(pose, 0)));
+                assert_eq!(found.is_empty(), ok, "{} at {q}: {found:?}", j.name);
+            }
+        }
+        let mut pose = [0.0_f32; h1_2::NUM_JOINTS];
+        pose[4] = 30.0_f32.to_radians();
+        assert!(h1_2_lowcmd(&holding(pose, 0)).is_empty(), "30° ankle pitch");
+    }
+
+    /// In the A/B mode the ankle slots carry the linkage motors' angles: a roll-slot target beyond the roll joint's
+    /// ±15° is no finding there, while the same target in pitch/roll mode is, and the other joints, the ankle slots'
+    /// gains, and a simulator that reads every target as pitch/roll keep their checks.
+    #[test]
+    fn ankle_targets_in_the_ab_mode_are_motor_angles() {
+        let mut pose = [0.0_f32; h1_2::NUM_JOINTS];
+        pose[5] = 0.5;
+        pose[11] = -0.5;
+        assert_eq!(out_of_limits(&h1_2_lowcmd(&holding(pose, 0))), vec![(5, CmdField::Q), (11, CmdField::Q)]);
+        assert!(h1_2_lowcmd(&holding(pose, 1)).is_empty());
+        assert_eq!(
+            out_of_limits(&h1_2_lowcmd_in(&holding(pose, 1), AnkleMode::PitchRoll)),
+            vec![(5, CmdField::Q), (11, CmdField::Q)]
+        );
+        pose[3] = 3.0; // beyond the knee's range
+        let mut cmd = holding(pose, 1);
+        cmd.motor_cmd[10].kp = h1_2::KP_MAX * 2.0;
+        assert_eq!(out_of_limits(&h1_2_lowcmd(&cmd)), vec![(3, CmdField::Q), (10, CmdField::Kp)]);
+    }
+
+    #[test]
+    fn an_unknown_ankle_mode_is_a_finding() {
+        let pose = [0.0_f32; h1_2::NUM_JOINTS];
+        assert!(h1_2_lowcmd(&holding(pose, 0)).is_empty());
+        let found = h1_2_lowcmd(&holding(pose, 2));
+        assert_eq!(found, vec![Finding::UnknownAnkleMode { mode_pr: 2 }]);
+        assert_eq!(found[0].name(), "unknown_ankle_mode");
+    }
 }

@@ -358,7 +358,8 @@ impl SimRobot {
             // Unused slots that are not zero are harmless: the robot has no motor there.
             let absurd_gains = self.config.has(Defect::ApplyAbsurdGains);
             let non_finite = self.config.has(Defect::LimpOnNonFinite) || self.config.has(Defect::UndefinedOnNonFinite);
-            let findings: Vec<_> = validate::h1_2_lowcmd(&cmd)
+            // The simulated robot has the serial pitch/roll ankle joints only and applies every ankle target to them.
+            let findings: Vec<_> = validate::h1_2_lowcmd_in(&cmd, validate::AnkleMode::PitchRoll)
                 .into_iter()
                 .filter(|f| match f {
                     validate::Finding::UnusedSlotNotZero { .. } => false,
@@ -393,7 +394,7 @@ impl SimRobot {
     /// CRC: it never travelled); on findings it is refused and the previous internal command stays.
     pub fn set_internal_command(&mut self, cmd: Option<hg::LowCmd_>) -> Result<(), Vec<validate::Finding>> {
         if let Some(c) = &cmd {
-            let findings: Vec<_> = validate::h1_2_lowcmd(c)
+            let findings: Vec<_> = validate::h1_2_lowcmd_in(c, validate::AnkleMode::PitchRoll)
                 .into_iter()
                 .filter(|f| !matches!(f, validate::Finding::UnusedSlotNotZero { .. }))
                 .collect();

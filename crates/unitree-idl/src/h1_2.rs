@@ -25,6 +25,10 @@ pub struct Joint {
 /// Number of actuated joints (used slots).
 pub const NUM_JOINTS: usize = 27;
 
+/// Slots of the ankles' pitch and roll joints (left, then right): the two motors of each ankle's parallel linkage in
+/// the A/B mode (`LowCmd.mode_pr` = 1).
+pub const ANKLE_SLOTS: [usize; 4] = [4, 5, 10, 11];
+
 /// Index of the waist (torso yaw) joint, which carries the LowState IMU.
 pub const TORSO_SLOT: usize = 12;
 
