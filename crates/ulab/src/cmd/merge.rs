@@ -25,8 +25,8 @@ pub struct Args {
     jobs: Option<usize>,
 }
 
-/// What wrote a shard: shards of different versions are not merged.
-const PRODUCER: &str = concat!("ulab ", env!("CARGO_PKG_VERSION"));
+/// What wrote a shard, with the commit it was built from (`build.rs`): shards of different versions are not merged.
+const PRODUCER: &str = concat!("ulab ", env!("CARGO_PKG_VERSION"), " (commit ", env!("ULAB_GIT_COMMIT"), ")");
 
 pub fn run(a: Args) -> Result<Exit> {
     super::diff::set_jobs(a.jobs)?;

@@ -103,6 +103,12 @@ fn diff_campaign_merged_from_three_shards_equals_the_unsharded_run() {
     let base = unsharded_equals_merged("diff", &campaign, &["engine_s", "total_s"]);
     let shards = base.join("shards");
 
+    // A shard names the commit its `ulab` was built from, as git reports this checkout's.
+    let header = campaign::read_header(&shards.join("shard-1-of-3.cbor")).expect("shard header");
+    let head = std::process::Command::new("git").args(["rev-parse", "--short=12", "HEAD"]).output().expect("git");
+    let head = String::from_utf8_lossy(&head.stdout).trim().to_owned();
+    assert!(head.len() == 12 && header.producer.ends_with(&format!("(commit {head})")), "{} / {head}", header.producer);
+
     // A missing shard, and a shard of another campaign (another seed), are refused.
     let (code, _, err) = ulab(&[
         "merge",
