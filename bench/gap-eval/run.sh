@@ -1,12 +1,13 @@
 #!/usr/bin/env bash
 # The gap diagnosis's development and evaluation sets (issue 57). An evaluation split is fixed here before the
 # decision model it judges is designed, and is run only to report; the development sets are for looking at.
-# `eval` judged the judge of 65e947d and has been read since; `eval2` (fixed at 2554d96, never run before a change)
-# judges any later change of the decision model, reported beside `eval` and `dev`.
+# `eval` judged the judge of 65e947d and has been read since; `eval2` (fixed at 2554d96) was first run on that same
+# judge, unchanged, and has been read since; `eval3` (fixed before `eval2` was read) judges any later change of the
+# decision model, reported beside `dev`, `eval` and `eval2`.
 #
-#   bench/gap-eval/run.sh dev|eval|eval2 [SET...]     generate the logs, diagnose them, score them strictly
-#   bench/gap-eval/run.sh rediagnose dev|eval|eval2 [SET...]   diagnose the logs already there again (labels kept)
-#   bench/gap-eval/run.sh score dev|eval|eval2        score what is there
+#   bench/gap-eval/run.sh dev|eval|eval2|eval3 [SET...]     generate the logs, diagnose them, score them strictly
+#   bench/gap-eval/run.sh rediagnose dev|eval|eval2|eval3 [SET...]   diagnose the logs already there again
+#   bench/gap-eval/run.sh score dev|eval|eval2|eval3        score what is there
 #
 # Output: out/gap-eval/<split>/<set>/ (logs, labels, one report per trial) and out/gap-eval/<split>/score.{md,json}.
 # Sets: four of `ulab gap bench` (reference plants Rapier multibody and DART, each under the excitation plan and
@@ -18,7 +19,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 source scripts/env.sh
-split=${1:?usage: run.sh dev|eval|eval2 [SET...] | run.sh score dev|eval|eval2}
+split=${1:?usage: run.sh dev|eval|eval2|eval3 [SET...] | run.sh score dev|eval|eval2|eval3}
 shift
 BIN=${ULAB_BIN:-target/release/ulab}
 JOBS=${ULAB_EVAL_JOBS:-1}
@@ -39,6 +40,13 @@ EVAL2_SETS=(
   "dart-chirp bench 9104 --reference-engine dart --trials 12 --out-of-library 2 --gentle-chirp"
   "mujoco-py mujoco 9105 --trials 24 --out-of-library 4"
 )
+EVAL3_SETS=(
+  "rapier-plan bench 9201 --reference-engine rapier_multibody --trials 12 --out-of-library 2"
+  "rapier-chirp bench 9202 --reference-engine rapier_multibody --trials 12 --out-of-library 2 --gentle-chirp"
+  "dart-plan bench 9203 --reference-engine dart --trials 12 --out-of-library 2"
+  "dart-chirp bench 9204 --reference-engine dart --trials 12 --out-of-library 2 --gentle-chirp"
+  "mujoco-py mujoco 9205 --trials 24 --out-of-library 4"
+)
 DEV_SETS=(
   "rapier-plan bench 101 --reference-engine rapier_multibody --trials 12 --out-of-library 2"
   "rapier-chirp bench 102 --reference-engine rapier_multibody --trials 12 --out-of-library 2 --gentle-chirp"
@@ -55,13 +63,14 @@ score() {
 }
 
 rediagnose=false
-if [ "$split" = rediagnose ]; then rediagnose=true; split=${1:?dev, eval or eval2}; shift; fi
+if [ "$split" = rediagnose ]; then rediagnose=true; split=${1:?dev, eval, eval2 or eval3}; shift; fi
 case "$split" in
-  score) score "${1:?dev, eval or eval2}"; exit 0 ;;
+  score) score "${1:?dev, eval, eval2 or eval3}"; exit 0 ;;
   eval) sets=("${EVAL_SETS[@]}") ;;
   eval2) sets=("${EVAL2_SETS[@]}") ;;
+  eval3) sets=("${EVAL3_SETS[@]}") ;;
   dev) sets=("${DEV_SETS[@]}") ;;
-  *) echo "usage: run.sh dev|eval|eval2 [SET...] | run.sh rediagnose dev|eval|eval2 [SET...] | run.sh score dev|eval|eval2" >&2; exit 2 ;;
+  *) echo "usage: run.sh dev|eval|eval2|eval3 [SET...] | run.sh rediagnose dev|eval|eval2|eval3 [SET...] | run.sh score dev|eval|eval2|eval3" >&2; exit 2 ;;
 esac
 [ -x "$BIN" ] || cargo build --release --locked -p ulab
 mkdir -p "out/gap-eval/$split"
