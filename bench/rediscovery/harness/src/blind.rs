@@ -407,9 +407,8 @@ pub fn generate(seed: u64, index: u64) -> World {
         // Place the tree: lowest point on the stack's top plus a gap, or embedded in the support.
         let poses = initial_poses(&w);
         let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-        for i in first..w.bodies.len() {
-            let (p, q) = poses[i];
-            for g in &w.bodies[i].geoms {
+        for (b, &(p, q)) in w.bodies.iter().zip(&poses).skip(first) {
+            for g in &b.geoms {
                 let c = add(p, rotate(q, g.pos));
                 let rad = bounding_radius(&g.shape);
                 lo = lo.min(c[2] - rad);
