@@ -15,6 +15,8 @@ here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 root="$(cd "$here/../.." && pwd)"
 # shellcheck source=/dev/null
 source "$root/scripts/env.sh"
+# shellcheck source=bench/rediscovery/venv.sh
+source "$here/venv.sh"
 export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$root/target-rediscovery}"
 out="$CARGO_TARGET_DIR/rediscovery-out"
 mkdir -p "$out"
@@ -51,22 +53,10 @@ if [[ " $sets " == *" cross "* ]]; then
     harness_bin="$CARGO_TARGET_DIR/debug"
     "$harness_bin/scenes" > "$out/scenes.json"
     mapfile -t scene_ids < <(python3 -c 'import json,sys; [print(s["id"]) for s in json.load(open(sys.argv[1]))]' "$out/scenes.json")
-    venvs="${REDISCOVERY_VENVS:-$CARGO_TARGET_DIR/venvs}"
     obs=()
     for w in "${wheels[@]}"; do
         pkg="${w%%:*}" ver="${w##*:}"
-        venv="$venvs/${REDISCOVERY_VENV_PREFIX:-}$pkg-$ver"
-        case "$pkg" in
-            mujoco) adapter=scenes_mujoco.py label="MuJoCo $ver" numpy="numpy<2.3" ;;
-            pybullet) adapter=scenes_pybullet.py label="pybullet $ver" numpy="numpy<2" ;;
-            dartpy) adapter=scenes_dart.py label="dartpy $ver" numpy="numpy<2.3" ;;
-        esac
-        if ! "$venv/bin/python" -c "import importlib.metadata as m, sys; sys.exit(m.version('$pkg') != '$ver')" 2>/dev/null; then
-            t0=$(date +%s)
-            python3 -m venv "$venv"
-            "${nice_cmd[@]}" "$venv/bin/pip" install --quiet "$pkg==$ver" "$numpy"
-            echo "$label: venv $(( $(date +%s) - t0 )) s" >&2
-        fi
+        ensure_venv "$pkg" "$ver"
         file="$out/cross-$pkg-$ver.jsonl"
         : > "$file"
         t0=$(date +%s)

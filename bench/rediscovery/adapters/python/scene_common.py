@@ -22,6 +22,55 @@ def _finite(x):
     return x
 
 
+class Rejected(Exception):
+    """The engine refused to build the scene (e.g. MuJoCo's compiler rejecting inverted limits or a massless moving
+    body): reported as "unsupported", not as a verdict."""
+
+
+def quat_rotate(q, v):
+    """Rotates v by the unit quaternion q = [w, x, y, z]."""
+    w, x, y, z = q
+    tx, ty, tz = y * v[2] - z * v[1], z * v[0] - x * v[2], x * v[1] - y * v[0]
+    ux, uy, uz = y * tz - z * ty, z * tx - x * tz, x * ty - y * tx
+    return [v[0] + 2 * (w * tx + ux), v[1] + 2 * (w * ty + uy), v[2] + 2 * (w * tz + uz)]
+
+
+def quat_mul(a, b):
+    return [a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
+            a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
+            a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
+            a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0]]
+
+
+def world_trees(s):
+    """Tree index (0, 1, ...) of every body of a generated `world` scene, in order of the roots."""
+    roots, out = [], []
+    for i, b in enumerate(s["bodies"]):
+        if b["parent"] is None:
+            roots.append(i)
+            out.append(len(roots) - 1)
+        else:
+            out.append(out[b["parent"]])
+    return out
+
+
+def run_world(s, step, state):
+    """Steps a `world` scene and records `state()` (per body [p(3), q wxyz(4), v(3), w(3)]) at t = 0 and every
+    `record_every` steps; stops at the first non-finite sample (the judge then reports a non-finite state)."""
+    steps = int(round(s["duration"] / s["dt"]))
+    every = max(1, int(s["record_every"]))
+    t, out = [0.0], [state()]
+    for i in range(steps):
+        step()
+        if (i + 1) % every == 0:
+            x = state()
+            t.append((i + 1) * s["dt"])
+            out.append(x)
+            if x is None or not all(math.isfinite(v) for b in x for v in b):
+                break
+    return {"t": t, "state": out}
+
+
 def engine_label_line(label):
     print(json.dumps({"engine": label}), flush=True)
 
@@ -39,6 +88,9 @@ def emit(label, scene, kinds):
     else:
         try:
             out["data"] = _finite(f(scene))
+        except Rejected as e:
+            out["status"] = "unsupported"
+            out["detail"] = "rejected by the engine: {}".format(e)
         except Exception as e:  # an engine failure is a verdict (flagged), never a crash of the bench
             out["status"] = "error"
             out["detail"] = "{}: {}".format(type(e).__name__, e)

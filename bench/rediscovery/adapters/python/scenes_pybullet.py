@@ -8,7 +8,7 @@ import tempfile
 
 import pybullet as p
 
-from scene_common import emit, engine_label_line, inertial_box
+from scene_common import Rejected, emit, engine_label_line, inertial_box, quat_rotate, run_world, world_trees
 
 LABEL = "pybullet " + (p.__version__ if hasattr(p, "__version__") else "")
 
@@ -114,7 +114,120 @@ def inverse_dynamics(s):
         p.disconnect(c)
 
 
-KINDS = {"drop": drop, "inverse_dynamics": inverse_dynamics}
+def world(s):
+    """A generated scene (harness `blind::World`): one btMultiBody per tree (a floating root is its base; a tree
+    jointed to the world hangs from a massless fixed base at the origin). Bullet's link frame sits at the joint
+    (the body's `anchor`) with the body's orientation, and the inertial frame at the centre of mass. Links of one
+    multibody do not collide with each other (no self-collision flag), as the scene format says."""
+    c = p.connect(p.DIRECT)
+    try:
+        p.setGravity(0, 0, s["gravity"], physicsClientId=c)
+        p.setTimeStep(s["dt"], physicsClientId=c)
+        sup = s.get("support")
+        if sup is not None and s["collide"]:
+            if sup["type"] == "plane":
+                shape = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=c)
+                p.createMultiBody(0, shape, basePosition=[0, 0, 0], physicsClientId=c)
+            else:
+                shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=sup["half"], physicsClientId=c)
+                p.createMultiBody(0, shape, basePosition=[0, 0, -sup["half"][2]], physicsClientId=c)
+        bodies = s["bodies"]
+        tree = world_trees(s)
+
+        def shapes(b, offset):
+            if not s["collide"] or not b["geoms"]:
+                return -1
+            kw = {"shapeTypes": [], "radii": [], "halfExtents": [], "lengths": [], "collisionFramePositions": [],
+                  "collisionFrameOrientations": []}
+            for g in b["geoms"]:
+                sh = g["shape"]
+                kw["shapeTypes"].append({"box": p.GEOM_BOX, "sphere": p.GEOM_SPHERE, "capsule": p.GEOM_CAPSULE,
+                                         "cylinder": p.GEOM_CYLINDER}[sh["type"]])
+                kw["halfExtents"].append(sh.get("half", [0, 0, 0]))
+                kw["radii"].append(sh.get("radius", 0))
+                kw["lengths"].append(2 * sh.get("half_length", 0))
+                kw["collisionFramePositions"].append([g["pos"][k] - offset[k] for k in range(3)])
+                kw["collisionFrameOrientations"].append(_xyzw(g["quat"]))
+            return p.createCollisionShapeArray(physicsClientId=c, **kw)
+
+        handles = []  # per scene body: (multibody id, link index or -1)
+        for t in sorted(set(tree)):
+            members = [i for i in range(len(bodies)) if tree[i] == t]
+            root = members[0]
+            free = bodies[root]["joint"]["type"] == "free"
+            links = members[1:] if free else members
+            link_of = {i: k for k, i in enumerate(links)}
+            kw = {k: [] for k in ("linkMasses", "linkCollisionShapeIndices", "linkVisualShapeIndices", "linkPositions",
+                                  "linkOrientations", "linkInertialFramePositions", "linkInertialFrameOrientations",
+                                  "linkParentIndices", "linkJointTypes", "linkJointAxis")}
+            for i in links:
+                b = bodies[i]
+                par = b["parent"]
+                par_anchor = [0, 0, 0] if par is None or (free and par == root) else bodies[par]["anchor"]
+                ra = quat_rotate(b["quat"], b["anchor"])
+                kw["linkMasses"].append(b["mass"])
+                kw["linkCollisionShapeIndices"].append(shapes(b, b["anchor"]))
+                kw["linkVisualShapeIndices"].append(-1)
+                kw["linkPositions"].append([b["pos"][k] + ra[k] - par_anchor[k] for k in range(3)])
+                kw["linkOrientations"].append(_xyzw(b["quat"]))
+                kw["linkInertialFramePositions"].append([-a for a in b["anchor"]])
+                kw["linkInertialFrameOrientations"].append([0, 0, 0, 1])
+                kw["linkParentIndices"].append(0 if par is None or (free and par == root) else link_of[par] + 1)
+                j = b["joint"]["type"]
+                kw["linkJointTypes"].append({"fixed": p.JOINT_FIXED, "hinge": p.JOINT_REVOLUTE,
+                                             "slide": p.JOINT_PRISMATIC}[j])
+                kw["linkJointAxis"].append(b["joint"].get("axis", [0, 0, 1]))
+            if free:
+                rb = bodies[root]
+                mb = p.createMultiBody(rb["mass"], shapes(rb, [0, 0, 0]), -1, rb["pos"], _xyzw(rb["quat"]),
+                                       physicsClientId=c, **kw)
+            else:
+                mb = p.createMultiBody(0, -1, -1, [0, 0, 0], [0, 0, 0, 1], physicsClientId=c, **kw)
+            if mb < 0:
+                raise Rejected("createMultiBody failed")
+            if free:
+                rb = bodies[root]
+                handles.append((mb, -1))
+                p.changeDynamics(mb, -1, localInertiaDiagonal=rb["inertia"], linearDamping=0, angularDamping=0,
+                                 lateralFriction=(rb["geoms"] or [{"friction": 1.0}])[0]["friction"], physicsClientId=c)
+                p.resetBaseVelocity(mb, rb["joint"]["linvel"], rb["joint"]["angvel"], physicsClientId=c)
+            else:
+                p.changeDynamics(mb, -1, linearDamping=0, angularDamping=0, physicsClientId=c)
+            for i in links:
+                b, k = bodies[i], link_of[i]
+                handles.append((mb, k))
+                p.changeDynamics(mb, k, localInertiaDiagonal=b["inertia"], jointDamping=0,
+                                 lateralFriction=(b["geoms"] or [{"friction": 1.0}])[0]["friction"], physicsClientId=c)
+                j = b["joint"]
+                if j["type"] in ("hinge", "slide"):
+                    if j.get("limit"):
+                        p.changeDynamics(mb, k, jointLowerLimit=j["limit"][0], jointUpperLimit=j["limit"][1],
+                                         physicsClientId=c)
+                    # No default velocity motor: the joints are passive.
+                    p.setJointMotorControl2(mb, k, p.VELOCITY_CONTROL, force=0, physicsClientId=c)
+                    p.resetJointState(mb, k, j["q0"], j["v0"], physicsClientId=c)
+        order = [i for t in sorted(set(tree)) for i in range(len(bodies)) if tree[i] == t]
+        slot = {i: h for i, h in zip(order, handles)}
+
+        def state():
+            out = []
+            for i in range(len(bodies)):
+                mb, k = slot[i]
+                if k < 0:
+                    x, q = p.getBasePositionAndOrientation(mb, physicsClientId=c)
+                    v, w = p.getBaseVelocity(mb, physicsClientId=c)
+                else:
+                    ls = p.getLinkState(mb, k, computeLinkVelocity=1, computeForwardKinematics=1, physicsClientId=c)
+                    x, q, v, w = ls[0], ls[1], ls[6], ls[7]
+                out.append(list(x) + _wxyz(q) + list(v) + list(w))
+            return out
+
+        return run_world(s, lambda: p.stepSimulation(physicsClientId=c), state)
+    finally:
+        p.disconnect(c)
+
+
+KINDS = {"drop": drop, "inverse_dynamics": inverse_dynamics, "world": world}
 
 if __name__ == "__main__":
     LABEL = "pybullet " + _version()

@@ -578,7 +578,8 @@ mod tests {
 
     #[test]
     fn a_box_resting_on_top_is_quiet_and_one_that_fell_through_is_flagged() {
-        let n = 501;
+        // embedded_box runs 3 s at 2 ms: 1501 samples.
+        let n = 1501;
         let rest = serde_json::json!({"t": (0..n).map(|i| i as f64 * 0.002).collect::<Vec<_>>(),
             "pos": vec![vec![0.0, 0.0, 0.0499]; n], "quat": vec![vec![1.0, 0.0, 0.0, 0.0]; n]});
         let v = judge(&obs(rest), None).expect("known scene");

@@ -10,6 +10,7 @@
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
+pub mod blind;
 pub mod cross;
 pub mod report;
 
