@@ -4,6 +4,7 @@
 //! blind gen SEED FROM COUNT                     # generated scenes as JSON (what the adapters read)
 //! blind campaign PYTHON ADAPTER SEED BUDGET_S OUT_DIR
 //! blind replay PYTHON ADAPTER SCENE.json...     # verdict lines of saved scenes on another version
+//! blind minimise PYTHON ADAPTER SCENE.json BUDGET_S OUT.json [GOOD_PYTHON]
 //! blind bugs                                    # the known-bug table: engine, last bad, first good, id
 //! ```
 //!
@@ -13,6 +14,10 @@
 //! one-step reduction that still violates the same invariant is kept, until none does). Output in `OUT_DIR`:
 //! `findings.jsonl` (one line per finding), `scenes/ID.json` (flagged scenes), `scenes/ID-min.json`
 //! (minimised) and `summary.json`. The campaign knows nothing of which bug the version has.
+//!
+//! `minimise` reduces one saved scene the same way; with `GOOD_PYTHON` (another version of the same engine) a
+//! reduction is kept only if it still violates the same invariant on `PYTHON` **and** is judged quiet on
+//! `GOOD_PYTHON`, so the minimised scene keeps the version flip instead of drifting to a failure both share.
 #![forbid(unsafe_code)]
 
 use anyhow::{anyhow, bail, Context, Result};
@@ -29,10 +34,20 @@ use std::time::{Duration, Instant};
 const BATCH: usize = 16;
 
 struct Engine {
+    /// Absolute: the adapter runs with its own directory as the working directory.
     python: PathBuf,
     adapter: PathBuf,
     work: PathBuf,
     label: String,
+}
+
+impl Engine {
+    fn new(python: &str, adapter: &str, work: PathBuf) -> Result<Engine> {
+        // Not canonicalised: a venv's interpreter is a symlink that must keep its path.
+        let python = std::path::absolute(python).with_context(|| format!("python {python}"))?;
+        let adapter = std::fs::canonicalize(adapter).with_context(|| format!("adapter {adapter}"))?;
+        Ok(Engine { python, adapter, work, label: String::new() })
+    }
 }
 
 fn clock_ticks() -> f64 {
@@ -151,6 +166,7 @@ fn run(engine: &mut Engine, scenes: &[World]) -> Result<Vec<Observation>> {
 /// or the CPU budget is spent. Returns the smallest failing scene found and its verdict.
 fn minimise(
     engine: &mut Engine,
+    mut good: Option<&mut Engine>,
     scene: &World,
     violation: Violation,
     verdict: Verdict,
@@ -170,7 +186,30 @@ fn minimise(
             }
             let obs = run(engine, chunk)?;
             runs += chunk.len();
-            for c in chunk {
+            let still: Vec<&World> = chunk
+                .iter()
+                .filter(|c| {
+                    obs.iter().find(|o| o.scene == c.id).is_some_and(|o| judge_world(c, o).1 == Some(violation))
+                })
+                .collect();
+            // With a good version: of those, only the ones it runs and judges quiet.
+            let keep: Vec<&World> = match good.as_deref_mut() {
+                Some(g) if !still.is_empty() => {
+                    let gobs = run(g, &still.iter().map(|c| (*c).clone()).collect::<Vec<_>>())?;
+                    runs += still.len();
+                    still
+                        .into_iter()
+                        .filter(|c| {
+                            gobs.iter().find(|o| o.scene == c.id).is_some_and(|o| {
+                                let (v, viol) = judge_world(c, o);
+                                viol.is_none() && v.value.is_some()
+                            })
+                        })
+                        .collect()
+                }
+                _ => still,
+            };
+            for c in keep {
                 if let Some(o) = obs.iter().find(|o| o.scene == c.id) {
                     let (v, viol) = judge_world(c, o);
                     if viol == Some(violation) {
@@ -196,8 +235,7 @@ fn campaign(args: &[String]) -> Result<()> {
     let budget: f64 = budget.parse().context("BUDGET_S")?;
     let out = PathBuf::from(out_dir);
     std::fs::create_dir_all(out.join("scenes"))?;
-    let adapter = std::fs::canonicalize(adapter).with_context(|| format!("adapter {adapter}"))?;
-    let mut engine = Engine { python: python.into(), adapter, work: out.clone(), label: String::new() };
+    let mut engine = Engine::new(python, adapter, out.clone())?;
     let ticks = clock_ticks();
     let t0 = cpu_seconds(ticks);
     let wall0 = Instant::now();
@@ -227,7 +265,7 @@ fn campaign(args: &[String]) -> Result<()> {
                     let mut rec = serde_json::json!({"engine": engine.label, "scene": w.id, "violation": viol,
                         "cpu_s": at, "size": size(w), "detail": v.detail});
                     if minimised.insert(viol) {
-                        let (m, mv, runs) = minimise(&mut engine, w, viol, v, end, ticks)?;
+                        let (m, mv, runs) = minimise(&mut engine, None, w, viol, v, end, ticks)?;
                         let file = out.join("scenes").join(format!("{}.json", m.id));
                         std::fs::write(&file, serde_json::to_string_pretty(&m)?)?;
                         if let Some(r) = rec.as_object_mut() {
@@ -274,8 +312,7 @@ fn replay(args: &[String]) -> Result<()> {
     }
     let work = std::env::temp_dir().join(format!("blind-replay-{}", std::process::id()));
     std::fs::create_dir_all(&work)?;
-    let adapter = std::fs::canonicalize(adapter).with_context(|| format!("adapter {adapter}"))?;
-    let mut engine = Engine { python: python.into(), adapter, work: work.clone(), label: String::new() };
+    let mut engine = Engine::new(python, adapter, work.clone())?;
     let obs = run(&mut engine, &scenes)?;
     for w in &scenes {
         if let Some(o) = obs.iter().find(|o| o.scene == w.id) {
@@ -283,6 +320,38 @@ fn replay(args: &[String]) -> Result<()> {
             println!("{}", serde_json::json!({"verdict": v, "violation": viol}));
         }
     }
+    let _ = std::fs::remove_dir_all(work);
+    Ok(())
+}
+
+fn minimise_one(args: &[String]) -> Result<()> {
+    let [python, adapter, file, budget, out, good @ ..] = args else {
+        bail!("usage: blind minimise PYTHON ADAPTER SCENE.json BUDGET_S OUT.json [GOOD_PYTHON]");
+    };
+    let budget: f64 = budget.parse().context("BUDGET_S")?;
+    let text = std::fs::read_to_string(file).with_context(|| file.clone())?;
+    let scene: World = serde_json::from_str(&text).with_context(|| file.clone())?;
+    let work = std::env::temp_dir().join(format!("blind-minimise-{}", std::process::id()));
+    std::fs::create_dir_all(work.join("good"))?;
+    let mut engine = Engine::new(python, adapter, work.clone())?;
+    let mut good_engine = match good {
+        [] => None,
+        [g] => Some(Engine::new(g, adapter, work.join("good"))?),
+        _ => bail!("at most one GOOD_PYTHON"),
+    };
+    let ticks = clock_ticks();
+    let end = cpu_seconds(ticks) + budget;
+    let obs = run(&mut engine, std::slice::from_ref(&scene))?;
+    let o = obs.first().ok_or_else(|| anyhow!("no observation of {}", scene.id))?;
+    let (v, viol) = judge_world(&scene, o);
+    let Some(viol) = viol else { bail!("{} is not flagged on {}: {}", scene.id, engine.label, v.detail) };
+    let (m, mv, runs) = minimise(&mut engine, good_engine.as_mut(), &scene, viol, v, end, ticks)?;
+    std::fs::write(out, serde_json::to_string_pretty(&m)?)?;
+    println!(
+        "{}",
+        serde_json::json!({"engine": engine.label, "scene": scene.id, "violation": viol, "size": size(&scene),
+            "min_size": size(&m), "runs": runs, "detail": mv.detail, "out": out})
+    );
     let _ = std::fs::remove_dir_all(work);
     Ok(())
 }
@@ -298,12 +367,13 @@ fn main() -> Result<()> {
         }
         Some("campaign") => campaign(&args[1..])?,
         Some("replay") => replay(&args[1..])?,
+        Some("minimise") => minimise_one(&args[1..])?,
         Some("bugs") => {
             for b in CROSS_BUGS {
                 println!("{}\t{}\t{}\t{}", b.engine, b.last_bad, b.first_good, b.id);
             }
         }
-        _ => bail!("usage: blind gen|campaign|replay|bugs ... (see the source's header)"),
+        _ => bail!("usage: blind gen|campaign|replay|minimise|bugs ... (see the source's header)"),
     }
     Ok(())
 }
