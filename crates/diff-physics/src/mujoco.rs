@@ -80,8 +80,9 @@ impl MujocoEngine {
     /// Generates the MJCF for `model` with these settings.
     pub fn mjcf(model: &RobotModel, common: &CommonSettings, s: &MujocoSettings) -> String {
         let dt = common.timestep / f64::from(s.substeps.max(1));
+        // No `energy` flag: it makes every step compute the energy, which only [`Engine::energy`] reads, and that
+        // calls mj_energyPos and mj_energyVel itself (a few per cent of a step on the H1-2).
         let mut flags = vec![
-            ("energy".to_string(), "enable".to_string()),
             ("filterparent".to_string(), if s.filter_parent { "enable" } else { "disable" }.to_string()),
             ("warmstart".to_string(), if s.warmstart { "enable" } else { "disable" }.to_string()),
         ];
