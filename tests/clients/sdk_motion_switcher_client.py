@@ -11,7 +11,7 @@ which state the robot's locomotion service is in.
 
   python sdk_motion_switcher_client.py --domain D
 
-Checks the mode, releases it, checks again, watches the robot for a span of SIMULATED time (LowState ticks) while
+Waits until both services answer (discovery), then checks the mode, releases it, checks again, watches the robot for a span of SIMULATED time (LowState ticks) while
 reading its pelvis height from rt/sportmodestate, sets and reads the silent flag, selects the mode again and calls
 an id the service does not have. Every wait is bounded by a generous wall-clock limit that only turns a stalled
 peer into an error. Prints one JSON object; exit code 0 unless the SDK itself failed.
@@ -46,15 +46,21 @@ LOCO_SERVICE_NAME = "loco"
 LOCO_API_VERSION = "2.0.0.0"
 ROBOT_API_ID_LOCO_GET_FSM_ID = 8001
 WALL_LIMIT = 120.0
+# Sends of one call at most (one plus retries after a lost response).
+ATTEMPTS = 4
+# Seconds the SDK client waits for a response: the simulator answers within a physics step (2 ms of its loop), so
+# this only has to outlast a loaded machine's scheduling stalls.
+CALL_TIMEOUT = 5.0
 # unitree_sdk2py/rpc/internal.py: the client's own timeout waiting for a response.
 RPC_ERR_CLIENT_API_TIMEOUT = 3104
 
 
 class RetryingClient(Client):
-    """The SDK's client, sending a call once more when no response came in time. The SDK reads responses with
-    Cyclone's default reader QoS, best-effort, so a response dropped by a busy loopback socket (LowState arrives at
-    500 Hz beside it) is never resent; a program using the SDK retries. Every retry is reported. (Every call made
-    here is idempotent: a repeated release, select or set changes nothing more.)"""
+    """The SDK's client, sending a call again (at most ATTEMPTS times in all) when no response came in time. The SDK
+    reads responses with Cyclone's default reader QoS, best-effort, so a response dropped by a busy loopback socket
+    (LowState arrives at 500 Hz beside it; on a loaded machine several in a run) is never resent; a program using the
+    SDK retries. Every retry is reported. (Every call made here is idempotent: a repeated release, select or set
+    changes nothing more.)"""
 
     def __init__(self, service, retries):
         super().__init__(service, False)
@@ -62,10 +68,23 @@ class RetryingClient(Client):
 
     def _Call(self, api, parameter):
         code, data = super()._Call(api, parameter)
-        if code == RPC_ERR_CLIENT_API_TIMEOUT:
+        for _ in range(ATTEMPTS - 1):
+            if code != RPC_ERR_CLIENT_API_TIMEOUT:
+                break
             self.retries.append(api)
             code, data = super()._Call(api, parameter)
         return code, data
+
+    def WaitServer(self):
+        """Asks the server's API version until it answers (DDS discovery done both ways), within WALL_LIMIT;
+        returns [code, version, attempts]."""
+        start = time.time()
+        attempts = 0
+        while True:
+            attempts += 1
+            code, version = self.GetServerApiVersion()
+            if code == 0 or time.time() - start > WALL_LIMIT:
+                return [code, version, attempts]
 
 
 class MotionSwitcherClient(RetryingClient):
@@ -172,15 +191,16 @@ def main():
     robot = Robot()
     retries = []
     msc = MotionSwitcherClient(retries)
-    msc.SetTimeout(10.0)
+    msc.SetTimeout(CALL_TIMEOUT)
     msc.Init()
     loco = LocoClient(retries)
-    loco.SetTimeout(10.0)
+    loco.SetTimeout(CALL_TIMEOUT)
     loco.Init()
     out = {}
     try:
         robot.wait(0.2)
-        out["api_version"] = list(msc.GetServerApiVersion())
+        out["api_version"] = msc.WaitServer()
+        out["loco_api_version"] = loco.WaitServer()
         out["check_initial"] = msc.CheckMode()
         out["fsm_initial"] = loco.GetFsmId()
         out["height_initial"] = robot.pelvis_height()
