@@ -6,6 +6,10 @@ and releases it until none does, before it publishes a command. Without an answe
 and the example stops with a TypeError before its first command. This service answers as a robot whose motion
 services are already released: CheckMode gives an empty name, ReleaseMode succeeds.
 
+`ulab sim` answers the motion switcher itself (`sim_bridge::motion_switcher`: CheckMode names its locomotion
+service "ai", ReleaseMode damps the robot); this stand-in is still needed beside `ulab conform controller`, whose
+judge plays LowState/LowCmd only and serves no RPC.
+
   PYTHONPATH=$UNITREE_SDK2_PYTHON_DIR python motion_switcher.py [DOMAIN [INTERFACE]]   (defaults: 0 lo)
 
 Uses the SDK's own RPC server classes from the copy on PYTHONPATH; runs until killed.

@@ -17,7 +17,8 @@
 # take the network interface as their one argument: the judge therefore runs with `--domain 0 --allow-robot` on
 # `lo` ONLY, and the examples get `lo`. Run this on a machine that is not on a robot's network.
 # The Python example first asks the robot's motion switcher to release any motion service; motion_switcher.py beside
-# this script answers it as a robot with every service released (the judge plays LowState/LowCmd only).
+# this script answers it as a robot with every service released (the judge plays LowState/LowCmd only; `ulab sim`
+# serves its own motion switcher, the judge does not).
 # The Python example waits for Enter before it starts: it gets an empty line on stdin.
 #
 # Output: out/conform-controller/<example>/report.{json,md}, example.log, judge.log; the verdict table on stdout.

@@ -15,7 +15,8 @@
 //!
 //! [`loco`] is the built-in locomotion service (what Unitree's `LocoClient` talks to over RPC): a walking policy
 //! and the FSM states behind it, driving the robot through an internal command that any fresh `rt/lowcmd`
-//! command overrides ([`SimRobot::set_internal_command`]).
+//! command overrides ([`SimRobot::set_internal_command`]). [`motion_switcher`] is the motion-switcher service
+//! Unitree's low-level examples ask to release that locomotion service before they take the motors.
 //! [`Defect`]s switch single protocol faults on, for testing conformance tools; none is active in normal use.
 //!
 //! [`suspension`] holds the robot on a stiff stand (pelvis still, feet in the air) for `ulab sim --hang`; the gap
@@ -26,6 +27,7 @@
 
 mod imu;
 pub mod loco;
+pub mod motion_switcher;
 pub use diff_physics::suspension;
 
 use diff_physics::{pd, Engine, EngineError, PdTarget, State};

@@ -41,6 +41,12 @@
 //! cleared) and reports `LOCOSTATE_NOT_AVAILABLE` (8301) to state queries and moves; when the low-level
 //! commands stop, the bridge damps the robot (its timeout rule), and a `SetFsmId` call takes the robot back.
 //! While low-level commands are fresh, `SetFsmId` is refused with 8301.
+//!
+//! # Released by the motion switcher
+//!
+//! The motion switcher ([`crate::motion_switcher`]) can release this service ([`LocoService::release`]): the robot
+//! is damped (FSM 1) and every call but the API version is answered `LOCOSTATE_NOT_AVAILABLE` (8301), as from a
+//! service that is not running, until the motion switcher selects it again ([`LocoService::select`]).
 
 use crate::{stand_target, SimRobot};
 use diff_physics::PdTarget;
@@ -124,6 +130,8 @@ pub struct LocoService {
     velocity_until: f64,
     balance_mode: i64,
     odom_enabled: bool,
+    /// Released by the motion switcher: not driving the robot, refusing calls.
+    released: bool,
     counters: LocoCounters,
     /// Notable events since the last [`LocoService::take_events`] (mode changes, takeovers, policy failures).
     events: Vec<String>,
@@ -153,6 +161,7 @@ impl LocoService {
             velocity_until: 0.0,
             balance_mode: 0,
             odom_enabled: false,
+            released: false,
             counters: LocoCounters::default(),
             events: Vec::new(),
         }
@@ -179,6 +188,52 @@ impl LocoService {
 
     pub fn counters(&self) -> &LocoCounters {
         &self.counters
+    }
+
+    /// Whether the motion switcher has released the service (see the module docs).
+    pub fn released(&self) -> bool {
+        self.released
+    }
+
+    /// The motion switcher's `ReleaseMode`: the service stops driving the robot, which is damped (FSM 1), and
+    /// refuses calls until [`Self::select`]. Low-level commands that are fresh keep the robot (nothing to damp;
+    /// when they stop the bridge damps it by its timeout rule). `Err`: an SDK status code.
+    pub fn release(&mut self, robot: &mut SimRobot, now: f64) -> Result<(), i32> {
+        self.observe_takeover(robot, now);
+        if self.released {
+            return Ok(());
+        }
+        if self.mode != Mode::LowLevel && self.mode != Mode::Damp {
+            robot.set_internal_command(Some(damping_command(robot))).map_err(|findings| {
+                self.events.push(format!("damping command refused by the limit checks: {findings:?}"));
+                status::ERR_SERVER_INTERNAL
+            })?;
+            self.events.push(format!("released by the motion switcher: FSM {} -> 1 (Damp)", self.fsm_text()));
+            self.mode = Mode::Damp;
+        } else {
+            self.events.push(format!("released by the motion switcher (FSM {})", self.fsm_text()));
+        }
+        self.velocity = [0.0; 3];
+        self.velocity_until = 0.0;
+        self.released = true;
+        Ok(())
+    }
+
+    /// The motion switcher's `SelectMode`: a released service takes the robot back in the standing state (FSM 2;
+    /// it holds a standing robot up, it does not raise a fallen one). While low-level commands are fresh it is
+    /// selected but they keep the robot, as they override it anyway (a `SetFsmId` takes it back once they stop).
+    /// A service that is not released is left as it is. `Err`: an SDK status code.
+    pub fn select(&mut self, robot: &mut SimRobot, sim_time: f64, now: f64) -> Result<(), i32> {
+        self.observe_takeover(robot, now);
+        if !self.released {
+            return Ok(());
+        }
+        if !robot.command_active(now) {
+            self.set_fsm(fsm::STAND_UP, robot, sim_time, now)?;
+        }
+        self.events.push("selected by the motion switcher".to_owned());
+        self.released = false;
+        Ok(())
     }
 
     /// Events since the last call (for the status line).
@@ -228,6 +283,9 @@ impl LocoService {
         let data = |v: Value| v.to_string();
         if id == internal::API_VERSION {
             return Ok(api.version.to_owned());
+        }
+        if self.released {
+            return Err(loco_status::ERR_LOCOSTATE_NOT_AVAILABLE);
         }
         if id == api.get_fsm_id {
             let fsm = self.mode.fsm_id().ok_or(loco_status::ERR_LOCOSTATE_NOT_AVAILABLE)?;

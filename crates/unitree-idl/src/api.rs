@@ -256,3 +256,40 @@ pub mod loco {
     /// ten days); `StopMove()` is `SetVelocity(0, 0, 0)` with the default duration 1 s.
     pub const CONTINUOUS_MOVE_DURATION: f64 = 864000.0;
 }
+
+/// The motion-switcher service: which motion service (the robot's own locomotion controller) holds the motors, and
+/// releasing it so that a low-level controller can drive them alone. One API for every robot that has it (Unitree
+/// declares it once, under `b2`, and the G1/H1-2 low-level examples use that client).
+///
+/// Values from Unitree's C++ SDK `include/unitree/robot/b2/motion_switcher/motion_switcher_api.hpp`
+/// (`MOTION_SWITCHER_SERVICE_NAME`, `MOTION_SWITCHER_API_VERSION`, `MOTION_SWITCHER_API_ID_*`, the JSON classes
+/// `JsonizeModeName` {`name`, `form`} and `JsonizeSilent` {`silent`}); the same values in unitree_sdk2_python
+/// `unitree_sdk2py/comm/motion_switcher/motion_switcher_api.py` and `motion_switcher_client.py` (which the PyPI
+/// wheel `unitree_sdk2` 1.0.1 does not ship).
+pub mod motion_switcher {
+    /// Service name: topics `rt/api/motion_switcher/request|response`.
+    pub const SERVICE: &str = "motion_switcher";
+    /// What the server answers to `ROBOT_API_ID_INTERNAL_API_VERSION`.
+    pub const VERSION: &str = "1.0.0.1";
+    /// `CheckMode`: answers `{"form": F, "name": N}`, `N` the active motion service's name, empty when released.
+    pub const CHECK_MODE: i64 = 1001;
+    /// `SelectMode(nameOrAlias)`: parameter `{"name": N}`, starts that motion service.
+    pub const SELECT_MODE: i64 = 1002;
+    /// `ReleaseMode()`: stops the active motion service.
+    pub const RELEASE_MODE: i64 = 1003;
+    /// `SetSilent(flag)`: parameter `{"silent": bool}`, whether the robot boots with no motion service.
+    pub const SET_SILENT: i64 = 1004;
+    /// `GetSilent()`: answers `{"silent": bool}`.
+    pub const GET_SILENT: i64 = 1005;
+
+    /// Service error codes listed in Unitree's G1 developer documentation, "Motion Switcher Service Interface"
+    /// (support.unitree.com, `G1_developer/motion_witcher_service_interface`); no SDK header declares them.
+    pub mod status {
+        /// "Request parameter error."
+        pub const ERR_PARAMETER: i32 = 7001;
+        /// "Service busy, retry again please."
+        pub const ERR_BUSY: i32 = 7002;
+        /// "Unsupport mode name."
+        pub const ERR_UNSUPPORTED_MODE_NAME: i32 = 7004;
+    }
+}

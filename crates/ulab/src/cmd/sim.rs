@@ -3,7 +3,8 @@
 //! `rt/lowstate`. The protocol logic (gates, PD law, damping timeout, IMU, CRC) is
 //! `sim_bridge::SimRobot`; this module adds DDS, pacing and the status line. It also serves the
 //! SDK's locomotion RPC (`LocoClient`: stand, walk at a velocity, stop, damp) through
-//! `sim_loco` / `sim_bridge::loco`. Like Unitree's MuJoCo bridge it also publishes the simulator's own pelvis pose
+//! `sim_loco` / `sim_bridge::loco`, and beside it the motion switcher Unitree's low-level examples ask to release
+//! that service (`sim_bridge::motion_switcher`). Like Unitree's MuJoCo bridge it also publishes the simulator's own pelvis pose
 //! on `rt/sportmodestate` (go SportModeState_, `--sport-state-rate`, 100 Hz by default), so that a recording of
 //! the run carries the ground-truth base pose (`ulab render` draws it instead of estimating one).
 
@@ -78,6 +79,11 @@ pub struct Args {
     /// from $ULAB_SHARED/reference/policies/).
     #[arg(long)]
     pub loco_policy: Option<std::path::PathBuf>,
+    /// Do not serve the motion switcher (`rt/api/motion_switcher/...`: `CheckMode` names the locomotion service
+    /// "ai", `ReleaseMode` damps the robot and stops that service, `SelectMode("ai")` stands it back up), served
+    /// whenever a locomotion service is.
+    #[arg(long)]
+    pub no_motion_switcher: bool,
     /// Write a video of the run (H.264 MP4): the simulator's own pelvis pose and joint angles, 30 frames per second
     /// of simulated time, with the time and the engine in the picture (rendered on another thread; needs ffmpeg).
     #[arg(long, value_name = "MP4")]
@@ -192,7 +198,10 @@ pub fn run(args: Args) -> Result<Exit> {
         None
     } else {
         let service = sim_bridge::loco::LocoService::new(args.loco_api.0.clone(), policy, holding);
-        Some(super::sim_loco::LocoEndpoints::open(&participant, service).context("serving the locomotion RPC")?)
+        Some(
+            super::sim_loco::LocoEndpoints::open(&participant, service, !args.no_motion_switcher)
+                .context("serving the locomotion RPC")?,
+        )
     };
 
     let stop = Arc::new(AtomicBool::new(false));

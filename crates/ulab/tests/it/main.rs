@@ -21,6 +21,7 @@ mod render_cli;
 mod shard_cli;
 mod sim_c010_client;
 mod sim_loco_client;
+mod sim_motion_switcher_client;
 mod sim_robustness;
 mod sim_sdk_client;
 mod validate_cli;
