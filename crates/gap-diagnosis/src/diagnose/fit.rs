@@ -258,8 +258,29 @@ pub(super) fn fit_set(
     } else {
         trial_sets.push(refined.clone());
     }
-    let trial_cfgs: Vec<Effects> = trial_sets.iter().map(|v| with(v)).collect();
-    let trial_scores = ctx.eval_many(&trial_cfgs, &ctx.train)?;
+    // A trial whose units all sit at the no-effect value or all at one grid value is a configuration already
+    // replayed: replays are deterministic, so its scores are those (an absent effect of a one-sided kind fits the
+    // no-effect end on every unit).
+    let replayed = |vals: &[f64]| -> Option<&Scores> {
+        let first = *vals.first()?;
+        if vals.iter().any(|&v| v.to_bits() != first.to_bits()) {
+            return None;
+        }
+        if first.to_bits() == v0.to_bits() {
+            return Some(base_train);
+        }
+        grid.iter().position(|&g| g.to_bits() == first.to_bits()).and_then(|i| scores.get(i))
+    };
+    let fresh: Vec<Effects> = trial_sets.iter().filter(|v| replayed(v).is_none()).map(|v| with(v)).collect();
+    let mut fresh_scores = ctx.eval_many(&fresh, &ctx.train)?.into_iter();
+    let mut trial_scores: Vec<Scores> = Vec::with_capacity(trial_sets.len());
+    for vals in &trial_sets {
+        match replayed(vals) {
+            Some(s) => trial_scores.push(s.clone()),
+            None => trial_scores
+                .push(fresh_scores.next().ok_or_else(|| GapError::Numerics("a fit's trial replay is missing".into()))?),
+        }
+    }
     for (u, unit) in set.iter().enumerate() {
         let curve = &mut curves[u];
         for (vals, s) in trial_sets.iter().zip(&trial_scores) {
