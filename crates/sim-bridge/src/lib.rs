@@ -28,6 +28,7 @@
 mod imu;
 pub mod loco;
 pub mod motion_switcher;
+mod rpc;
 pub use diff_physics::suspension;
 
 use diff_physics::{pd, Engine, EngineError, PdTarget, State};

@@ -53,7 +53,7 @@ use diff_physics::PdTarget;
 use policy_runtime::{Controller, PolicyController, PolicyError, RobotObservation};
 use serde_json::{json, Value};
 use unitree_idl::api::loco::{fsm, status as loco_status, LocoApi};
-use unitree_idl::api::{internal, status, Request_, ResponseHeader_, ResponseStatus_, Response_};
+use unitree_idl::api::{internal, status, Request_, Response_};
 use unitree_idl::{h1_2, hg};
 
 /// Velocity command limits `(vx, vy, omega)` (m/s, m/s, rad/s): the training ranges of unitree_rl_gym's walking
@@ -252,22 +252,8 @@ impl LocoService {
         now: f64,
     ) -> Option<Response_> {
         self.counters.requests += 1;
-        let identity = request.header.identity.clone();
-        let (code, data) = match self.dispatch(api, identity.api_id, &request.parameter, robot, sim_time, now) {
-            Ok(data) => (status::OK, data),
-            Err(code) => {
-                self.counters.refused += 1;
-                (code, String::new())
-            }
-        };
-        if request.header.policy.noreply {
-            return None;
-        }
-        Some(Response_ {
-            header: ResponseHeader_ { identity, status: ResponseStatus_ { code } },
-            data,
-            binary: Vec::new(),
-        })
+        let result = self.dispatch(api, request.header.identity.api_id, &request.parameter, robot, sim_time, now);
+        crate::rpc::answer(request, result, &mut self.counters.refused)
     }
 
     fn dispatch(

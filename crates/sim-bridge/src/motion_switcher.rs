@@ -40,7 +40,7 @@ use crate::loco::LocoService;
 use crate::SimRobot;
 use serde_json::{json, Value};
 use unitree_idl::api::motion_switcher::{self as api, status as ms_status};
-use unitree_idl::api::{internal, status, Request_, ResponseHeader_, ResponseStatus_, Response_};
+use unitree_idl::api::{internal, status, Request_, Response_};
 
 /// The name `CheckMode` reports while the locomotion service is selected (see the module docs).
 pub const ACTIVE_NAME: &str = "ai";
@@ -106,22 +106,8 @@ impl MotionSwitcherService {
         now: f64,
     ) -> Option<Response_> {
         self.counters.requests += 1;
-        let identity = request.header.identity.clone();
-        let (code, data) = match self.dispatch(identity.api_id, &request.parameter, loco, robot, sim_time, now) {
-            Ok(data) => (status::OK, data),
-            Err(code) => {
-                self.counters.refused += 1;
-                (code, String::new())
-            }
-        };
-        if request.header.policy.noreply {
-            return None;
-        }
-        Some(Response_ {
-            header: ResponseHeader_ { identity, status: ResponseStatus_ { code } },
-            data,
-            binary: Vec::new(),
-        })
+        let result = self.dispatch(request.header.identity.api_id, &request.parameter, loco, robot, sim_time, now);
+        crate::rpc::answer(request, result, &mut self.counters.refused)
     }
 
     fn dispatch(
