@@ -114,3 +114,35 @@ pub fn pinned(v: &serde_json::Value, sig: i32, redact: &[&str]) -> serde_json::V
 pub fn robot_pixels(rgb: &[u8]) -> usize {
     rgb.chunks(3).filter(|p| i32::from(p[0]) - i32::from(p[2]) > 40).count()
 }
+
+/// What a client script run beside `ulab sim` left: its exit status and output, and the simulator's stderr.
+pub struct ClientBesideSim {
+    pub status: Option<std::process::ExitStatus>,
+    pub out: String,
+    pub err: String,
+    pub sim_err: String,
+}
+
+/// Starts `ulab sim` with `sim_args`, runs the Python client `tests/clients/<script>` with `client_args` beside it
+/// (at most `timeout`), then stops the simulator as Ctrl-C would, so that it prints its own account.
+pub fn client_beside_sim(sim_args: &[&str], script: &str, client_args: &[&str], timeout: Duration) -> ClientBesideSim {
+    let sim = Command::new(env!("CARGO_BIN_EXE_ulab"))
+        .args(sim_args)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start ulab sim");
+    let mut sim = KillOnDrop(Some(sim));
+    let client = Command::new(python())
+        .arg(root().join("tests/clients").join(script))
+        .args(client_args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start the Python SDK client");
+    let (status, out, err) = wait_with_timeout(client, timeout);
+    let sim_child = sim.0.take().expect("sim child");
+    interrupt(&sim_child);
+    let (_, _, sim_err) = wait_with_timeout(sim_child, Duration::from_secs(60));
+    ClientBesideSim { status, out, err, sim_err }
+}

@@ -12,9 +12,8 @@
 
 use crate::common;
 
-use common::{interrupt, lease_domain, python, root, sim_summary, tail, wait_with_timeout, KillOnDrop, RealtimeSlot};
+use common::{client_beside_sim, lease_domain, sim_summary, tail, ClientBesideSim, RealtimeSlot};
 use serde_json::Value;
-use std::process::{Command, Stdio};
 use std::time::Duration;
 
 fn speed(report: &Value, phase: &str) -> ([f64; 3], [f64; 3], f64) {
@@ -38,24 +37,12 @@ fn check_engine(engine: &str) {
     }
     let _slot = RealtimeSlot::acquire();
     let domain = lease_domain();
-    let sim = Command::new(env!("CARGO_BIN_EXE_ulab"))
-        .args(["sim", "--engine", engine, "--domain", &domain.arg(), "--loco-api", "h1"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("start ulab sim");
-    let mut sim = KillOnDrop(Some(sim));
-    let client = Command::new(python())
-        .arg(root().join("tests/clients/sdk_loco_client.py"))
-        .args(["--domain", &domain.arg(), "--speed", "0.5", "--yaw-rate", "0.5"])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("start the Python SDK client");
-    let (status, out, err) = wait_with_timeout(client, Duration::from_secs(600));
-    let sim_child = sim.0.take().expect("sim child");
-    interrupt(&sim_child);
-    let (_, _, sim_err) = wait_with_timeout(sim_child, Duration::from_secs(60));
+    let ClientBesideSim { status, out, err, sim_err } = client_beside_sim(
+        &["sim", "--engine", engine, "--domain", &domain.arg(), "--loco-api", "h1"],
+        "sdk_loco_client.py",
+        &["--domain", &domain.arg(), "--speed", "0.5", "--yaw-rate", "0.5"],
+        Duration::from_secs(600),
+    );
     if !status.is_some_and(|s| s.success()) {
         eprintln!("{engine}: client failed ({status:?}): {}", tail(&err));
     }

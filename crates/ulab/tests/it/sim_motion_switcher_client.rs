@@ -7,9 +7,8 @@
 
 use crate::common;
 
-use common::{interrupt, lease_domain, python, root, sim_summary, tail, wait_with_timeout, KillOnDrop, RealtimeSlot};
+use common::{client_beside_sim, lease_domain, sim_summary, tail, ClientBesideSim, RealtimeSlot};
 use serde_json::{json, Value};
-use std::process::{Command, Stdio};
 use std::time::Duration;
 
 /// Seconds of simulated time the client watches the released robot.
@@ -19,24 +18,13 @@ const RELEASED_SECONDS: f64 = 3.0;
 fn python_sdk_motion_switcher_releases_and_selects() {
     let _slot = RealtimeSlot::acquire();
     let domain = lease_domain();
-    let sim = Command::new(env!("CARGO_BIN_EXE_ulab"))
-        .args(["sim", "--engine", "mujoco", "--domain", &domain.arg(), "--loco-api", "h1"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("start ulab sim");
-    let mut sim = KillOnDrop(Some(sim));
-    let client = Command::new(python())
-        .arg(root().join("tests/clients/sdk_motion_switcher_client.py"))
-        .args(["--domain", &domain.arg(), "--released-seconds", &RELEASED_SECONDS.to_string()])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("start the Python SDK client");
-    let (status, out, err) = wait_with_timeout(client, Duration::from_secs(300));
-    let sim_child = sim.0.take().expect("sim child");
-    interrupt(&sim_child);
-    let (_, _, sim_err) = wait_with_timeout(sim_child, Duration::from_secs(60));
+    let released = RELEASED_SECONDS.to_string();
+    let ClientBesideSim { status, out, err, sim_err } = client_beside_sim(
+        &["sim", "--engine", "mujoco", "--domain", &domain.arg(), "--loco-api", "h1"],
+        "sdk_motion_switcher_client.py",
+        &["--domain", &domain.arg(), "--released-seconds", &released],
+        Duration::from_secs(300),
+    );
     if !status.is_some_and(|s| s.success()) {
         eprintln!("client failed ({status:?}): {}", tail(&err));
     }
