@@ -18,20 +18,11 @@ turns a stalled peer into an error. Prints one JSON object; exit code 0 unless t
 import argparse
 import json
 import sys
-import threading
-import time
-import types
 
-# The unitree_sdk2 1.0.1 wheel imports a `b2` subpackage it does not ship.
-sys.modules.setdefault("unitree_sdk2py.b2", types.ModuleType("unitree_sdk2py.b2"))
-
-from unitree_sdk2py.core.channel import ChannelFactoryInitialize, ChannelSubscriber  # noqa: E402
-from unitree_sdk2py.idl.unitree_hg.msg.dds_ import LowState_  # noqa: E402
-from unitree_sdk2py.rpc.client import Client  # noqa: E402
+from sdk_common import LOCO_API_VERSION, LOCO_SERVICE_NAME, RetryingClient, RobotClock
+from unitree_sdk2py.core.channel import ChannelFactoryInitialize
 
 # h1_loco_api.hpp
-LOCO_SERVICE_NAME = "loco"
-LOCO_API_VERSION = "2.0.0.0"
 ROBOT_API_ID_LOCO_GET_FSM_ID = 8001
 ROBOT_API_ID_LOCO_GET_FSM_MODE = 8002
 ROBOT_API_ID_LOCO_GET_BALANCE_MODE = 8003
@@ -43,26 +34,13 @@ ROBOT_API_ID_LOCO_ENABLE_ODOM = 8201
 ROBOT_API_ID_LOCO_DISABLE_ODOM = 8202
 ROBOT_API_ID_LOCO_GET_ODOM = 8203
 WALL_LIMIT = 240.0
-# unitree_sdk2py/rpc/internal.py: the client's own timeout waiting for a response.
-RPC_ERR_CLIENT_API_TIMEOUT = 3104
 
 
-class H1LocoClient(Client):
-    """unitree::robot::h1::LocoClient, on the SDK's Python RPC client."""
+class H1LocoClient(RetryingClient):
+    """unitree::robot::h1::LocoClient, on the SDK's Python RPC client (sending a call again after a lost response)."""
 
     def __init__(self):
-        super().__init__(LOCO_SERVICE_NAME, False)
-        self.retries = []
-
-    def _Call(self, api, parameter):
-        """The SDK's call, sent once more when no response came in time. The SDK reads responses with Cyclone's
-        default reader QoS, best-effort, so a response dropped by a busy loopback socket (LowState arrives at
-        500 Hz beside it) is never resent; a program using the SDK retries. Every retry is reported."""
-        code, data = super()._Call(api, parameter)
-        if code == RPC_ERR_CLIENT_API_TIMEOUT:
-            self.retries.append(api)
-            code, data = super()._Call(api, parameter)
-        return code, data
+        super().__init__(LOCO_SERVICE_NAME, [])
 
     def Init(self):
         self._SetApiVerson(LOCO_API_VERSION)
@@ -117,38 +95,6 @@ class H1LocoClient(Client):
         return self.SetVelocity(vx, vy, vyaw, 864000.0 if continous_move else 1.0)
 
 
-class Clock:
-    """The robot's clock: the latest LowState tick (ms of simulated time)."""
-
-    def __init__(self):
-        self.lock = threading.Lock()
-        self.tick = None
-        self.sub = ChannelSubscriber("rt/lowstate", LowState_)
-        self.sub.Init(self.on_state, 10)
-
-    def on_state(self, msg):
-        with self.lock:
-            self.tick = msg.tick
-
-    def now(self):
-        with self.lock:
-            return self.tick
-
-    def wait(self, seconds):
-        """Waits `seconds` of simulated time."""
-        start_wall = time.time()
-        start = self.now()
-        while start is None:
-            if time.time() - start_wall > WALL_LIMIT:
-                raise RuntimeError("no LowState from the robot")
-            time.sleep(0.01)
-            start = self.now()
-        while (self.now() - start) < seconds * 1000.0:
-            if time.time() - start_wall > WALL_LIMIT:
-                raise RuntimeError(f"the robot's clock stalled at {self.now()} ms")
-            time.sleep(0.005)
-
-
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--domain", type=int, required=True)
@@ -158,7 +104,7 @@ def main():
     if args.domain == 0:
         sys.exit("refusing domain 0")
     ChannelFactoryInitialize(args.domain, "lo")
-    clock = Clock()
+    clock = RobotClock(WALL_LIMIT)
     client = H1LocoClient()
     client.SetTimeout(10.0)
     client.Init()

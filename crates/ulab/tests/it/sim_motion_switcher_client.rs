@@ -82,15 +82,30 @@ fn python_sdk_motion_switcher_releases_and_selects() {
     assert!(sim_err.contains("released by the motion switcher"), "{}", tail(&sim_err));
 }
 
-/// `--no-motion-switcher`: the simulator opens no motion-switcher endpoints and its summary has none.
+/// `--no-motion-switcher`: nothing answers the SDK's motion-switcher client on the wire, while the locomotion service
+/// of the same simulator does (the positive control: the participant is discovered and serves RPC), and the
+/// simulator's summary has no motion switcher. The SDK's CheckMode finds no reader of `rt/api/motion_switcher/request`
+/// within its timeout and does not send (3102, RPC_ERR_CLIENT_SEND); a served switcher whose response was lost
+/// would give 3104 instead.
 #[test]
 fn sim_motion_switcher_can_be_turned_off() {
+    let _slot = RealtimeSlot::acquire();
     let domain = lease_domain();
-    let (code, _, err) = common::run_ulab(
-        &["sim", "--domain", &domain.arg(), "--loco-api", "h1", "--no-motion-switcher", "--duration", "1", "--fast"],
-        Duration::from_secs(120),
+    let ClientBesideSim { status, out, err, sim_err } = client_beside_sim(
+        &["sim", "--engine", "mujoco", "--domain", &domain.arg(), "--loco-api", "h1", "--no-motion-switcher"],
+        "sdk_motion_switcher_client.py",
+        &["--domain", &domain.arg(), "--absent"],
+        Duration::from_secs(300),
     );
-    assert_eq!(code, Some(0), "{}", tail(&err));
-    let summary = sim_summary(&err).unwrap_or_else(|| panic!("no summary:\n{}", tail(&err)));
+    if !status.is_some_and(|s| s.success()) {
+        eprintln!("client failed ({status:?}): {}", tail(&err));
+    }
+    let report: Value = serde_json::from_str(out.lines().last().unwrap_or(""))
+        .unwrap_or_else(|e| panic!("client output ...{}: {e}\n{}", tail(&out), tail(&err)));
+    assert!(report.get("error").is_none(), "{} (sim: {})", report["error"], tail(&sim_err));
+    assert_eq!(report["loco_api_version"][0], json!(0), "the locomotion service answers: {report}");
+    assert_eq!(report["check_absent"], json!([3102, null]), "RPC_ERR_CLIENT_SEND, no reader: {report}");
+    let summary = sim_summary(&sim_err).unwrap_or_else(|| panic!("no summary:\n{}", tail(&sim_err)));
     assert_eq!(summary["loco"]["motion_switcher"], Value::Null, "{summary}");
+    assert!(!sim_err.contains("released by the motion switcher"), "{}", tail(&sim_err));
 }
