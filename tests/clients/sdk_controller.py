@@ -9,7 +9,9 @@ What the good controller does, as Unitree's low-level examples do:
 * ramps the targets from the measured pose to a pose with the arms moved (0.6 s), then holds it, at 500 Hz on
   deadlines (a late cycle is caught up, so the mean rate stays 500 Hz);
 * every used slot enabled (mode 1) with the gains of the SDK client, slots 27..34 zero, CRC by the SDK;
-* when LowState is older than 0.1 s, it damps (kp 0, kd kept) until LowState is fresh again.
+* when LowState is older than 0.1 s, it damps (kp 0, kd kept) until LowState is fresh again;
+* when the IMU shows the pelvis tilted more than 0.7 rad from vertical (a fall, the threshold of `ulab deploy`),
+  it damps from then on.
 
 Defect flags (combinable; each changes one thing):
   --no-crc               crc left 0
@@ -18,13 +20,14 @@ Defect flags (combinable; each changes one thing):
   --kp-beyond-limit      torso kp 1500 (the project's limit is 1000)
   --jump-start           no ramp: the first command targets the all-zero pose
   --ignore-stale-state   keeps sending its hold command while LowState is stale
+  --ignore-fall          keeps sending its hold command after a fall
   --non-finite           tau NaN on slot 20 in every command
 
 The SDK's CRC is pure Python here (the wheel lacks its shared library) and takes milliseconds, too slow to run
 500 times a second: every distinct command is built and sealed before the loop starts.
 
-Exits after LowState has come back from a silence and stayed fresh for 0.5 s (or after --max-seconds); prints
-one JSON line (commands sent, stale cycles, what it did).
+Exits once LowState has come back from a silence and then stopped again for 0.5 s (the judge has finished), or
+after --max-seconds; prints one JSON line (commands sent, stale cycles, what it did).
 """
 import argparse
 import json
@@ -44,6 +47,8 @@ from unitree_sdk2py.idl.unitree_hg.msg.dds_ import LowCmd_, LowState_  # noqa: E
 RATE_HZ = 500.0
 RAMP_S = 0.6
 STALE_S = 0.1
+# Tilt of the pelvis from vertical (rad) past which the robot has fallen: `ulab deploy`'s default (40°).
+FALL_TILT_RAD = 0.7
 POLL_EVERY = 5
 NUM_JOINTS = 27
 LEG_KP = [500, 500, 500, 500, 600, 600]
@@ -64,6 +69,13 @@ def sdk_crc():
         platform.system = real
 
 
+def tilt(quaternion):
+    """Angle (rad) between the pelvis's z axis and the vertical, from the IMU quaternion [w, x, y, z]."""
+    w, x, y, z = quaternion
+    n = w * w + x * x + y * y + z * z
+    return math.acos(max(-1.0, min(1.0, 1.0 - 2.0 * (x * x + y * y) / n))) if n > 0 else 0.0
+
+
 def gains(i):
     if i < 12:
         return float(LEG_KP[i % 6]), float(LEG_KD[i % 6])
@@ -79,6 +91,7 @@ class Controller:
         self.crc = sdk_crc()
         self.first = None
         self.last_state = None  # monotonic time of the latest LowState
+        self.tilt = 0.0  # of the latest LowState
         # Polled, not a callback: decoding each LowState costs the SDK about 0.5 ms, and the reader keeps only the
         # newest sample, so polling every few cycles decodes a fifth of the stream and still sees a silence within
         # 10 ms.
@@ -93,6 +106,7 @@ class Controller:
         msg = self.sub.Read(timeout)
         if msg is not None:
             self.last_state = time.monotonic()
+            self.tilt = tilt(list(msg.imu_state.quaternion))
             if self.first is None:
                 self.first = msg
 
@@ -126,7 +140,7 @@ def main():
     ap.add_argument("--connect-timeout", type=float, default=30.0)
     ap.add_argument("--max-seconds", type=float, default=60.0)
     for flag in ["no-crc", "mode-machine-zero", "disabled-motors", "kp-beyond-limit", "jump-start",
-                 "ignore-stale-state", "non-finite"]:
+                 "ignore-stale-state", "ignore-fall", "non-finite"]:
         ap.add_argument("--" + flag, action="store_true")
     args = ap.parse_args()
     # The SDK prints a line on stdout for every empty poll; stdout carries only this script's JSON.
@@ -154,7 +168,8 @@ def main():
     hold = ramp[-1]
     damp = c.command(goal, mode_machine, damp=True)
 
-    out = {"sent": 0, "stale_cycles": 0, "damp_cycles": 0, "silences": 0, "mode_machine": mode_machine}
+    out = {"sent": 0, "stale_cycles": 0, "damp_cycles": 0, "fall_damp_cycles": 0, "silences": 0,
+           "mode_machine": mode_machine}
     period = 1.0 / RATE_HZ
     start = time.monotonic()
     nxt = start
@@ -162,6 +177,7 @@ def main():
     stale_since = None
     fresh_since = None
     silence_seen = False
+    fallen = False
     while time.monotonic() - start < args.max_seconds:
         if out["sent"] % POLL_EVERY == 0:
             c.poll()
@@ -172,17 +188,22 @@ def main():
                 stale_since = now
             fresh_since = None
             out["stale_cycles"] += 1
+            # LowState stopped again after the judge's silence: the judge has finished.
+            if silence_seen and now - stale_since >= 0.5:
+                break
         elif stale_since is not None:
-            # LowState is back. A silence of 0.5 s or more is the judge's: finish once LowState has stayed fresh
-            # for 0.5 s after it. A shorter one is a hiccup of a loaded machine.
+            # LowState is back. A silence of 0.5 s or more is the judge's; a shorter one is a hiccup of a loaded
+            # machine.
             silence_seen = silence_seen or now - stale_since >= 0.5
             fresh_since = fresh_since or now
             if now - fresh_since > 0.5:
-                if silence_seen:
-                    break
                 stale_since = None
         stale = stale_since is not None
-        if stale and fresh_since is None and not args.ignore_stale_state:
+        fallen = fallen or (not args.ignore_fall and c.tilt > FALL_TILT_RAD)
+        if fallen:
+            cmd = damp
+            out["fall_damp_cycles"] += 1
+        elif stale and fresh_since is None and not args.ignore_stale_state:
             cmd = damp
             out["damp_cycles"] += 1
         else:

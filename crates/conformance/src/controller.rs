@@ -51,6 +51,11 @@ pub const STALE_REACTION_S: f64 = 0.5;
 /// (`ctl_stale_state`): a few stray commands (in flight when it stopped) do not make it a sender.
 pub const STOPPED_SHARE: f64 = 0.05;
 
+/// Time a controller has to notice that the robot fell before its commands are classified (s) (`ctl_fall`): the
+/// judge tips the robot onto its back at once, so a tilt watch (`ulab deploy` damps past 0.7 rad) sees it within one
+/// state period; 0.5 s is the same allowance as for a stale state, far beyond any scheduling delay.
+pub const FALL_REACTION_S: f64 = 0.5;
+
 /// Fewest commands a window needs for a timing verdict; fewer is inconclusive (20 ms at 500 Hz cannot show a
 /// rate).
 pub const MIN_TIMING_COMMANDS: usize = 10;
@@ -64,7 +69,7 @@ pub struct Rule {
 }
 
 /// The decision table, in report order (the same order as [`CheckId::CONTROLLER_RUN`]).
-pub const RULES: [Rule; 9] = [
+pub const RULES: [Rule; 10] = [
     Rule {
         id: CheckId::CtlCrc,
         question: "does every LowCmd decode and carry a valid CRC?",
@@ -110,6 +115,11 @@ pub const RULES: [Rule; 9] = [
         question: "what does it do when LowState stops?",
         pass_rule: "after STALE_REACTION_S of silence it has stopped commanding or only damps (kp 0); fail if it keeps commanding stiff targets or switches every motor off",
     },
+    Rule {
+        id: CheckId::CtlFall,
+        question: "what does it do when the robot falls?",
+        pass_rule: "after FALL_REACTION_S on its back it has stopped commanding, only damps (kp 0) or switched its motors off; fail if it keeps commanding stiff targets; inconclusive if it sent no stiff command in the FALL_REACTION_S before the fall (it had already stopped)",
+    },
 ];
 
 /// When, relative to the robot's LowState stream, a command arrived.
@@ -122,6 +132,8 @@ pub enum Phase {
     Silence,
     /// LowState published again after the silence.
     Resume,
+    /// The robot tipped onto its back by the judge, LowState published.
+    Fall,
 }
 
 /// One received LowCmd sample.
@@ -149,6 +161,10 @@ pub struct Trace {
     pub commands: Vec<Received>,
     /// How long LowState was withheld (s).
     pub silence_s: f64,
+    /// How long the robot lay on its back (s); 0 when the run did not tip it over.
+    pub fall_s: f64,
+    /// When the judge tipped the robot over (judge's clock, s since the run started).
+    pub fall_at_s: f64,
     /// Longest stall of the judge's own loop behind real time (s): how loaded the machine was.
     pub judge_max_stall_s: f64,
 }
@@ -178,6 +194,7 @@ pub fn judge(trace: &Trace) -> Vec<CheckResult> {
     out.extend(check_timing(trace));
     out.push(check_start_jump(trace));
     out.push(check_stale_state(trace));
+    out.push(check_fall(trace));
     out
 }
 
@@ -590,6 +607,36 @@ impl StaleBehaviour {
             StaleBehaviour::OpenLoop => "open_loop",
         }
     }
+
+    /// What the commands `judged`, sent over a window in which `expected` commands fit at the nominal rate, did.
+    fn of(judged: &[&hg::LowCmd_], expected: f64) -> Self {
+        if (judged.len() as f64) < STOPPED_SHARE * expected {
+            StaleBehaviour::Stop
+        } else if judged.iter().any(|c| stiff(c)) {
+            let targets = |c: &hg::LowCmd_| c.motor_cmd.iter().map(|m| m.q.to_bits()).collect::<Vec<_>>();
+            let first = judged.iter().find(|c| stiff(c)).map(|c| targets(c));
+            let constant = judged.iter().filter(|c| stiff(c)).all(|c| Some(targets(c)) == first);
+            if constant {
+                StaleBehaviour::StalePose
+            } else {
+                StaleBehaviour::OpenLoop
+            }
+        } else if judged.iter().any(|c| enabled(c)) {
+            StaleBehaviour::Damp
+        } else {
+            StaleBehaviour::Limp
+        }
+    }
+}
+
+/// Whether a command drives any joint with stiffness.
+fn stiff(c: &hg::LowCmd_) -> bool {
+    c.motor_cmd.iter().take(h1_2::NUM_JOINTS).any(|m| m.mode == 1 && m.kp != 0.0)
+}
+
+/// Whether a command enables any joint's motor.
+fn enabled(c: &hg::LowCmd_) -> bool {
+    c.motor_cmd.iter().take(h1_2::NUM_JOINTS).any(|m| m.mode == 1)
 }
 
 fn check_stale_state(trace: &Trace) -> CheckResult {
@@ -614,25 +661,7 @@ fn check_stale_state(trace: &Trace) -> CheckResult {
     if before == 0 {
         return result(CheckId::CtlStaleState, Status::Inconclusive, "no command before the silence");
     }
-    let expected = window * NOMINAL_RATE_HZ;
-    let stiff = |c: &hg::LowCmd_| c.motor_cmd.iter().take(h1_2::NUM_JOINTS).any(|m| m.mode == 1 && m.kp != 0.0);
-    let enabled = |c: &hg::LowCmd_| c.motor_cmd.iter().take(h1_2::NUM_JOINTS).any(|m| m.mode == 1);
-    let behaviour = if (judged.len() as f64) < STOPPED_SHARE * expected {
-        StaleBehaviour::Stop
-    } else if judged.iter().any(|c| stiff(c)) {
-        let targets = |c: &hg::LowCmd_| c.motor_cmd.iter().map(|m| m.q.to_bits()).collect::<Vec<_>>();
-        let first = judged.iter().find(|c| stiff(c)).map(|c| targets(c));
-        let constant = judged.iter().filter(|c| stiff(c)).all(|c| Some(targets(c)) == first);
-        if constant {
-            StaleBehaviour::StalePose
-        } else {
-            StaleBehaviour::OpenLoop
-        }
-    } else if judged.iter().any(|c| enabled(c)) {
-        StaleBehaviour::Damp
-    } else {
-        StaleBehaviour::Limp
-    };
+    let behaviour = StaleBehaviour::of(&judged, window * NOMINAL_RATE_HZ);
     let status = match behaviour {
         StaleBehaviour::Stop | StaleBehaviour::Damp => Status::Pass,
         _ => Status::Fail,
@@ -660,6 +689,71 @@ fn check_stale_state(trace: &Trace) -> CheckResult {
     .with("commands_judged", judged.len())
     .with("stiff_commands", judged.iter().filter(|c| stiff(c)).count())
     .with("commands_after_resume", resumed)
+}
+
+/// `ctl_fall`: the judge tips the robot onto its back and keeps publishing LowState; a controller that sees it (a
+/// tilt watch on the IMU) stops driving the joints into the ground. The reaction is classified like a stale state's,
+/// but switching the motors off is safe here: the robot already lies on the ground.
+fn check_fall(trace: &Trace) -> CheckResult {
+    let id = CheckId::CtlFall;
+    let window = (trace.fall_s - FALL_REACTION_S).max(0.0);
+    if window <= 0.0 {
+        return result(
+            id,
+            Status::Inconclusive,
+            format!(
+                "the robot lay on its back {:.2} s, not longer than the reaction time {FALL_REACTION_S} s",
+                trace.fall_s
+            ),
+        );
+    }
+    let before_fall = decoded(trace)
+        .filter(|(r, c)| r.t < trace.fall_at_s && r.t >= trace.fall_at_s - FALL_REACTION_S && stiff(c))
+        .count();
+    let judged: Vec<&hg::LowCmd_> = trace
+        .commands
+        .iter()
+        .filter(|r| r.phase == Phase::Fall && r.t_in_phase >= FALL_REACTION_S)
+        .filter_map(|r| r.cmd.as_ref())
+        .collect();
+    if before_fall == 0 {
+        return result(
+            id,
+            Status::Inconclusive,
+            format!(
+                "no stiff command in the {FALL_REACTION_S} s before the fall (the controller had stopped or was \
+                 damping since the silence), so the fall cannot show its reaction"
+            ),
+        )
+        .with("commands_judged", judged.len());
+    }
+    let behaviour = StaleBehaviour::of(&judged, window * NOMINAL_RATE_HZ);
+    let (status, name, summary) = match behaviour {
+        StaleBehaviour::Stop => {
+            (Status::Pass, "stop", "stops commanding when the robot falls (its command timeout then damps)")
+        }
+        StaleBehaviour::Damp => (Status::Pass, "damp", "switches to damping (kp 0) when the robot falls"),
+        StaleBehaviour::Limp => {
+            (Status::Pass, "limp", "switches its motors off when the robot falls (it lies on the ground)")
+        }
+        StaleBehaviour::StalePose => {
+            (Status::Fail, "stiff_pose", "keeps commanding the same stiff pose with the robot on its back")
+        }
+        StaleBehaviour::OpenLoop => {
+            (Status::Fail, "stiff_tracking", "keeps commanding changing stiff targets with the robot on its back")
+        }
+    };
+    result(
+        id,
+        status,
+        format!("{summary}; {} commands in the last {window:.1} s of {:.1} s on its back", judged.len(), trace.fall_s),
+    )
+    .with("behaviour", name)
+    .with("fall_s", trace.fall_s)
+    .with("reaction_allowed_s", FALL_REACTION_S)
+    .with("stiff_commands_before_fall", before_fall)
+    .with("commands_judged", judged.len())
+    .with("stiff_commands", judged.iter().filter(|c| stiff(c)).count())
 }
 
 #[cfg(test)]
@@ -702,10 +796,15 @@ mod tests {
         for k in 0..1000 {
             push(Phase::Silence, k as f64 * 0.002, hold(&p, 0.0));
         }
-        for k in 0..100 {
+        for k in 0..500 {
             push(Phase::Resume, k as f64 * 0.002, hold(&p, 100.0));
         }
-        Trace { mode_machine: MM, commands, silence_s: 2.0, judge_max_stall_s: 0.001 }
+        // The robot is tipped over after the 3500th command (t = 7.0 s).
+        let fall_at_s = 3500.0 * 0.002 + 0.001;
+        for k in 0..1000 {
+            push(Phase::Fall, k as f64 * 0.002, hold(&p, 0.0));
+        }
+        Trace { mode_machine: MM, commands, silence_s: 2.0, fall_s: 2.0, fall_at_s, judge_max_stall_s: 0.001 }
     }
 
     fn status(results: &[CheckResult], id: CheckId) -> Status {
@@ -726,6 +825,7 @@ mod tests {
             assert_eq!(x.status, Status::Pass, "{}: {}", x.id, x.summary);
         }
         assert_eq!(r[8].evidence["behaviour"], "damp");
+        assert_eq!(r[9].evidence["behaviour"], "damp");
     }
 
     #[test]
@@ -813,6 +913,55 @@ mod tests {
             }
         };
         assert_eq!(silence(&slow), (Status::Pass, "damp".to_owned()));
+    }
+
+    #[test]
+    fn fall_reactions_are_told_apart() {
+        let fall = |f: &dyn Fn(&mut Vec<Received>)| {
+            let mut t = good();
+            f(&mut t.commands);
+            let r = judge(&t);
+            assert_eq!(r[9].id, CheckId::CtlFall);
+            let behaviour = r[9].evidence.get("behaviour").and_then(|b| b.as_str()).unwrap_or("");
+            (r[9].status, behaviour.to_owned())
+        };
+        let on_back = |cs: &mut Vec<Received>, cmd: &dyn Fn(usize) -> hg::LowCmd_| {
+            for (k, r) in cs.iter_mut().filter(|r| r.phase == Phase::Fall).enumerate() {
+                r.cmd = Some(cmd(k));
+            }
+        };
+        let same = |cs: &mut Vec<Received>| on_back(cs, &|_| hold(&pose(), 100.0));
+        assert_eq!(fall(&same), (Status::Fail, "stiff_pose".to_owned()));
+        let tracking = |cs: &mut Vec<Received>| {
+            on_back(cs, &|k| {
+                let mut p = pose();
+                p[3] += 0.001 * k as f32;
+                hold(&p, 100.0)
+            })
+        };
+        assert_eq!(fall(&tracking), (Status::Fail, "stiff_tracking".to_owned()));
+        let stop = |cs: &mut Vec<Received>| cs.retain(|r| r.phase != Phase::Fall || r.t_in_phase < 0.2);
+        assert_eq!(fall(&stop), (Status::Pass, "stop".to_owned()));
+        let limp = |cs: &mut Vec<Received>| {
+            on_back(cs, &|_| {
+                let mut c = hg::LowCmd_ { mode_machine: MM, ..Default::default() };
+                crc::seal(&mut c);
+                c
+            })
+        };
+        assert_eq!(fall(&limp), (Status::Pass, "limp".to_owned()));
+        // A controller that already damps before the fall (e.g. since the silence) cannot show a reaction to it.
+        let damping_before = |cs: &mut Vec<Received>| {
+            for r in cs.iter_mut().filter(|r| r.phase == Phase::Resume) {
+                r.cmd = Some(hold(&pose(), 0.0));
+            }
+        };
+        assert_eq!(fall(&damping_before).0, Status::Inconclusive);
+        // So can a run that did not tip the robot over.
+        let mut t = good();
+        t.fall_s = 0.0;
+        t.commands.retain(|r| r.phase != Phase::Fall);
+        assert_eq!(judge(&t)[9].status, Status::Inconclusive);
     }
 
     #[test]

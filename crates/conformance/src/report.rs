@@ -111,6 +111,7 @@ pub enum CheckId {
     CtlJitter,
     CtlStartJump,
     CtlStaleState,
+    CtlFall,
 }
 
 impl CheckId {
@@ -142,7 +143,7 @@ impl CheckId {
     ];
 
     /// The checks of a controller run (`ulab conform controller`), in report order.
-    pub const CONTROLLER_RUN: [CheckId; 9] = [
+    pub const CONTROLLER_RUN: [CheckId; 10] = [
         CheckId::CtlCrc,
         CheckId::CtlModeMachine,
         CheckId::CtlMotorModes,
@@ -152,6 +153,7 @@ impl CheckId {
         CheckId::CtlJitter,
         CheckId::CtlStartJump,
         CheckId::CtlStaleState,
+        CheckId::CtlFall,
     ];
 
     /// The stable snake_case name.
@@ -190,6 +192,7 @@ impl CheckId {
             CheckId::CtlJitter => "ctl_jitter",
             CheckId::CtlStartJump => "ctl_start_jump",
             CheckId::CtlStaleState => "ctl_stale_state",
+            CheckId::CtlFall => "ctl_fall",
             CheckId::FuzzFailure(k) => return format!("fuzz_failure_{k}"),
         };
         fixed.to_owned()
@@ -237,7 +240,8 @@ impl CheckId {
             | CheckId::CtlRate
             | CheckId::CtlJitter
             | CheckId::CtlStartJump
-            | CheckId::CtlStaleState => Group::Controller,
+            | CheckId::CtlStaleState
+            | CheckId::CtlFall => Group::Controller,
         }
     }
 }

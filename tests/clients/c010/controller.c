@@ -22,8 +22,10 @@
  *   --unused-slot-on     slot 30 (no joint on the H1-2) sent with mode 1
  *   --kd-beyond-limit    torso (slot 12) kd 60, beyond the project's limit of 50
  *
- * Exits once LowState has come back from a silence of 0.5 s or more and stayed fresh for 0.5 s (or after
- * --max-seconds, default 60); prints one line `RESULT {json}` last. Exit code 0, 2 on bad arguments, 3 if DDS
+ * It does not watch for falls (neither do Unitree's low-level examples): on its back it keeps its stiff pose.
+ *
+ * Exits once LowState has come back from a silence of 0.5 s or more and then stopped again for 0.5 s (the judge
+ * has finished), or after --max-seconds (default 60); prints one line `RESULT {json}` last. Exit code 0, 2 on bad arguments, 3 if DDS
  * itself failed.
  */
 #include <math.h>
@@ -221,14 +223,13 @@ int main(int argc, char **argv)
       if (stale_since < 0) stale_since = now;
       fresh_since = -1;
       stale_cycles++;
+      /* LowState stopped again after the judge's silence: the judge has finished. */
+      if (silence_seen && now - stale_since >= 0.5) break;
     } else if (stale_since >= 0) {
-      /* LowState is back: a silence of 0.5 s or more is the judge's; finish 0.5 s after it ends. */
+      /* LowState is back: a silence of 0.5 s or more is the judge's, a shorter one a loaded machine's hiccup. */
       silence_seen = silence_seen || now - stale_since >= 0.5;
       if (fresh_since < 0) fresh_since = now;
-      if (now - fresh_since > 0.5) {
-        if (silence_seen) break;
-        stale_since = -1;
-      }
+      if (now - fresh_since > 0.5) stale_since = -1;
     }
     double ramp = t / RAMP_S < 1.0 ? t / RAMP_S : 1.0;
     targets[ELBOW] = start[ELBOW] + (float)(0.35 * ramp);

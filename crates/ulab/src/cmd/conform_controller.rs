@@ -1,7 +1,8 @@
 //! `ulab conform controller`: the other direction of `ulab conform`. ulab plays the robot (the simulated H1-2 of
 //! `ulab sim`: publishes `rt/lowstate`, applies `rt/lowcmd` through the same gates) and judges the controller that
-//! connects. The run has three phases, counted from the controller's first command: observe (LowState at the
-//! nominal rate), silence (LowState withheld, physics running) and resume (LowState again). Every command is
+//! connects. The run has four phases, counted from the controller's first command: observe (LowState at the
+//! nominal rate), silence (LowState withheld, physics running), resume (LowState again) and fall (the robot tipped
+//! onto its back, LowState published); the robot is stood up again at the start of the resume. Every command is
 //! recorded with its phase, the controller's send timestamp and the pose the robot had just reported; the verdicts
 //! come from `conformance::controller::judge`, whose table holds every threshold.
 
@@ -51,9 +52,14 @@ pub struct Args {
     /// Seconds LowState is withheld to see what the controller does without it.
     #[arg(long, default_value_t = 2.0)]
     pub silence: f64,
-    /// Seconds of LowState again after the silence (recorded, not judged).
+    /// Seconds of LowState again after the silence (recorded; its last half second shows whether the controller
+    /// was commanding when the robot fell).
     #[arg(long, default_value_t = 1.0)]
     pub resume: f64,
+    /// Seconds the robot lies on its back after the resume (the judge tips it over) to see what the controller does
+    /// when the robot falls; 0 skips the fall (`ctl_fall` is then inconclusive).
+    #[arg(long, default_value_t = 2.0)]
+    pub fall: f64,
     /// Seconds without a valid command before the simulated robot damps.
     #[arg(long, default_value_t = 0.1)]
     pub command_timeout: f64,
@@ -86,10 +92,9 @@ pub fn run(args: Args) -> Result<Exit> {
     ] {
         anyhow::ensure!(v.is_finite() && v > 0.0 && v <= 3600.0, "{name} must be in (0, 3600] s");
     }
-    anyhow::ensure!(
-        args.resume.is_finite() && (0.0..=3600.0).contains(&args.resume),
-        "--resume must be in [0, 3600] s"
-    );
+    for (name, v) in [("--resume", args.resume), ("--fall", args.fall)] {
+        anyhow::ensure!(v.is_finite() && (0.0..=3600.0).contains(&v), "{name} must be in [0, 3600] s");
+    }
     let cfg = args.net.domain_config()?.receive_buffer_size(256 * 1024);
     let model = robot_model::builtin(&args.robot).with_context(|| format!("loading robot `{}`", args.robot))?;
     let dt = 0.002;
@@ -131,6 +136,7 @@ pub fn run(args: Args) -> Result<Exit> {
     let mut stage = Stage::Waiting;
     let mut pose = [0.0_f32; h1_2::NUM_JOINTS];
     let mut trace = Trace { mode_machine: args.mode_machine, silence_s: args.silence, ..Trace::default() };
+    let mut fell = false;
     let mut last_iter = Instant::now();
     let mut observe_states = (0u64, 0.0_f64);
     loop {
@@ -154,10 +160,24 @@ pub fn run(args: Args) -> Result<Exit> {
                 Stage::Running(Phase::Silence, Instant::now())
             }
             Stage::Running(Phase::Silence, t0) if t0.elapsed().as_secs_f64() >= args.silence => {
-                say("publishing LowState again");
+                // A controller that damps through the silence lets the robot collapse, and its fall watch would
+                // then see a fallen robot before the judge tips it over: the robot is stood up again first, as an
+                // operator would.
+                say("standing the robot up and publishing LowState again");
+                robot.reset(&initial).context("standing the robot up")?;
                 Stage::Running(Phase::Resume, Instant::now())
             }
-            Stage::Running(Phase::Resume, t0) if t0.elapsed().as_secs_f64() >= args.resume => break,
+            Stage::Running(Phase::Resume, t0) if t0.elapsed().as_secs_f64() >= args.resume => {
+                if args.fall == 0.0 {
+                    break;
+                }
+                say("tipping the robot onto its back");
+                robot.reset(&on_its_back(&robot.engine().state())).context("tipping the robot over")?;
+                fell = true;
+                trace.fall_at_s = start.elapsed().as_secs_f64();
+                Stage::Running(Phase::Fall, Instant::now())
+            }
+            Stage::Running(Phase::Fall, t0) if t0.elapsed().as_secs_f64() >= args.fall => break,
             s => s,
         };
         drain(&commands, &mut robot, &mut stage, &mut trace, &pose, start, &say);
@@ -182,6 +202,9 @@ pub fn run(args: Args) -> Result<Exit> {
                 }
             }
         }
+    }
+    if fell {
+        trace.fall_s = args.fall;
     }
     let results = controller::judge(&trace);
     let c = robot.counters();
@@ -228,6 +251,24 @@ pub fn run(args: Args) -> Result<Exit> {
         print!("{}", report.to_markdown());
     }
     Ok(Exit::failed_if(report.any_fail()))
+}
+
+/// Height of the pelvis origin (m) when the judge lays the robot on its back: the pelvis is about 0.2 m deep, so the
+/// robot starts a few centimetres above the floor and settles on it.
+const FALLEN_PELVIS_HEIGHT_M: f64 = 0.3;
+
+/// `state` with the robot lying on its back, at rest: the pelvis pitched back by 90° (its forward axis pointing up),
+/// the joints where they were.
+fn on_its_back(state: &State) -> State {
+    let half = std::f64::consts::FRAC_PI_4;
+    State {
+        base_pos: [state.base_pos[0], state.base_pos[1], FALLEN_PELVIS_HEIGHT_M],
+        base_quat: [half.cos(), 0.0, -half.sin(), 0.0],
+        q: state.q.clone(),
+        base_lin_vel: [0.0; 3],
+        base_ang_vel: [0.0; 3],
+        dq: vec![0.0; state.dq.len()],
+    }
 }
 
 /// Takes every pending LowCmd: records it (the first one starts the observation) and hands it to the robot.

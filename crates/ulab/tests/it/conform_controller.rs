@@ -125,13 +125,16 @@ fn good_sdk_controller_passes_every_check() {
             ("ctl_jitter", jitter),
             ("ctl_start_jump", "pass"),
             ("ctl_stale_state", "pass"),
+            ("ctl_fall", "pass"),
         ],
     );
     assert_eq!(run.code, Some(0));
-    // It damped through the silence (its own account and the judge's agree), and ramped in: the largest start step
-    // is a ramp step (0.35 rad over 300 commands), far below the joint's speed-limit step.
+    // It damped through the silence and once it lay on its back (its own account and the judge's agree), and ramped
+    // in: the largest start step is a ramp step (0.35 rad over 300 commands), far below the joint's speed-limit step.
     assert_eq!(result(r, "ctl_stale_state")["evidence"]["behaviour"], "damp");
     assert!(run.controller["damp_cycles"].as_u64().is_some_and(|n| n > 0), "{}", run.controller);
+    assert_eq!(result(r, "ctl_fall")["evidence"]["behaviour"], "damp");
+    assert!(run.controller["fall_damp_cycles"].as_u64().is_some_and(|n| n > 0), "{}", run.controller);
     let step = result(r, "ctl_start_jump")["evidence"]["largest_step_rad"].as_f64().unwrap_or(f64::NAN);
     assert!(step < 0.01, "largest start step {step} rad");
     // The robot's mode_machine was echoed.
@@ -147,6 +150,7 @@ fn defective_sdk_controller_fails_exactly_its_defects() {
         "--kp-beyond-limit",
         "--jump-start",
         "--ignore-stale-state",
+        "--ignore-fall",
         "--non-finite",
     ];
     let run = judge("defects", &flags);
@@ -164,6 +168,7 @@ fn defective_sdk_controller_fails_exactly_its_defects() {
             ("ctl_jitter", jitter),
             ("ctl_start_jump", "fail"),
             ("ctl_stale_state", "fail"),
+            ("ctl_fall", "fail"),
         ],
     );
     assert_eq!(run.code, Some(1));
@@ -183,13 +188,16 @@ fn defective_sdk_controller_fails_exactly_its_defects() {
     assert_eq!(ev("ctl_finite")["paths"], serde_json::json!(["motor_cmd[20].tau"]), "--non-finite");
     assert_eq!(ev("ctl_stale_state")["behaviour"], "stale_pose", "--ignore-stale-state");
     assert_eq!(run.controller["damp_cycles"], 0);
+    assert_eq!(ev("ctl_fall")["behaviour"], "stiff_pose", "--ignore-fall");
+    assert_eq!(run.controller["fall_damp_cycles"], 0);
 }
 
 /// A controller in C on Cyclone DDS 0.10.2 (`tests/clients/c010/controller.c`: the DDS of Unitree's C++ SDK, its
 /// CRC computed in C over the idlc struct), with defects the SDK controller above does not have: commands at 400 Hz
 /// (deadline-paced: a steady stream, a fresh command in 80 % of the robot's periods, 20 % off the rate), slot 30 enabled,
-/// the torso's kd beyond the limit, and every motor switched off when LowState stops. Everything else passes:
-/// its CRC, mode_machine echo, finite values and its ramped start.
+/// the torso's kd beyond the limit, and every motor switched off when LowState stops; like Unitree's low-level
+/// examples it does not watch for falls and holds its stiff pose on its back. Everything else passes: its CRC,
+/// mode_machine echo, finite values and its ramped start.
 #[test]
 fn c010_controller_fails_exactly_its_defects() {
     let flags = ["--rate", "400", "--stale", "limp", "--unused-slot-on", "--kd-beyond-limit"];
@@ -214,10 +222,12 @@ fn c010_controller_fails_exactly_its_defects() {
             ("ctl_jitter", jitter),
             ("ctl_start_jump", "pass"),
             ("ctl_stale_state", "fail"),
+            ("ctl_fall", "fail"),
         ],
     );
     assert_eq!(run.code, Some(1));
     let ev = |id: &str| &result(r, id)["evidence"];
+    assert_eq!(ev("ctl_fall")["behaviour"], "stiff_pose", "no fall watch");
     assert_eq!(ev("ctl_motor_modes")["unused_slots_not_off"], serde_json::json!({"30": 1}), "--unused-slot-on");
     let findings = ev("ctl_limits")["findings"].as_array().expect("findings");
     assert!(
@@ -241,6 +251,7 @@ fn no_controller_and_bad_arguments_are_errors() {
     for bad in [
         vec!["--domain", "0"],
         vec!["--domain", d, "--silence", "0"],
+        vec!["--domain", d, "--fall", "-1"],
         vec!["--domain", d, "--robot", "g1"],
         vec!["--domain", d, "--fuzz"],
     ] {
@@ -250,7 +261,9 @@ fn no_controller_and_bad_arguments_are_errors() {
 }
 
 /// The project's own controller, `ulab deploy` (the shipped unitree_rl_gym LSTM standing in place), judged the same
-/// way: every check passes, and when LowState stops it damps (its stale stop), then exits.
+/// way: every check passes, and when LowState stops it damps (its stale stop), then exits, so it is no longer
+/// commanding when the judge tips the robot over: `ctl_fall` is inconclusive (its fall watch is tested in
+/// `policy-deploy`).
 #[test]
 fn ulab_deploy_passes_every_check() {
     if std::env::var("ULAB_SHARED").map_or(true, |v| v.is_empty()) {
@@ -290,6 +303,7 @@ fn ulab_deploy_passes_every_check() {
             ("ctl_jitter", jitter),
             ("ctl_start_jump", "pass"),
             ("ctl_stale_state", "pass"),
+            ("ctl_fall", "inconclusive"),
         ],
     );
     assert_eq!(jstatus.and_then(|s| s.code()), Some(0));
