@@ -38,7 +38,8 @@ phase "hygiene gate (sources)"
 RUSTC_WORKSPACE_WRAPPER="$(rustc --print sysroot)/bin/clippy-driver"
 export RUSTC_WORKSPACE_WRAPPER
 export CLIPPY_ARGS="-D__CLIPPY_HACKERY__warnings__CLIPPY_HACKERY__"
-cargo test --workspace --all-targets --locked --no-run
+# --timings writes target/cargo-timings/cargo-timing.html: which crates the build waits on, for the CI time budget.
+cargo test --workspace --all-targets --locked --no-run --timings
 RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --locked --quiet -p unitree-idl -p lowlevel-codec -p dds-transport -p recording
 phase "clippy, docs and test build"
 # A failing test does not skip the doc tests or the fuzz smoke run: one CI log reports all; the exit status keeps the
