@@ -146,6 +146,15 @@ def _build_world(c, s, collide, limits):
         root = members[0]
         free = bodies[root]["joint"]["type"] == "free"
         links = members[1:] if free else members
+        # pybullet numbers the links of createMultiBody depth-first (children in the order given), whatever the
+        # order of the arrays: give them in that order, or the link indices below would name other links.
+        children = {i: [j for j in links if bodies[j]["parent"] == i] for i in [None] + members}
+        top = [j for j in links if bodies[j]["parent"] is None or (free and bodies[j]["parent"] == root)]
+        links, stack = [], list(reversed(top))
+        while stack:
+            i = stack.pop()
+            links.append(i)
+            stack.extend(reversed(children[i]))
         link_of = {i: k for k, i in enumerate(links)}
         kw = {k: [] for k in ("linkMasses", "linkCollisionShapeIndices", "linkVisualShapeIndices", "linkPositions",
                               "linkOrientations", "linkInertialFramePositions", "linkInertialFrameOrientations",
@@ -175,6 +184,9 @@ def _build_world(c, s, collide, limits):
             mb = p.createMultiBody(0, -1, -1, [0, 0, 0], [0, 0, 0, 1], physicsClientId=c, **kw)
         if mb < 0:
             raise Rejected("createMultiBody failed")
+        for k, i in enumerate(links):
+            if p.getJointInfo(mb, k, physicsClientId=c)[16] != kw["linkParentIndices"][k] - 1:
+                raise RuntimeError("pybullet reordered the links of tree {}".format(t))
         members_out = []
         if free:
             rb = bodies[root]
