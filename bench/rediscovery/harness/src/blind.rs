@@ -69,6 +69,11 @@ pub struct Body {
     pub mass: f64,
     pub inertia: [f64; 3],
     pub geoms: Vec<BGeom>,
+    /// Generalized force of this body's joint for the inverse-dynamics probe (see [`id_residual`]): a free root
+    /// `[fx, fy, fz, tx, ty, tz]` (world force at the centre of mass, world torque), a hinge or slide `[tau]`,
+    /// empty otherwise. Absent in scenes saved before the probe existed (then zero forces).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub probe: Vec<f64>,
 }
 
 /// A generated scene.
@@ -402,7 +407,7 @@ pub fn generate(seed: u64, index: u64) -> World {
                 (d, scale(d, -0.5))
             };
             let quat = if r.chance(0.5) { IDENTITY } else { r.unit_quat() };
-            w.bodies.push(Body { parent, joint, pos, quat, anchor, mass, inertia, geoms });
+            w.bodies.push(Body { parent, joint, pos, quat, anchor, mass, inertia, geoms, probe: Vec::new() });
         }
         // Place the tree: lowest point on the stack's top plus a gap, or embedded in the support.
         let poses = initial_poses(&w);
@@ -435,7 +440,32 @@ pub fn generate(seed: u64, index: u64) -> World {
         }
         top = top.max(z + hi);
     }
+    add_probes(&mut w, seed, index);
     w
+}
+
+/// Random generalized forces for the inverse-dynamics probe, from a stream of their own (so that adding them
+/// left every other draw of the scene unchanged): each entry uniform in ±2 times the body's weight (forces) or
+/// its weight times its radius of gyration (torques; a hinge also the weight times the anchor's lever), i.e.
+/// accelerations of the order of gravity whatever the body's size.
+fn add_probes(w: &mut World, seed: u64, index: u64) {
+    let mut r =
+        Rng::new(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ index.wrapping_mul(0x2545_F491_4F6C_DD1D) ^ 0x5EED_0F1D);
+    let g = w.gravity.abs();
+    for b in &mut w.bodies {
+        let weight = b.mass * g;
+        let gyration = if b.mass > 0.0 { (b.inertia.iter().copied().fold(0.0, f64::max) / b.mass).sqrt() } else { 0.0 };
+        b.probe = match b.joint {
+            Joint::Free { .. } => {
+                let mut f: Vec<f64> = (0..3).map(|_| weight * r.range(-2.0, 2.0)).collect();
+                f.extend((0..3).map(|_| weight * gyration * r.range(-2.0, 2.0)));
+                f
+            }
+            Joint::Hinge { .. } => vec![weight * (gyration + norm(b.anchor)) * r.range(-2.0, 2.0)],
+            Joint::Slide { .. } => vec![weight * r.range(-2.0, 2.0)],
+            Joint::Fixed => Vec::new(),
+        };
+    }
 }
 
 // ---- minimisation --------------------------------------------------------------------------------
@@ -519,7 +549,11 @@ pub fn reductions(w: &World) -> Vec<World> {
         let mut c = w.clone();
         if !matches!(c.bodies[i].joint, Joint::Free { .. }) {
             c.bodies[i].joint = Joint::Fixed;
+            c.bodies[i].probe.clear();
         }
+        push_if(c, &mut out);
+        let mut c = w.clone();
+        c.bodies[i].probe.iter_mut().for_each(|f| *f = 0.0);
         push_if(c, &mut out);
         let mut c = w.clone();
         c.bodies[i].quat = IDENTITY;
@@ -542,6 +576,7 @@ pub enum Violation {
     NonFinite,
     Penetration,
     Energy,
+    InverseDynamics,
 }
 
 #[derive(Debug, Deserialize)]
@@ -550,6 +585,80 @@ struct WorldData {
     /// Per sample, per body: `[px, py, pz, qw, qx, qy, qz, vx, vy, vz, wx, wy, wz]` (body-frame origin = centre
     /// of mass; velocities in world coordinates).
     state: Vec<Vec<Vec<Option<f64>>>>,
+    /// The inverse-dynamics probe, one entry per tree with a degree of freedom; absent when the adapter's engine
+    /// has no inverse-dynamics API (the invariant is then "unsupported", never a verdict).
+    #[serde(default)]
+    id_probe: Option<Vec<IdProbe>>,
+}
+
+/// What an adapter reports for one tree of the inverse-dynamics probe, all in the engine's generalized
+/// coordinates: the applied generalized force `applied`; `qd` and `qdd` (q̈ from the velocity change over one
+/// step with no contact or limit); `inverse` = ID(q, q̇, q̈); `bias` = ID(q, q̇, 0); `mass_cols` = the mass
+/// matrix's columns ID(q, 0, e_i) − ID(q, 0, 0). `error`: the engine refused to compute it.
+#[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
+pub struct IdProbe {
+    #[serde(default)]
+    pub applied: Vec<Option<f64>>,
+    #[serde(default)]
+    pub inverse: Option<Vec<Option<f64>>>,
+    #[serde(default)]
+    pub bias: Vec<Option<f64>>,
+    #[serde(default)]
+    pub mass_cols: Vec<Vec<Option<f64>>>,
+    #[serde(default)]
+    pub qd: Vec<Option<f64>>,
+    #[serde(default)]
+    pub qdd: Vec<Option<f64>>,
+    #[serde(default)]
+    pub dt: f64,
+    #[serde(default)]
+    pub error: Option<String>,
+}
+
+fn l2(v: &[f64]) -> f64 {
+    v.iter().map(|x| x * x).sum::<f64>().sqrt()
+}
+
+/// Relative residual of forward/inverse dynamics consistency, ‖ID(q, q̇, q̈) − τ‖ / S, with τ the applied
+/// generalized force and q̈ the engine's forward acceleration under τ. The scale is the backward-error scale of
+/// the two computations, S = ‖τ‖ + ‖b‖ + ‖M‖_F (‖q̈‖ + ‖q̇‖/dt) (b the bias forces, M the mass matrix): a
+/// backward-stable articulated-body solve and Newton–Euler recursion leave a residual of a small multiple of
+/// ε‖M‖‖q̈‖ + ε(‖τ‖ + ‖b‖) whatever M's condition, and q̈ from the velocity change over one step carries
+/// ≤ 2ε‖q̇‖/dt of rounding. So a consistent engine in double precision stays orders of magnitude below
+/// [`inv::DYNAMICS_REL_TOL`], and anything above it is a modelling disagreement between the two
+/// computations, not rounding. `None`: the engine refused (error), or nothing to compare. Non-finite or
+/// mismatched lengths: infinity.
+pub fn id_residual(p: &IdProbe) -> Option<f64> {
+    if p.error.is_some() {
+        return None;
+    }
+    let inverse = p.inverse.as_ref()?;
+    let fin = |v: &[Option<f64>]| -> Option<Vec<f64>> { v.iter().map(|x| x.filter(|x| x.is_finite())).collect() };
+    let (Some(tau), Some(id), Some(b), Some(qd), Some(qdd)) =
+        (fin(&p.applied), fin(inverse), fin(&p.bias), fin(&p.qd), fin(&p.qdd))
+    else {
+        return Some(f64::INFINITY);
+    };
+    let n = tau.len();
+    if id.len() != n || b.len() != n || qd.len() != n || qdd.len() != n || p.mass_cols.len() != n {
+        return Some(f64::INFINITY);
+    }
+    let mut m_frob = 0.0;
+    for c in &p.mass_cols {
+        let Some(c) = fin(c) else { return Some(f64::INFINITY) };
+        if c.len() != n {
+            return Some(f64::INFINITY);
+        }
+        m_frob += c.iter().map(|x| x * x).sum::<f64>();
+    }
+    let m_norm = m_frob.sqrt();
+    let resid = l2(&id.iter().zip(&tau).map(|(a, b)| a - b).collect::<Vec<_>>());
+    let scale = l2(&tau) + l2(&b) + m_norm * (l2(&qdd) + if p.dt > 0.0 { l2(&qd) / p.dt } else { 0.0 });
+    if scale > 0.0 {
+        Some(resid / scale)
+    } else {
+        Some(resid)
+    }
 }
 
 /// Mechanical energy of the scene in one sample (kinetic + gravitational potential), from the scene's masses
@@ -674,6 +783,25 @@ pub fn judge_world(w: &World, obs: &Observation) -> (Verdict, Option<Violation>)
         v.value = Some(gain);
         return (v, Some(Violation::Energy));
     }
+    match &d.id_probe {
+        None => v.detail.push_str("; inverse dynamics: unsupported by this adapter"),
+        Some(probes) => {
+            let r: Vec<f64> = probes.iter().filter_map(id_residual).collect();
+            let refused = probes.len() - r.len();
+            let worst = r.iter().copied().fold(0.0, f64::max);
+            v.threshold.push_str(&format!("; forward/inverse dynamics residual <= {} (rel)", inv::DYNAMICS_REL_TOL));
+            v.detail.push_str(&format!(
+                "; inverse-dynamics residual {worst:.3e} (rel) over {} tree(s){}",
+                r.len(),
+                if refused > 0 { format!(", {refused} refused by the engine") } else { String::new() }
+            ));
+            if inv::exceeds(worst, inv::DYNAMICS_REL_TOL) {
+                v.flagged = true;
+                v.value = Some(worst);
+                return (v, Some(Violation::InverseDynamics));
+            }
+        }
+    }
     (v, None)
 }
 
@@ -746,6 +874,7 @@ mod tests {
                 anchor: [0.0; 3],
                 mass: 1.0,
                 inertia: [0.1; 3],
+                probe: Vec::new(),
                 geoms: vec![BGeom {
                     shape: Shape::Sphere { radius: 0.1 },
                     pos: [0.0; 3],
@@ -808,5 +937,80 @@ mod tests {
         let (p, _) = initial_poses(&w)[0];
         // Anchor at world (−0.5, 0, 1); a quarter turn about +y takes the centre from +x of it to −z of it.
         assert!((p[0] + 0.5).abs() < 1e-12 && (p[2] - 0.5).abs() < 1e-12, "{p:?}");
+    }
+
+    /// A pendulum (point mass m at length l, angle q from the downward vertical): M = m l², b = m g l sin q + 0
+    /// (no velocity terms for one dof). `shift` evaluates the inverse dynamics at the wrong angle, as an engine that
+    /// reads the wrong coordinate slot would.
+    fn pendulum_probe(q: f64, qd: f64, tau: f64, shift: f64) -> IdProbe {
+        let (m, l, g, dt) = (2.0, 0.5, inv::GRAVITY_EARTH, 0.002);
+        let mm = m * l * l;
+        let bias = |q: f64| m * g * l * q.sin();
+        let qdd = (tau - bias(q)) / mm;
+        IdProbe {
+            applied: vec![Some(tau)],
+            inverse: Some(vec![Some(mm * qdd + bias(q + shift))]),
+            bias: vec![Some(bias(q + shift))],
+            mass_cols: vec![vec![Some(mm)]],
+            qd: vec![Some(qd)],
+            qdd: vec![Some(qdd)],
+            dt,
+            error: None,
+        }
+    }
+
+    #[test]
+    fn the_inverse_dynamics_probe_flags_an_inconsistent_answer_and_passes_a_consistent_one() {
+        let ok = id_residual(&pendulum_probe(0.7, 2.0, 3.0, 0.0)).unwrap_or(f64::INFINITY);
+        assert!(ok <= 1e-15, "{ok}");
+        // Inverse dynamics at a joint angle off by 0.7 rad (the slot of another coordinate).
+        let bad = id_residual(&pendulum_probe(0.7, 2.0, 3.0, -0.7)).unwrap_or(0.0);
+        assert!(inv::exceeds(bad, inv::DYNAMICS_REL_TOL), "{bad}");
+        // An error by one part in 1e10 of the applied force is rounding-sized: quiet.
+        let mut p = pendulum_probe(0.7, 2.0, 3.0, 0.0);
+        p.inverse = p.inverse.map(|v| v.into_iter().map(|x| x.map(|x| x * (1.0 + 1e-10))).collect());
+        assert!(!inv::exceeds(id_residual(&p).unwrap_or(f64::INFINITY), inv::DYNAMICS_REL_TOL));
+        // Refused by the engine: no verdict; non-finite or wrong length: flagged.
+        p.error = Some("refused".into());
+        assert_eq!(id_residual(&p), None);
+        let mut p = pendulum_probe(0.7, 2.0, 3.0, 0.0);
+        p.inverse = Some(vec![None]);
+        assert_eq!(id_residual(&p), Some(f64::INFINITY));
+        p.inverse = Some(vec![Some(0.0), Some(0.0)]);
+        assert_eq!(id_residual(&p), Some(f64::INFINITY));
+        // Through the judge: the same resting sphere, with the probe attached.
+        let w = one_sphere(0.1);
+        let mut o = run(&w, |_| 0.1, |_| 0.0);
+        assert!(judge_world(&w, &o).0.detail.contains("unsupported"));
+        for (probe, want) in [
+            (pendulum_probe(0.7, 2.0, 3.0, 0.0), None),
+            (pendulum_probe(0.7, 2.0, 3.0, -0.7), Some(Violation::InverseDynamics)),
+        ] {
+            if let Some(serde_json::Value::Object(d)) = o.data.as_mut() {
+                d.insert("id_probe".into(), serde_json::json!([probe]));
+            }
+            assert_eq!(judge_world(&w, &o).1, want);
+        }
+    }
+
+    #[test]
+    fn probes_match_the_joints_and_leave_the_rest_of_the_scene_unchanged() {
+        for i in 0..200 {
+            let w = generate(1, i);
+            for b in &w.bodies {
+                let want = match b.joint {
+                    Joint::Free { .. } => 6,
+                    Joint::Hinge { .. } | Joint::Slide { .. } => 1,
+                    Joint::Fixed => 0,
+                };
+                assert_eq!(b.probe.len(), want);
+                assert!(b.probe.iter().all(|f| f.is_finite()));
+            }
+        }
+        // Scenes saved before the probe existed still load (zero probe forces) and write back unchanged.
+        let saved = include_str!("../../../../corpus/rediscovery/dart-gz-physics-849-massless-link.json");
+        let w: Option<World> = serde_json::from_str(saved).ok();
+        assert!(w.as_ref().is_some_and(|w| w.bodies.iter().all(|b| b.probe.is_empty())));
+        assert!(!serde_json::to_string(&w).unwrap_or_default().contains("probe"));
     }
 }
