@@ -727,22 +727,21 @@ pub(crate) fn merge(files: &[PathBuf], out: &Path) -> Result<Exit> {
         }
     }
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
-    // The directory of each shard (by K) holds its trials' files; `read_shards` checked that every shard is there once.
-    let mut beside = std::collections::BTreeMap::new();
-    let mut count = 1;
+    // The directory of each shard holds its trials' files; `read_shards` checked that every shard is there once.
+    let mut beside = Vec::new();
     for f in files {
         let h = campaign::read_header(f)?;
-        count = h.shard.count() as usize;
         let dir = f.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-        beside.insert(h.shard.index() as usize, dir.to_owned());
+        beside.push((h.shard, dir.to_owned()));
     }
+    let count = beside.first().map_or(1, |(s, _)| s.count());
     let same_dir = |d: &Path| match (d.canonicalize(), out.canonicalize()) {
         (Ok(x), Ok(y)) => x == y,
         _ => false,
     };
     let mut absent = Vec::new();
     for (item, &i) in selected.iter().enumerate() {
-        let src = beside.get(&(item % count + 1)).context("a shard's directory")?;
+        let (_, src) = beside.iter().find(|(s, _)| s.owns(item)).context("a shard's directory")?;
         if same_dir(src) {
             continue;
         }
