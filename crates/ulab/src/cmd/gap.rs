@@ -8,7 +8,9 @@
 //! - `ulab gap simulate --robot h1_2 --out real.mcap [--effect KIND:UNIT:VALUE]... [--engine E]
 //!   [--substeps N [--pd-held]]`: a log of the benchmark's reference plant (demo and test logs)
 //! - `ulab gap bench [--trials N] [--seed S] [--duration S] [--out DIR] [--policy SPEC.toml]... [--floating]
-//!   [--only TRIAL]...`
+//!   [--only TRIAL]... [--effects K,..] [--max-windows N] [--shard K/N]`; with `--shard` only the trials dealt to shard K (the i-th trial of the run
+//!   to shard i mod N + 1) run, and `OUT/shard-K-of-N.cbor` takes the place of the bench's table; `ulab merge`
+//!   ([`merge`]) writes the unsharded run's `seals.json`, `scores.json`, `table.md` and trial files from the shards.
 use anyhow::{bail, Context, Result};
 use gap_bench::{self as bench, BenchOptions, Motion, RealConfig};
 use gap_diagnosis::diagnose::PlantChoice;
@@ -205,6 +207,61 @@ struct BenchArgs {
     /// full run: re-run one row of a recorded table without the others.
     #[arg(long = "only", value_name = "TRIAL")]
     only: Vec<usize>,
+    /// Diagnose with only these effect kinds, comma-separated (as `gap diagnose --effects`) [default: the whole
+    /// library]: a faster bench (smoke runs, tests) whose diagnoses cannot name the kinds left out, so its table
+    /// scores those trials as missed.
+    #[arg(long, value_delimiter = ',')]
+    effects: Vec<String>,
+    /// Diagnose each log on at most this many windows (as `gap diagnose --max-windows`, at least 4) [default:
+    /// the diagnosis's]: a faster, less certain bench.
+    #[arg(long)]
+    max_windows: Option<usize>,
+    /// Run only the trials dealt to shard K of N (the i-th trial of the run, counted from 0 over --only's trials
+    /// or all of them, to shard i mod N + 1) and write `OUT/shard-K-of-N.cbor` beside their logs and reports
+    /// instead of the table; `ulab merge` turns the N shards into this run's seals.json, scores.json and table.md
+    /// (docs/campaigns.md). Each trial draws from --seed and its index alone, so its log and score are the
+    /// unsharded run's.
+    #[arg(long, value_name = "K/N", requires = "out")]
+    shard: Option<campaign::Shard>,
+}
+
+/// The shard files' kind of `ulab gap bench` campaigns.
+pub(crate) const SHARD_KIND: &str = "gap-bench";
+
+/// Everything that decides a `ulab gap bench` table: what the shards of one campaign share (`--out` and
+/// `--format` do not).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub(crate) struct BenchCampaign {
+    robot: String,
+    model_hash: String,
+    trials: usize,
+    seed: u64,
+    duration: f64,
+    /// `--policy` paths as given.
+    policies: Vec<PathBuf>,
+    floating: bool,
+    /// Canonical name ([`EngineChoice::name`]).
+    reference_engine: String,
+    gentle_chirp: bool,
+    out_of_library: usize,
+    only: Vec<usize>,
+    /// `--effects`, as given.
+    effects: Vec<String>,
+    max_windows: Option<usize>,
+}
+
+impl BenchCampaign {
+    /// The bench's trials in run order (the campaign's items): `--only`'s, or all of them.
+    fn selected(&self) -> Vec<usize> {
+        (0..self.trials + self.out_of_library).filter(|i| self.only.is_empty() || self.only.contains(i)).collect()
+    }
+}
+
+/// One trial's result: what the table and the summary files are made of.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub(crate) struct BenchTrial {
+    seal: bench::Seal,
+    score: bench::TrialScore,
 }
 
 pub fn run(args: Args) -> Result<Exit> {
@@ -488,13 +545,15 @@ fn bench_cmd(a: BenchArgs) -> Result<Exit> {
     if a.floating && a.out_of_library > 0 {
         bail!("--out-of-library: the out-of-library trials run on the rig");
     }
-    let opts = BenchOptions {
+    let mut opts = BenchOptions {
         policies,
         reference,
         motion,
         out_of_library: a.out_of_library,
         ..BenchOptions::new(a.trials, a.seed, a.duration)
     };
+    opts.diagnose.kinds = effect_kinds(&a.effects)?;
+    opts.diagnose.max_windows = a.max_windows.map(|n| n.max(4));
     if let Some(&k) = a.only.iter().find(|&&k| k >= a.trials + a.out_of_library) {
         bail!(
             "--only {k}: the bench has {} trials (0 to {})",
@@ -502,10 +561,30 @@ fn bench_cmd(a: BenchArgs) -> Result<Exit> {
             a.trials + a.out_of_library - 1
         );
     }
-    let mut scores = Vec::new();
-    let mut seals = Vec::new();
+    let campaign = BenchCampaign {
+        robot: a.robot.clone(),
+        model_hash: engine_diff::model_hash(&model),
+        trials: a.trials,
+        seed: a.seed,
+        duration: a.duration,
+        policies: a.policy.clone(),
+        floating: a.floating,
+        reference_engine: opts.reference.name(),
+        gentle_chirp: a.gentle_chirp,
+        out_of_library: a.out_of_library,
+        only: a.only.clone(),
+        effects: a.effects.clone(),
+        max_windows: a.max_windows.map(|n| n.max(4)),
+    };
+    let selected = campaign.selected();
+    let mine: Vec<usize> = match a.shard {
+        Some(shard) => shard.items(selected.len()).collect(),
+        None => (0..selected.len()).collect(),
+    };
+    let mut results = Vec::new();
     let started = std::time::Instant::now();
-    for i in (0..a.trials + a.out_of_library).filter(|i| a.only.is_empty() || a.only.contains(i)) {
+    for item in mine {
+        let i = selected[item];
         // Each generated log goes to disk as MCAP and is read back: the diagnosis sees exactly what a recording gives.
         let mut via_mcap = |i: usize, log: &RobotLog| -> Result<RobotLog, gap_diagnosis::GapError> {
             let p = dir.join(format!("trial_{i:03}.mcap"));
@@ -555,12 +634,31 @@ fn bench_cmd(a: BenchArgs) -> Result<Exit> {
                 _ => String::new(),
             }
         );
-        seals.push(seal);
-        scores.push(score);
+        results.push((item, BenchTrial { seal, score }));
     }
+    if let Some(shard) = a.shard {
+        return super::merge::write_shard(&dir, SHARD_KIND, shard, selected.len(), campaign, results);
+    }
+    let trials: Vec<BenchTrial> = results.into_iter().map(|(_, t)| t).collect();
+    write_bench(&dir, &campaign, trials, a.format, &format!("{:.0} s total", started.elapsed().as_secs_f64()))?;
+    Ok(Exit::Success)
+}
+
+/// Writes the bench's summary files (seals.json, scores.json, table.md) into `dir` and prints the table (or, with
+/// `--format json`, the summary and every trial's score); `how` ends the table's title line.
+fn write_bench(
+    dir: &Path,
+    c: &BenchCampaign,
+    trials: Vec<BenchTrial>,
+    format: super::OutputFormat,
+    how: &str,
+) -> Result<()> {
+    let (seals, scores): (Vec<bench::Seal>, Vec<bench::TrialScore>) =
+        trials.into_iter().map(|t| (t.seal, t.score)).unzip();
+    let reference = EngineChoice::parse(&c.reference_engine).context("the reference engine")?;
     let summary = bench::summarize(&scores);
     let mut table = bench::table_by_input(&scores);
-    if a.floating {
+    if c.floating {
         let floating = scores.iter().filter(|s| s.plant == Some(gap_diagnosis::diagnose::PlantKind::Floating)).count();
         let redraws: usize = scores.iter().filter_map(|s| s.redraws).sum();
         let redrawn = scores.iter().filter(|s| s.redraws.unwrap_or(0) > 0).count();
@@ -572,10 +670,10 @@ fn bench_cmd(a: BenchArgs) -> Result<Exit> {
     std::fs::write(dir.join("seals.json"), serde_json::to_string_pretty(&seals)?)?;
     std::fs::write(dir.join("scores.json"), serde_json::to_string_pretty(&scores)?)?;
     std::fs::write(dir.join("table.md"), &table)?;
-    if a.format == super::OutputFormat::Json {
+    if format == super::OutputFormat::Json {
         println!("{}", serde_json::to_string_pretty(&serde_json::json!({"summary": summary, "trials": scores}))?);
     } else {
-        let (flag, what) = if a.floating {
+        let (flag, what) = if c.floating {
             (
                 " --floating",
                 "walking logs, reference plant MuJoCo RK4 with ground contact + noise + 50 Hz commands with 0-2 ms jitter; diagnosing engine MuJoCo implicitfast, plant auto",
@@ -583,29 +681,99 @@ fn bench_cmd(a: BenchArgs) -> Result<Exit> {
         } else {
             (
                 "",
-                if opts.reference.is_mujoco() {
+                if reference.is_mujoco() {
                     "logs, reference plant MuJoCo + noise + 50 Hz jitter; diagnosing engine MuJoCo implicitfast"
                 } else {
                     "logs, reference plant in another engine (damping and Coulomb friction through its own joint parameters) + noise + 50 Hz jitter; diagnosing engine MuJoCo implicitfast"
                 },
             )
         };
-        let reference =
-            if a.floating { String::new() } else { format!(" --reference-engine {}", opts.reference.name()) };
+        let reference = if c.floating { String::new() } else { format!(" --reference-engine {}", c.reference_engine) };
         println!(
-            "ulab gap bench{flag}{reference} --trials {} --seed {} --duration {}{}{}{}{} ({} s {what}; {:.0} s total)\n",
-            a.trials,
-            a.seed,
-            a.duration,
-            a.policy.iter().map(|p| format!(" --policy {}", p.display())).collect::<String>(),
-            if a.gentle_chirp { " --gentle-chirp" } else { "" },
-            if a.out_of_library > 0 { format!(" --out-of-library {}", a.out_of_library) } else { String::new() },
-            a.only.iter().map(|k| format!(" --only {k}")).collect::<String>(),
-            a.duration,
-            started.elapsed().as_secs_f64()
+            "ulab gap bench{flag}{reference} --trials {} --seed {} --duration {}{}{}{}{} ({} s {what}; {how})\n",
+            c.trials,
+            c.seed,
+            c.duration,
+            c.policies.iter().map(|p| format!(" --policy {}", p.display())).collect::<String>(),
+            if c.gentle_chirp { " --gentle-chirp" } else { "" },
+            if c.out_of_library > 0 { format!(" --out-of-library {}", c.out_of_library) } else { String::new() },
+            c.only.iter().map(|k| format!(" --only {k}")).collect::<String>()
+                + &if c.effects.is_empty() { String::new() } else { format!(" --effects {}", c.effects.join(",")) }
+                + &c.max_windows.map(|n| format!(" --max-windows {n}")).unwrap_or_default(),
+            c.duration,
         );
         print!("{table}");
         println!("\nfiles: {}", dir.display());
     }
+    Ok(())
+}
+
+/// `ulab merge` of `ulab gap bench --shard` files: the unsharded run's seals.json, scores.json and table.md from
+/// the shards' trials in run order, with each trial's files (log, seal, report) copied from beside the shard file
+/// that holds the trial.
+pub(crate) fn merge(files: &[PathBuf], out: &Path) -> Result<Exit> {
+    let (c, trials): (BenchCampaign, Vec<BenchTrial>) = super::merge::read_shards(files, SHARD_KIND)?;
+    let model = load(&c.robot)?;
+    if engine_diff::model_hash(&model) != c.model_hash {
+        bail!("robot {}: not the model the shards ran (its hash differs)", c.robot);
+    }
+    let selected = c.selected();
+    if trials.len() != selected.len() {
+        bail!("the shards hold {} trials, their campaign {}", trials.len(), selected.len());
+    }
+    for (t, &i) in trials.iter().zip(&selected) {
+        if t.seal.trial != i || t.score.trial != i {
+            bail!("the shards hold trial {} where their campaign runs trial {i}", t.score.trial);
+        }
+    }
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    // The directory of each shard holds its trials' files; `read_shards` checked that every shard is there once.
+    let mut beside = Vec::new();
+    for f in files {
+        let h = campaign::read_header(f)?;
+        let dir = f.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        beside.push((h.shard, dir.to_owned()));
+    }
+    let count = beside.first().map_or(1, |(s, _)| s.count());
+    let same_dir = |d: &Path| match (d.canonicalize(), out.canonicalize()) {
+        (Ok(x), Ok(y)) => x == y,
+        _ => false,
+    };
+    let mut absent = Vec::new();
+    for (item, &i) in selected.iter().enumerate() {
+        let (_, src) = beside.iter().find(|(s, _)| s.owns(item)).context("a shard's directory")?;
+        if same_dir(src) {
+            continue;
+        }
+        let names = [format!("trial_{i:03}.mcap"), format!("trial_{i:03}.seal.json"), format!("trial_{i:03}")];
+        if !names.iter().any(|n| src.join(n).exists()) {
+            absent.push(i);
+            continue;
+        }
+        for n in &names {
+            copy_tree(&src.join(n), &out.join(n))?;
+        }
+    }
+    if !absent.is_empty() {
+        eprintln!(
+            "gap bench merge: the logs and reports of trial(s) {absent:?} are not beside their shard files; {} holds the bench's tables without them",
+            out.display()
+        );
+    }
+    write_bench(out, &c, trials, super::OutputFormat::Text, &format!("merged from {count} shards"))?;
     Ok(Exit::Success)
+}
+
+/// Copies a file, or a directory with everything in it, from `src` to `dst`; nothing when `src` does not exist.
+fn copy_tree(src: &Path, dst: &Path) -> Result<()> {
+    if src.is_dir() {
+        std::fs::create_dir_all(dst).with_context(|| format!("creating {}", dst.display()))?;
+        for e in std::fs::read_dir(src).with_context(|| format!("reading {}", src.display()))? {
+            let e = e.with_context(|| format!("reading {}", src.display()))?;
+            copy_tree(&e.path(), &dst.join(e.file_name()))?;
+        }
+    } else if src.exists() {
+        std::fs::copy(src, dst).with_context(|| format!("copying {} to {}", src.display(), dst.display()))?;
+    }
+    Ok(())
 }

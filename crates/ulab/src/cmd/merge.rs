@@ -36,6 +36,7 @@ pub fn run(a: Args) -> Result<Exit> {
     match header.kind.as_str() {
         super::diff::SHARD_KIND => super::diff::merge(&files, &a.out),
         super::validate::SHARD_KIND => super::validate::merge(&files, &a.out),
+        super::gap::SHARD_KIND => super::gap::merge(&files, &a.out),
         other => bail!("{}: unknown campaign kind `{other}`", first.display()),
     }
 }

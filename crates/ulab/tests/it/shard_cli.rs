@@ -1,7 +1,8 @@
 //! Sharded campaigns end to end (issue 62): a small campaign of each kind runs unsharded, then as 3 shards
 //! (`--shard K/3`, one process each) merged by `ulab merge`; the merged output directory must hold the same files
 //! as the unsharded one, byte for byte, but for the wall-clock fields of `report.json` (`timing.engine_s`,
-//! `timing.total_s` of `ulab diff`). Bad shard specs and bad sets of shards exit 2 with their reason.
+//! `timing.total_s` of `ulab diff`) and the diagnosis times of `ulab gap bench` (its scores, table and per-trial
+//! reports). Bad shard specs and bad sets of shards exit 2 with their reason.
 
 use crate::common;
 
@@ -30,36 +31,56 @@ fn s(p: &Path) -> String {
     p.to_string_lossy().into_owned()
 }
 
-/// Every file of `dir` by name.
+/// Every file under `dir`, by its path relative to `dir` (`/`-separated).
 fn files(dir: &Path) -> BTreeMap<String, Vec<u8>> {
-    std::fs::read_dir(dir)
-        .expect("output dir")
-        .filter_map(|e| e.ok())
-        .map(|e| (e.file_name().to_string_lossy().into_owned(), std::fs::read(e.path()).expect("read")))
-        .collect()
+    fn walk(dir: &Path, prefix: &str, out: &mut BTreeMap<String, Vec<u8>>) {
+        for e in std::fs::read_dir(dir).expect("output dir").filter_map(|e| e.ok()) {
+            let name = format!("{prefix}{}", e.file_name().to_string_lossy());
+            if e.path().is_dir() {
+                walk(&e.path(), &format!("{name}/"), out);
+            } else {
+                out.insert(name, std::fs::read(e.path()).expect("read"));
+            }
+        }
+    }
+    let mut out = BTreeMap::new();
+    walk(dir, "", &mut out);
+    out
 }
 
-/// `report.json` texts equal line for line, but for lines whose key is one of `wall_clock` (each present once in
-/// both, so a renamed field cannot make the comparison vacuous).
-fn assert_same_json(a: &str, b: &str, wall_clock: &[&str]) {
+/// Texts equal line for line, but for lines that start (after indentation) with one of `wall_clock`; each of those
+/// prefixes must be skipped as often as it is listed, at the same lines in both, so that a renamed field cannot make
+/// the comparison vacuous.
+fn assert_same_lines(what: &str, a: &str, b: &str, wall_clock: &[&str]) {
     let (la, lb): (Vec<&str>, Vec<&str>) = (a.lines().collect(), b.lines().collect());
-    assert_eq!(la.len(), lb.len(), "report.json line counts differ");
-    let key = |l: &str| wall_clock.iter().find(|k| l.trim_start().starts_with(&format!("\"{k}\":"))).copied();
+    assert_eq!(la.len(), lb.len(), "{what}: line counts differ");
+    let key = |l: &str| wall_clock.iter().find(|k| l.trim_start().starts_with(*k)).copied();
     let mut skipped = Vec::new();
     for (i, (x, y)) in la.iter().zip(&lb).enumerate() {
         match (key(x), key(y)) {
             (Some(k), Some(k2)) if k == k2 => skipped.push(k),
-            _ => assert_eq!(x, y, "report.json line {}", i + 1),
+            _ => assert_eq!(x, y, "{what} line {}", i + 1),
         }
     }
     skipped.sort_unstable();
     let mut want = wall_clock.to_vec();
     want.sort_unstable();
-    assert_eq!(skipped, want, "each wall-clock field once");
+    assert_eq!(skipped, want, "{what}: each wall-clock line as often as listed");
 }
 
-/// Runs `campaign` unsharded into `whole/`, as shards 1/3..3/3 into `shards/`, merges into `merged/`, and compares.
-fn unsharded_equals_merged(name: &str, campaign: &[&str], wall_clock: &[&str]) -> PathBuf {
+/// JSON texts equal line for line, but for the lines of the keys `wall_clock` (each as often as listed).
+fn assert_same_json(what: &str, a: &str, b: &str, wall_clock: &[&str]) {
+    let keys: Vec<String> = wall_clock.iter().map(|k| format!("\"{k}\":")).collect();
+    assert_same_lines(what, a, b, &keys.iter().map(String::as_str).collect::<Vec<_>>());
+}
+
+fn text(v: &[u8]) -> String {
+    String::from_utf8(v.to_vec()).expect("utf-8")
+}
+
+/// Runs `campaign` unsharded into `whole/`, as shards 1/3..3/3 into `shards/`, merges into `merged/`, and checks
+/// that both hold the same files; `compare(path, unsharded, merged)` compares each pair.
+fn unsharded_equals_merged_by(name: &str, campaign: &[&str], compare: impl Fn(&str, &[u8], &[u8])) -> PathBuf {
     let base = tmp(name);
     let (whole, shards, merged) = (base.join("whole"), base.join("shards"), base.join("merged"));
     ok(&[campaign, &["--out", &s(&whole)]].concat());
@@ -68,19 +89,27 @@ fn unsharded_equals_merged(name: &str, campaign: &[&str], wall_clock: &[&str]) -
         let out = ok(&[campaign, &["--out", &s(&shards), "--shard", &spec]].concat());
         assert!(out.contains(&format!("shard {spec}")), "{out}");
     }
-    assert!(!shards.join("report.json").exists(), "a shard writes no report");
+    for report in ["report.json", "table.md"] {
+        assert!(!shards.join(report).exists(), "a shard writes no report");
+    }
     ok(&["merge", &s(&shards), "--out", &s(&merged)]);
     let (a, b) = (files(&whole), files(&merged));
     assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>(), "the same files");
     for (f, bytes) in &a {
-        if f == "report.json" {
-            let text = |v: &[u8]| String::from_utf8(v.to_vec()).expect("utf-8");
-            assert_same_json(&text(bytes), &text(&b[f]), wall_clock);
-        } else {
-            assert!(bytes == &b[f], "{f} differs");
-        }
+        compare(f, bytes, &b[f]);
     }
     base
+}
+
+/// [`unsharded_equals_merged_by`] with every file byte-identical, but for the `wall_clock` keys of `report.json`.
+fn unsharded_equals_merged(name: &str, campaign: &[&str], wall_clock: &[&str]) -> PathBuf {
+    unsharded_equals_merged_by(name, campaign, |f, a, b| {
+        if f == "report.json" {
+            assert_same_json(f, &text(a), &text(b), wall_clock);
+        } else {
+            assert!(a == b, "{f} differs");
+        }
+    })
 }
 
 #[test]
@@ -156,6 +185,70 @@ fn validate_campaign_merged_from_three_shards_equals_the_unsharded_run() {
     // The validation report holds no wall-clock time: the whole report.json is compared.
     let base = unsharded_equals_merged("validate", &campaign, &[]);
     let _ = std::fs::remove_dir_all(&base);
+}
+
+#[test]
+fn gap_bench_merged_from_three_shards_equals_the_unsharded_run() {
+    // A small rig bench that still deals two trials to one shard (trials 0 and 3 to shard 1/3): the shortest log
+    // the bench takes, diagnosed with one effect kind on 8 windows (about 2 s a trial instead of 90).
+    let trials = 4;
+    let n = trials.to_string();
+    let campaign = [
+        "gap",
+        "bench",
+        "--trials",
+        &n,
+        "--seed",
+        "3",
+        "--duration",
+        "4",
+        "--effects",
+        "damping",
+        "--max-windows",
+        "8",
+    ];
+    let base = unsharded_equals_merged_by("gap", &campaign, |f, a, b| {
+        let (ta, tb) = (text_or_empty(f, a), text_or_empty(f, b));
+        if f == "scores.json" {
+            assert_same_json(f, &ta, &tb, &vec!["diagnose_s"; trials]);
+        } else if f == "table.md" {
+            assert_same_lines(f, &ta, &tb, &["| mean diagnosis time per log |"]);
+        } else if f.ends_with("/report.json") {
+            // The diagnosis's wall time and each of its stages' (as many stages as the unsharded report lists).
+            let r: serde_json::Value = serde_json::from_str(&ta).expect("trial report.json");
+            let stages = r["stages"].as_array().map_or(0, Vec::len);
+            assert!(stages > 0, "{f}: no stage times");
+            let mut wall_clock = vec!["s"; stages];
+            wall_clock.push("elapsed_s");
+            assert_same_json(f, &ta, &tb, &wall_clock);
+        } else if f.ends_with("/report.md") {
+            assert_same_lines(f, &ta, &tb, &["Diagnosis time:"]);
+        } else {
+            assert!(a == b, "{f} differs");
+        }
+    });
+    // Every trial's log and report reached the merged directory, beside the bench's own files.
+    let merged = files(&base.join("merged"));
+    for i in 0..trials {
+        for f in [format!("trial_{i:03}.mcap"), format!("trial_{i:03}/report.json")] {
+            assert!(merged.contains_key(&f), "{f} missing: {:?}", merged.keys().collect::<Vec<_>>());
+        }
+    }
+    for f in ["seals.json", "scores.json", "table.md"] {
+        assert!(merged.contains_key(f), "{f} missing");
+    }
+    let header = campaign::read_header(&base.join("shards").join("shard-1-of-3.cbor")).expect("shard header");
+    assert_eq!((header.kind.as_str(), header.total), ("gap-bench", trials));
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+/// A text file's content (the SVG plots and MCAP logs are compared as bytes, so they need not be text).
+fn text_or_empty(f: &str, v: &[u8]) -> String {
+    if f.ends_with(".json") || f.ends_with(".md") {
+        text(v)
+    } else {
+        String::new()
+    }
 }
 
 #[test]
