@@ -17,10 +17,15 @@ use std::sync::Arc;
 pub struct FuzzConfig {
     /// Inputs evaluated in total.
     pub iterations: usize,
-    /// Inputs evaluated per round (in parallel).
+    /// Inputs evaluated per round (in parallel); the corpus takes their feedback after each round.
     pub batch: usize,
     pub seed: u64,
 }
+
+/// Inputs per round when nothing else is asked for: a constant, not the thread count, so that a campaign draws the
+/// same inputs and finds the same results on any machine and with any `--jobs` (a round's inputs run in parallel on
+/// whatever threads there are). Four keeps two cores busy while the corpus still learns every four inputs.
+pub const DEFAULT_BATCH: usize = 4;
 
 /// A corpus entry with its feedback.
 #[derive(Debug, Clone, Serialize, Deserialize)]

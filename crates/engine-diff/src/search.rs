@@ -275,8 +275,7 @@ pub fn search(s: &SearchSetup<'_>, method: Method, c: &SearchConfig) -> Result<S
         Method::Mutation => {
             // The fuzzer keeps only the episodes that hold a best finding; re-score its corpus for the tally by
             // re-running nothing: its feedback is the same objective.
-            let fcfg =
-                FuzzConfig { iterations: c.budget, batch: rayon::current_num_threads().max(1) * 2, seed: c.seed };
+            let fcfg = FuzzConfig { iterations: c.budget, batch: fuzz::DEFAULT_BATCH, seed: c.seed };
             let seen = std::sync::Mutex::new(Vec::new());
             let record = |_n: usize| {};
             let o = fuzz::fuzz_with_observer(

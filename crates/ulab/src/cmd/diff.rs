@@ -224,6 +224,10 @@ struct FuzzArgs {
     /// Inputs to evaluate.
     #[arg(long, default_value_t = 32)]
     iterations: usize,
+    /// Inputs per round: the corpus learns from a round's results before the next round is drawn. Part of what
+    /// decides the campaign (unlike `--jobs`, which only sets how many threads run a round).
+    #[arg(long, default_value_t = engine_diff::fuzz::DEFAULT_BATCH)]
+    batch: usize,
     /// Seconds per input.
     #[arg(long, default_value_t = 0.4)]
     seconds: f64,
@@ -478,6 +482,9 @@ fn fuzz(a: FuzzArgs) -> Result<Exit> {
     if a.iterations == 0 {
         bail!("--iterations must be at least 1");
     }
+    if a.batch == 0 {
+        bail!("--batch must be at least 1");
+    }
     let s = setup(&a.common)?;
     let seeds: Vec<Scenario> = match &a.corpus {
         Some(d) => read_corpus(d)?
@@ -502,11 +509,7 @@ fn fuzz(a: FuzzArgs) -> Result<Exit> {
         indicatif::ProgressStyle::with_template("fuzz {bar:40} {pos}/{len} inputs {elapsed}")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
-    let fcfg = engine_diff::fuzz::FuzzConfig {
-        iterations: a.iterations,
-        batch: rayon::current_num_threads().max(1) * 2,
-        seed: a.seed,
-    };
+    let fcfg = engine_diff::fuzz::FuzzConfig { iterations: a.iterations, batch: a.batch, seed: a.seed };
     let progress = |n: usize| bar.set_position(n as u64);
     let outcome = engine_diff::fuzz::fuzz(&s.model, &s.factories, s.ctrl.as_ref(), &s.cfg, &fcfg, seeds, &progress)
         .context("fuzzing")?;

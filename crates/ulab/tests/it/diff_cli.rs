@@ -213,6 +213,74 @@ fn fuzz_writes_corpus_and_triaged_report() {
     let _ = std::fs::remove_dir_all(&out2);
 }
 
+/// A fuzzing campaign is the same on any machine: its rounds have a fixed size (`--batch`), so the inputs drawn,
+/// the corpus and the report do not depend on how many threads run them. They did: the round was twice the thread
+/// count, so `--jobs 1` and `--jobs 3` (or a 2-core and a 64-core machine) fuzzed different inputs from one seed.
+#[test]
+fn fuzz_campaign_is_the_same_on_any_thread_count() {
+    let run = |jobs: &str| {
+        let out = tmp(&format!("fuzz-jobs{jobs}"));
+        let (code, stdout, err) = ulab(&[
+            "diff",
+            "fuzz",
+            "--engines",
+            "mujoco,rapier-impulse",
+            "--iterations",
+            "10",
+            "--seconds",
+            "0.1",
+            "--window",
+            "10",
+            "--minimize",
+            "0",
+            "--seed",
+            "3",
+            "--jobs",
+            jobs,
+            "--out",
+            &out.to_string_lossy(),
+        ]);
+        assert_eq!(code, Some(0), "--jobs {jobs}: {stdout}\n{}", tail(&err));
+        out
+    };
+    let (a, b) = (run("1"), run("3"));
+    // Wall-clock fields aside (`timing.engine_s`, `timing.total_s`), the reports are equal.
+    fn strip(v: &mut serde_json::Value) {
+        match v {
+            serde_json::Value::Object(m) => {
+                m.remove("engine_s");
+                m.remove("total_s");
+                m.values_mut().for_each(strip);
+            }
+            serde_json::Value::Array(a) => a.iter_mut().for_each(strip),
+            _ => {}
+        }
+    }
+    let report = |d: &Path| {
+        let mut v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(d.join("report.json")).expect("report.json")).expect("json");
+        strip(&mut v);
+        v
+    };
+    assert_eq!(report(&a), report(&b), "report.json differs between --jobs 1 and --jobs 3");
+    let corpus = |d: &Path| {
+        let mut files: Vec<_> = std::fs::read_dir(d.join("corpus"))
+            .expect("corpus")
+            .map(|e| {
+                let p = e.expect("entry").path();
+                (p.file_name().map(|n| n.to_owned()), std::fs::read(&p).expect("read"))
+            })
+            .collect();
+        files.sort();
+        files
+    };
+    let (ca, cb) = (corpus(&a), corpus(&b));
+    assert!(!ca.is_empty());
+    assert!(ca == cb, "the corpus differs between --jobs 1 and --jobs 3 ({} vs {} entries)", ca.len(), cb.len());
+    let _ = std::fs::remove_dir_all(&a);
+    let _ = std::fs::remove_dir_all(&b);
+}
+
 #[test]
 fn shipped_policies_run_across_engines() {
     if std::env::var_os("ULAB_SHARED").is_none() {
