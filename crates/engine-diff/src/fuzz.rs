@@ -39,8 +39,8 @@ pub struct CorpusEntry {
     pub patterns: Vec<String>,
 }
 
-/// What a fuzzing run found.
-#[derive(Debug)]
+/// What a fuzzing run (or one lane of a campaign) found; a sharded `ulab diff fuzz` stores it per lane.
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct FuzzOutcome {
     pub corpus: Vec<CorpusEntry>,
     /// For every finding group, the episode with the best score in which it occurred.
@@ -48,6 +48,38 @@ pub struct FuzzOutcome {
     pub evaluated: usize,
     pub failed: usize,
     pub patterns: BTreeSet<String>,
+}
+
+/// Seed of lane `lane` of a campaign seeded `seed`. A campaign of several lanes is that many independent fuzzers
+/// (what lets its lanes run on different machines and still give one result); lane 0 keeps the campaign's seed, so a
+/// one-lane campaign is the plain fuzzer, and the others are 2^32 apart, so nearby campaign seeds share no lane.
+pub fn lane_seed(seed: u64, lane: usize) -> u64 {
+    seed.wrapping_add((lane as u64) << 32)
+}
+
+/// Inputs of lane `lane` when a campaign spreads `iterations` over `lanes`: as even as possible, the first lanes
+/// one more.
+pub fn lane_iterations(iterations: usize, lanes: usize, lane: usize) -> usize {
+    let lanes = lanes.max(1);
+    iterations / lanes + usize::from(lane < iterations % lanes)
+}
+
+/// A campaign's outcome from its lanes' outcomes in lane order: every lane's episodes in lane order, the corpora
+/// together ordered by score (equal scores in lane order), counts summed, contact patterns united. One lane gives
+/// that lane's outcome unchanged.
+pub fn combine_lanes(lanes: Vec<FuzzOutcome>) -> FuzzOutcome {
+    let mut all =
+        FuzzOutcome { corpus: Vec::new(), episodes: Vec::new(), evaluated: 0, failed: 0, patterns: BTreeSet::new() };
+    for lane in lanes {
+        all.corpus.extend(lane.corpus);
+        all.episodes.extend(lane.episodes);
+        all.evaluated += lane.evaluated;
+        all.failed += lane.failed;
+        all.patterns.extend(lane.patterns);
+    }
+    // Stable: each lane's corpus is already in score order.
+    all.corpus.sort_by(|a, b| b.score.total_cmp(&a.score));
+    all
 }
 
 fn entry_of(r: &EpisodeResult, friction: f64) -> CorpusEntry {
@@ -298,5 +330,21 @@ impl DivergenceOracle {
             self.engines.insert(kind_index(k), e);
         }
         Ok(r?.findings.into_iter().filter(|f| f.kind != "k_step_bound").collect())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lanes_share_the_iterations_evenly_and_lane_zero_keeps_the_seed() {
+        for (iterations, lanes) in [(10, 3), (3, 3), (7, 1), (32, 5)] {
+            let each: Vec<usize> = (0..lanes).map(|k| lane_iterations(iterations, lanes, k)).collect();
+            assert_eq!(each.iter().sum::<usize>(), iterations, "{each:?}");
+            assert!(each.iter().max().unwrap_or(&0) - each.iter().min().unwrap_or(&0) <= 1, "{each:?}");
+        }
+        assert_eq!(lane_seed(5, 0), 5);
+        assert!((0..4).all(|k| (1..4).all(|d| lane_seed(5, k) != lane_seed(5 + d, 0))));
     }
 }

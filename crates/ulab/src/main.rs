@@ -42,7 +42,8 @@ enum Command {
     Validate(cmd::validate::Args),
     /// Sim-to-real gap diagnosis from robot logs (diagnose, excite, bench).
     Gap(cmd::gap::Args),
-    /// The report of a sharded campaign (`--shard K/N` runs of diff or validate): what the unsharded run writes.
+    /// The report of a sharded campaign (`--shard K/N` runs of diff, diff fuzz, validate or gap bench): what the
+    /// unsharded run writes.
     Merge(cmd::merge::Args),
     /// Why an SDK client sees nothing: interfaces, DDS participants (vendor, version), topics, QoS, diagnosis.
     Doctor(cmd::doctor::Args),

@@ -6,8 +6,9 @@
 //!   `--policy` the built-in excitation input drives the robot. `--video OUT.mp4` also renders the first
 //!   episode's free runs (every engine closed-loop from the same start) side by side, with the divergence from
 //!   the lead written in each panel (`super::video::render_trajectories`).
-//! - `ulab diff fuzz ... --out DIR [--iterations N] [--corpus DIR]`: feedback-driven perturbation search,
-//!   then the same report over what it found; the corpus goes to `DIR/corpus/`.
+//! - `ulab diff fuzz ... --out DIR [--iterations N] [--corpus DIR] [--lanes L]`: feedback-driven perturbation
+//!   search in rounds of `--batch` inputs, as L independent lanes, then the same report over what it found; the
+//!   corpus goes to `DIR/corpus/`. Its `--shard K/N` deals lanes, not inputs.
 //! - `ulab diff replay FILE`: recomputes a reproducer; exit 0 if bit-identical, 1 if not.
 //! - `ulab diff bench`: rollouts per second per engine, on one thread and on all cores.
 //! - `ulab diff search [--budget N] [--methods cem,mutation,random]`: CEM over perturbations of the rollout
@@ -173,6 +174,60 @@ struct RunArgs {
 
 /// The shard files' kind of `ulab diff` campaigns.
 pub(crate) const SHARD_KIND: &str = "diff";
+/// The shard files' kind of `ulab diff fuzz` campaigns.
+pub(crate) const FUZZ_SHARD_KIND: &str = "diff-fuzz";
+
+/// The `Common` arguments a campaign's shards share (`--jobs` is each machine's own).
+fn campaign_common(robot: &str, policy: &Option<PathBuf>, engines: &[String], window: usize) -> Common {
+    Common { robot: robot.to_owned(), policy: policy.clone(), engines: Some(engines.join(",")), window, jobs: None }
+}
+
+/// Everything that decides a `ulab diff fuzz` campaign (`--jobs` and `--out` do not change a result).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub(crate) struct FuzzCampaign {
+    robot: String,
+    model_hash: String,
+    policy: Option<PathBuf>,
+    /// Canonical engine names, lead first.
+    engines: Vec<String>,
+    window: usize,
+    seconds: f64,
+    seed: u64,
+    iterations: usize,
+    batch: usize,
+    lanes: usize,
+    minimize: usize,
+    fail_on_bug: bool,
+    /// The seed corpus of `--corpus` (its scenarios, so that every shard starts from the same inputs).
+    corpus: Option<Vec<Scenario>>,
+}
+
+impl FuzzCampaign {
+    /// Lane `lane`'s starting inputs: the seed corpus, or two built-in inputs from the lane's seed.
+    fn lane_inputs(&self, lane: usize, is_policy: bool) -> Vec<Scenario> {
+        if let Some(c) = &self.corpus {
+            return c.clone();
+        }
+        let seed = engine_diff::fuzz::lane_seed(self.seed, lane);
+        (0..2u64)
+            .map(|i| {
+                if is_policy {
+                    Scenario::policy(seed + i, self.seconds)
+                } else {
+                    Scenario::excitation(seed + i, self.seconds)
+                }
+            })
+            .collect()
+    }
+
+    fn lane_config(&self, lane: usize) -> engine_diff::fuzz::FuzzConfig {
+        engine_diff::fuzz::FuzzConfig {
+            iterations: engine_diff::fuzz::lane_iterations(self.iterations, self.lanes, lane),
+            batch: self.batch,
+            seed: engine_diff::fuzz::lane_seed(self.seed, lane),
+        }
+    }
+}
 
 /// Everything that decides a `ulab diff` report: what the shards of one campaign share (`--jobs` and `--out` do
 /// not change a result).
@@ -207,13 +262,7 @@ impl DiffCampaign {
     }
 
     fn common(&self) -> Common {
-        Common {
-            robot: self.robot.clone(),
-            policy: self.policy.clone(),
-            engines: Some(self.engines.join(",")),
-            window: self.window,
-            jobs: None,
-        }
+        campaign_common(&self.robot, &self.policy, &self.engines, self.window)
     }
 }
 
@@ -236,12 +285,20 @@ struct FuzzArgs {
     /// Seed corpus: a folder of scenario JSON files (default: built-in seeds).
     #[arg(long)]
     corpus: Option<PathBuf>,
+    /// Independent fuzzers the campaign is made of, the iterations spread over them (lane 0 keeps `--seed`; a lane
+    /// is what `--shard` deals out). One lane is the plain fuzzer.
+    #[arg(long, default_value_t = 1)]
+    lanes: usize,
     #[arg(long)]
     out: PathBuf,
     #[arg(long, default_value_t = 6)]
     minimize: usize,
     #[arg(long)]
     fail_on_bug: bool,
+    /// Run only the lanes dealt to shard K of N (lane l to shard l mod N + 1) and write `OUT/shard-K-of-N.cbor`;
+    /// `ulab merge` turns the N shards into this campaign's corpus and report.
+    #[arg(long, value_name = "K/N")]
+    shard: Option<campaign::Shard>,
 }
 
 #[derive(Debug, clap::Args)]
@@ -485,36 +542,75 @@ fn fuzz(a: FuzzArgs) -> Result<Exit> {
     if a.batch == 0 {
         bail!("--batch must be at least 1");
     }
+    if a.lanes == 0 || a.lanes > a.iterations {
+        bail!("--lanes must be in 1..=--iterations ({})", a.iterations);
+    }
     let s = setup(&a.common)?;
-    let seeds: Vec<Scenario> = match &a.corpus {
-        Some(d) => read_corpus(d)?
-            .into_iter()
-            .map(|mut x| {
-                x.seconds = a.seconds;
-                x
-            })
-            .collect(),
-        None => (0..2u64)
-            .map(|i| {
-                if s.is_policy {
-                    Scenario::policy(a.seed + i, a.seconds)
-                } else {
-                    Scenario::excitation(a.seed + i, a.seconds)
-                }
-            })
-            .collect(),
+    let corpus = match &a.corpus {
+        Some(d) => Some(
+            read_corpus(d)?
+                .into_iter()
+                .map(|mut x| {
+                    x.seconds = a.seconds;
+                    x
+                })
+                .collect(),
+        ),
+        None => None,
     };
-    let bar = indicatif::ProgressBar::new(a.iterations.max(seeds.len()) as u64);
+    let campaign = FuzzCampaign {
+        robot: a.common.robot.clone(),
+        model_hash: engine_diff::model_hash(&s.model),
+        policy: a.common.policy.clone(),
+        engines: s.factories.iter().map(|f| f.name()).collect(),
+        window: a.common.window,
+        seconds: a.seconds,
+        seed: a.seed,
+        iterations: a.iterations,
+        batch: a.batch,
+        lanes: a.lanes,
+        minimize: a.minimize,
+        fail_on_bug: a.fail_on_bug,
+        corpus,
+    };
+    let lanes: Vec<usize> = match a.shard {
+        Some(shard) => shard.items(a.lanes).collect(),
+        None => (0..a.lanes).collect(),
+    };
+    let inputs: usize = lanes.iter().map(|&l| campaign.lane_config(l).iterations).sum();
+    let bar = indicatif::ProgressBar::new(inputs as u64);
     bar.set_style(
         indicatif::ProgressStyle::with_template("fuzz {bar:40} {pos}/{len} inputs {elapsed}")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
-    let fcfg = engine_diff::fuzz::FuzzConfig { iterations: a.iterations, batch: a.batch, seed: a.seed };
-    let progress = |n: usize| bar.set_position(n as u64);
-    let outcome = engine_diff::fuzz::fuzz(&s.model, &s.factories, s.ctrl.as_ref(), &s.cfg, &fcfg, seeds, &progress)
-        .context("fuzzing")?;
+    let mut outcomes = Vec::new();
+    let mut before = 0;
+    for &lane in &lanes {
+        let progress = |n: usize| bar.set_position((before + n) as u64);
+        let o = engine_diff::fuzz::fuzz(
+            &s.model,
+            &s.factories,
+            s.ctrl.as_ref(),
+            &s.cfg,
+            &campaign.lane_config(lane),
+            campaign.lane_inputs(lane, s.is_policy),
+            &progress,
+        )
+        .with_context(|| format!("fuzzing lane {lane}"))?;
+        before += o.evaluated;
+        outcomes.push((lane, o));
+    }
     bar.finish_and_clear();
-    let corpus_dir = a.out.join("corpus");
+    if let Some(shard) = a.shard {
+        return super::merge::write_shard(&a.out, FUZZ_SHARD_KIND, shard, a.lanes, campaign, outcomes);
+    }
+    fuzz_report(&a.out, &s, &campaign, outcomes.into_iter().map(|(_, o)| o).collect())
+}
+
+/// Writes a fuzzing campaign's corpus and report from its lanes' outcomes (in lane order).
+fn fuzz_report(out: &Path, s: &Setup, c: &FuzzCampaign, lanes: Vec<engine_diff::fuzz::FuzzOutcome>) -> Result<Exit> {
+    let outcome = engine_diff::fuzz::combine_lanes(lanes);
+    let corpus_dir = out.join("corpus");
     std::fs::create_dir_all(&corpus_dir).with_context(|| format!("creating {}", corpus_dir.display()))?;
     for (i, e) in outcome.corpus.iter().enumerate() {
         let p = corpus_dir.join(format!("{i:04}.json"));
@@ -528,20 +624,22 @@ fn fuzz(a: FuzzArgs) -> Result<Exit> {
         outcome.patterns.len(),
         outcome.corpus.first().map(|c| c.score).unwrap_or(0.0)
     );
-    let allow = AllowList::builtin().context("allow-list")?;
-    let an = Analysis {
-        model: &s.model,
-        factories: &s.factories,
-        controller: s.ctrl.as_ref(),
-        controller_name: &s.ctrl_name,
-        cfg: &s.cfg,
-        allow: &allow,
-        minimize_limit: a.minimize,
-    };
-    let (report, repros) = analyse(&an, &outcome.episodes).context("analysing")?;
-    write_outputs(&a.out, &report, &repros, &outcome.episodes)
-        .with_context(|| format!("writing {}", a.out.display()))?;
-    Ok(summarize(&a.out, &report, a.fail_on_bug))
+    let report = report(out, s, c.minimize, &outcome.episodes)?;
+    Ok(summarize(out, &report, c.fail_on_bug))
+}
+
+/// `ulab merge` of `ulab diff fuzz --shard` files: the unsharded campaign's corpus and report from the shards' lanes.
+pub(crate) fn merge_fuzz(files: &[PathBuf], out: &Path) -> Result<Exit> {
+    let (c, lanes): (FuzzCampaign, Vec<engine_diff::fuzz::FuzzOutcome>) =
+        super::merge::read_shards(files, FUZZ_SHARD_KIND)?;
+    let s = setup(&campaign_common(&c.robot, &c.policy, &c.engines, c.window))?;
+    if engine_diff::model_hash(&s.model) != c.model_hash {
+        bail!("robot {}: not the model the shards ran (its hash differs)", c.robot);
+    }
+    if lanes.len() != c.lanes {
+        bail!("the shards hold {} lanes, their campaign {}", lanes.len(), c.lanes);
+    }
+    fuzz_report(out, &s, &c, lanes)
 }
 
 fn replay(a: ReplayArgs) -> Result<Exit> {

@@ -35,6 +35,7 @@ pub fn run(a: Args) -> Result<Exit> {
     let header = campaign::read_header(first)?;
     match header.kind.as_str() {
         super::diff::SHARD_KIND => super::diff::merge(&files, &a.out),
+        super::diff::FUZZ_SHARD_KIND => super::diff::merge_fuzz(&files, &a.out),
         super::validate::SHARD_KIND => super::validate::merge(&files, &a.out),
         super::gap::SHARD_KIND => super::gap::merge(&files, &a.out),
         other => bail!("{}: unknown campaign kind `{other}`", first.display()),

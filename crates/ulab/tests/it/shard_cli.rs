@@ -1,7 +1,7 @@
 //! Sharded campaigns end to end (issue 62): a small campaign of each kind runs unsharded, then as 3 shards
 //! (`--shard K/3`, one process each) merged by `ulab merge`; the merged output directory must hold the same files
 //! as the unsharded one, byte for byte, but for the wall-clock fields of `report.json` (`timing.engine_s`,
-//! `timing.total_s` of `ulab diff`) and the diagnosis times of `ulab gap bench` (its scores, table and per-trial
+//! `timing.total_s` of `ulab diff` and `ulab diff fuzz`) and the diagnosis times of `ulab gap bench` (its scores, table and per-trial
 //! reports). Bad shard specs and bad sets of shards exit 2 with their reason.
 
 use crate::common;
@@ -110,6 +110,33 @@ fn unsharded_equals_merged(name: &str, campaign: &[&str], wall_clock: &[&str]) -
             assert!(a == b, "{f} differs");
         }
     })
+}
+
+/// `ulab diff fuzz` of 4 lanes (12 inputs): lanes 0 and 3 in shard 1, so the merge puts lanes back in order; the
+/// corpus files and the report are the unsharded campaign's.
+#[test]
+fn fuzz_campaign_merged_from_three_shards_equals_the_unsharded_run() {
+    let campaign = [
+        "diff",
+        "fuzz",
+        "--engines",
+        "mujoco,rapier-impulse",
+        "--iterations",
+        "12",
+        "--lanes",
+        "4",
+        "--seconds",
+        "0.1",
+        "--seed",
+        "2",
+        "--window",
+        "10",
+        "--minimize",
+        "1",
+    ];
+    let base = unsharded_equals_merged("fuzz", &campaign, &["engine_s", "total_s"]);
+    let corpus = std::fs::read_dir(base.join("merged/corpus")).expect("corpus").count();
+    assert!(corpus >= 4, "every lane adds its seeds' entries: {corpus}");
 }
 
 #[test]
