@@ -3,6 +3,9 @@
 #   - PhysX (the `physx` feature: its vendored SDK takes ~7 min of two cores to build): the engine's own tests
 #     against the reference and MuJoCo, `ulab model check/inspect`, and Unitree's SDK clients (Python SDK on
 #     Cyclone 11, C on Cyclone 0.10.2) driving `ulab sim --engine physx`;
+#   - Newton (the `newton` feature, `setup.sh --newton`: ~575 MB and 30–70 s of Warp kernel compilation per solver on
+#     a cold cache): its engines against the reference and MuJoCo, the server's own unit tests, and
+#     `ulab model check` on Featherstone and Steel (docs/newton.md);
 #   - the gap diagnosis on every single effect and every stored benchmark trial (`effects_found`, 1–4 min a case;
 #     CI runs the no-effect control and one benchmark trial), and the Python plant's single-joint and load-friction
 #     logs (CI runs its control, pair and ceiling);
@@ -29,6 +32,11 @@ phase "physx campaign triage"
 cargo test --locked -p ulab --features ulab/physx --test it -- model_cli::check_and_inspect_physx \
   sim_sdk_client::python_sdk_drives_physx sim_c010_client::cyclone_0_10_2_client_drives_physx || status=$?
 phase "physx through ulab"
+bash scripts/setup.sh --newton
+cargo test --locked -p diff-physics --features diff-physics/newton --test it -- newton_engine:: || status=$?
+"$ULAB_NEWTON_PYTHON" -m unittest crates/diff-physics/python/test_newton_server.py || status=$?
+cargo test --locked -p ulab --features ulab/newton --test it -- model_cli::check_newton_solvers || status=$?
+phase "newton engines"
 cargo test --locked -p gap-bench --test it -- --include-ignored effects_found:: || status=$?
 phase "effects_found"
 cargo test --locked -p gap-diagnosis --test it -- --include-ignored python_plant:: || status=$?

@@ -187,16 +187,9 @@ impl From<NewtonError> for EngineError {
 }
 
 impl NewtonEngine {
-    /// Starts the server and builds the robot in it.
-    pub fn new(model: &RobotModel, common: &CommonSettings, specific: &NewtonSettings) -> Result<Self, EngineError> {
-        if !(common.timestep.is_finite() && common.timestep > 0.0) {
-            return Err(EngineError::Input(format!("timestep {} must be positive", common.timestep)));
-        }
-        let s = specific;
-        let positive = [s.contact_ke, s.contact_kd, s.acceleration_probe_dt, s.startup_timeout_s, s.request_timeout_s];
-        if positive.iter().any(|x| !(x.is_finite() && *x > 0.0)) || s.substeps == 0 {
-            return Err(EngineError::Input(format!("Newton settings must be positive and finite: {s:?}")));
-        }
+    /// The server's start-up request (the MJCF, every setting, the name maps): what [`NewtonEngine::new`] sends.
+    /// Public so that a script can build the same Newton model in-process (`bench/newton/own_loop.py`).
+    pub fn init_config(model: &RobotModel, common: &CommonSettings, s: &NewtonSettings) -> serde_json::Value {
         let opts = MjcfOptions {
             timestep: common.timestep,
             gravity: common.gravity,
@@ -208,7 +201,7 @@ impl NewtonEngine {
             joint_limits: common.joint_limits,
             ..MjcfOptions::default()
         };
-        let cfg = serde_json::json!({
+        serde_json::json!({
             "mjcf": model.to_mjcf(&opts),
             "settings": {
                 "solver": s.solver.server_name(),
@@ -231,7 +224,20 @@ impl NewtonEngine {
             "link_names": model.links.iter().map(|l| l.name.clone()).collect::<Vec<_>>(),
             "friction": model.contact.friction,
             "self_collision": model.contact.self_collision,
-        });
+        })
+    }
+
+    /// Starts the server and builds the robot in it.
+    pub fn new(model: &RobotModel, common: &CommonSettings, specific: &NewtonSettings) -> Result<Self, EngineError> {
+        if !(common.timestep.is_finite() && common.timestep > 0.0) {
+            return Err(EngineError::Input(format!("timestep {} must be positive", common.timestep)));
+        }
+        let s = specific;
+        let positive = [s.contact_ke, s.contact_kd, s.acceleration_probe_dt, s.startup_timeout_s, s.request_timeout_s];
+        if positive.iter().any(|x| !(x.is_finite() && *x > 0.0)) || s.substeps == 0 {
+            return Err(EngineError::Input(format!("Newton settings must be positive and finite: {s:?}")));
+        }
+        let cfg = Self::init_config(model, common, s);
         let mut server = Server::spawn(&s.python, &s.server)?;
         let reply = server.request(
             protocol::OP_INIT,
@@ -384,6 +390,7 @@ impl Engine for NewtonEngine {
             "acceleration_method": "finite difference: contact-free solver steps of acceleration_probe_dt, a(f) = a(0) from the state + M^-1 f from rest without gravity",
             "mass_matrix": "newton.eval_mass_matrix (with the model's armature), mapped T^T H T",
             "energy": "1/2 qd^T H qd with eval_mass_matrix; -m g.com",
+            "known_differences": known_differences(self.specific.solver),
         })
     }
 
@@ -497,6 +504,30 @@ pub fn f32_tolerance(check: &str, _f64_tolerance: f64) -> Option<f64> {
         // f32 velocities: 5e-5 as for the mass matrix.
         "bias forces C(q,v)v + g" => Some(5e-5),
         other => crate::precision::f32_state_tolerance(other),
+    }
+}
+
+/// What a Newton solver does differently from the model on this CPU build, whether or not an oracle fails on it:
+/// written into every report's settings (`ulab model check` prints them beside the engine). Failing checks that
+/// follow from them are [`known_difference`]s; the f32 tolerances are [`f32_tolerance`].
+pub fn known_differences(solver: NewtonSolver) -> Vec<&'static str> {
+    let f32_state = "f32 state and dynamics (Warp): oracle tolerances from f32 arithmetic, as for PhysX";
+    let no_friction =
+        "joint dry friction (frictionloss) not simulated: Model.joint_friction is not read by this solver";
+    match solver {
+        NewtonSolver::Featherstone => vec![f32_state, no_friction],
+        NewtonSolver::Steel => vec![
+            f32_state,
+            "joint dry friction (frictionloss) not simulated: Steel enforces it on CUDA only",
+            "velocity-level step dissipates in free flight (1.4e-2 of the kinetic energy, 5.3e-3 of the angular \
+             momentum in 1 s at zero g)",
+        ],
+        NewtonSolver::Xpbd | NewtonSolver::SemiImplicit => vec![
+            f32_state,
+            no_friction,
+            "diverges within 0.01 s on the H1-2 with joint torques in control.joint_f (only when named)",
+        ],
+        NewtonSolver::Mujoco => vec![f32_state],
     }
 }
 

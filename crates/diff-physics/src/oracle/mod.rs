@@ -61,6 +61,12 @@ impl Report {
         let mut s = format!("robot {}  reference: {}  seed {}\n", self.robot, self.reference, self.seed);
         for e in &self.engines {
             s += &format!("engine {}: {}\n  settings: {}\n", e.name, e.version, e.settings);
+            // Engines that list what they do differently (Newton's solvers) get it on lines of its own.
+            for d in e.settings.get("known_differences").and_then(|v| v.as_array()).into_iter().flatten() {
+                if let Some(d) = d.as_str() {
+                    s += &format!("  known difference: {d}\n");
+                }
+            }
         }
         for u in &self.unavailable {
             s += &format!("engine {u}: not available in this build\n");
@@ -767,4 +773,32 @@ pub fn invariants(model: &RobotModel, k: EngineKind, opts: &CheckOptions, out: &
         "-",
         &format!("ratio {ratio:.2}, first order → 3"),
     );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An engine's listed known differences get a table line each; an engine without the list gets none.
+    #[test]
+    fn table_lists_each_known_difference_of_an_engine() {
+        let engine =
+            |name: &str, settings: serde_json::Value| EngineInfo { name: name.into(), version: "v".into(), settings };
+        let report = Report {
+            robot: "r".into(),
+            reference: "ref".into(),
+            seed: 1,
+            engines: vec![
+                engine("a", serde_json::json!({ "known_differences": ["first one", "second one"] })),
+                engine("b", serde_json::json!({ "solver": "x" })),
+            ],
+            unavailable: Vec::new(),
+            checks: Vec::new(),
+        };
+        let t = report.table();
+        let lines: Vec<&str> = t.lines().filter(|l| l.starts_with("  known difference: ")).collect();
+        assert_eq!(lines, ["  known difference: first one", "  known difference: second one"], "{t}");
+        let b = t.find("engine b:").expect("engine b listed");
+        assert!(!t[b..].contains("known difference:"), "{t}");
+    }
 }
