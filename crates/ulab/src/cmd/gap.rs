@@ -8,9 +8,10 @@
 //! - `ulab gap simulate --robot h1_2 --out real.mcap [--effect KIND:UNIT:VALUE]... [--engine E]
 //!   [--substeps N [--pd-held]]`: a log of the benchmark's reference plant (demo and test logs)
 //! - `ulab gap bench [--trials N] [--seed S] [--duration S] [--out DIR] [--policy SPEC.toml]... [--floating]
-//!   [--only TRIAL]... [--effects K,..] [--max-windows N] [--shard K/N]`; with `--shard` only the trials dealt to shard K (the i-th trial of the run
-//!   to shard i mod N + 1) run, and `OUT/shard-K-of-N.cbor` takes the place of the bench's table; `ulab merge`
-//!   ([`merge`]) writes the unsharded run's `seals.json`, `scores.json`, `table.md` and trial files from the shards.
+//!   [--only TRIAL]... [--effects K,..] [--max-windows N] [--shard K/N]`; with `--shard` only the trials dealt to
+//!   shard K (the i-th trial of the run to shard i mod N + 1) run, and `OUT/shard-K-of-N.cbor` takes the place of the
+//!   bench's table; `ulab merge` ([`merge`]) writes the unsharded run's `seals.json`, `scores.json`, `table.md` and
+//!   trial files from the shards.
 use anyhow::{bail, Context, Result};
 use gap_bench::{self as bench, BenchOptions, Motion, RealConfig};
 use gap_diagnosis::diagnose::PlantChoice;
