@@ -123,6 +123,20 @@ pub struct ClientBesideSim {
     pub sim_err: String,
 }
 
+impl ClientBesideSim {
+    /// The client's report (the JSON object on its last stdout line), which must hold no `error`; a failed client is
+    /// reported on stderr first (its report says what failed). `what` names the run in the messages.
+    pub fn report(&self, what: &str) -> serde_json::Value {
+        if !self.status.is_some_and(|s| s.success()) {
+            eprintln!("{what}: client failed ({:?}): {}", self.status, tail(&self.err));
+        }
+        let report: serde_json::Value = serde_json::from_str(self.out.lines().last().unwrap_or(""))
+            .unwrap_or_else(|e| panic!("{what}: client output ...{}: {e}\n{}", tail(&self.out), tail(&self.err)));
+        assert!(report.get("error").is_none(), "{what}: {} (sim: {})", report["error"], tail(&self.sim_err));
+        report
+    }
+}
+
 /// Starts `ulab sim` with `sim_args`, runs the Python client `tests/clients/<script>` with `client_args` beside it
 /// (at most `timeout`), then stops the simulator as Ctrl-C would, so that it prints its own account.
 pub fn client_beside_sim(sim_args: &[&str], script: &str, client_args: &[&str], timeout: Duration) -> ClientBesideSim {

@@ -12,7 +12,7 @@
 
 use crate::common;
 
-use common::{client_beside_sim, lease_domain, sim_summary, tail, ClientBesideSim, RealtimeSlot};
+use common::{client_beside_sim, lease_domain, sim_summary, tail, RealtimeSlot};
 use serde_json::Value;
 use std::time::Duration;
 
@@ -37,18 +37,13 @@ fn check_engine(engine: &str) {
     }
     let _slot = RealtimeSlot::acquire();
     let domain = lease_domain();
-    let ClientBesideSim { status, out, err, sim_err } = client_beside_sim(
+    let run = client_beside_sim(
         &["sim", "--engine", engine, "--domain", &domain.arg(), "--loco-api", "h1"],
         "sdk_loco_client.py",
         &["--domain", &domain.arg(), "--speed", "0.5", "--yaw-rate", "0.5"],
         Duration::from_secs(600),
     );
-    if !status.is_some_and(|s| s.success()) {
-        eprintln!("{engine}: client failed ({status:?}): {}", tail(&err));
-    }
-    let report: Value = serde_json::from_str(out.lines().last().unwrap_or(""))
-        .unwrap_or_else(|e| panic!("{engine}: client output ...{}: {e}\n{}", tail(&out), tail(&err)));
-    assert!(report.get("error").is_none(), "{engine}: {} (sim: {})", report["error"], tail(&sim_err));
+    let report = run.report(engine);
 
     // Status codes as the SDK's client returned them. A call whose response was lost is sent once more by the
     // client (the SDK's best-effort response reader; `_Call` in the client); more than one such loss in a run is
@@ -92,8 +87,8 @@ fn check_engine(engine: &str) {
     assert!(drift < 0.1, "{engine}: still moving at {drift:.3} m/s after StopMove");
 
     // The bridge's own account: the policy ran at 50 Hz of simulated time while walking, nothing malformed.
-    let summary =
-        sim_summary(&sim_err).unwrap_or_else(|| panic!("{engine}: no summary from ulab sim:\n{}", tail(&sim_err)));
+    let summary = sim_summary(&run.sim_err)
+        .unwrap_or_else(|| panic!("{engine}: no summary from ulab sim:\n{}", tail(&run.sim_err)));
     let loco = &summary["loco"];
     assert_eq!(loco["malformed_requests"], 0, "{engine}: {summary}");
     let steps = loco["counters"]["policy_steps"].as_f64().expect("policy steps");

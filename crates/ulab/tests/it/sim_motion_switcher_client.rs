@@ -7,7 +7,7 @@
 
 use crate::common;
 
-use common::{client_beside_sim, lease_domain, sim_summary, tail, ClientBesideSim, RealtimeSlot};
+use common::{client_beside_sim, lease_domain, sim_summary, tail, RealtimeSlot};
 use serde_json::{json, Value};
 use std::time::Duration;
 
@@ -19,18 +19,13 @@ fn python_sdk_motion_switcher_releases_and_selects() {
     let _slot = RealtimeSlot::acquire();
     let domain = lease_domain();
     let released = RELEASED_SECONDS.to_string();
-    let ClientBesideSim { status, out, err, sim_err } = client_beside_sim(
+    let run = client_beside_sim(
         &["sim", "--engine", "mujoco", "--domain", &domain.arg(), "--loco-api", "h1"],
         "sdk_motion_switcher_client.py",
         &["--domain", &domain.arg(), "--released-seconds", &released],
         Duration::from_secs(300),
     );
-    if !status.is_some_and(|s| s.success()) {
-        eprintln!("client failed ({status:?}): {}", tail(&err));
-    }
-    let report: Value = serde_json::from_str(out.lines().last().unwrap_or(""))
-        .unwrap_or_else(|e| panic!("client output ...{}: {e}\n{}", tail(&out), tail(&err)));
-    assert!(report.get("error").is_none(), "{} (sim: {})", report["error"], tail(&sim_err));
+    let report = run.report("motion switcher");
     // A call whose response was lost is sent again by the client (the SDK's best-effort response reader drops
     // responses on a loaded machine); a server that does not answer fails the answers below (3104, timeout).
     let retried = report["retried_apis"].as_array().map_or(0, Vec::len);
@@ -69,7 +64,8 @@ fn python_sdk_motion_switcher_releases_and_selects() {
     assert!(h1 < 0.75 * h0, "released but not damped: pelvis at {h1:.3} m from {h0:.3} m");
 
     // The bridge's own account.
-    let summary = sim_summary(&sim_err).unwrap_or_else(|| panic!("no summary from ulab sim:\n{}", tail(&sim_err)));
+    let summary =
+        sim_summary(&run.sim_err).unwrap_or_else(|| panic!("no summary from ulab sim:\n{}", tail(&run.sim_err)));
     let loco = &summary["loco"];
     assert_eq!(loco["malformed_requests"], 0, "{summary}");
     assert_eq!(loco["mode"], "Stand", "{summary}");
@@ -79,7 +75,7 @@ fn python_sdk_motion_switcher_releases_and_selects() {
     assert_eq!(switcher["counters"]["releases"], 1, "{summary}");
     assert_eq!(switcher["counters"]["selections"], 1, "{summary}");
     assert_eq!(summary["counters"]["accepted"], 0, "no low-level command was sent: {summary}");
-    assert!(sim_err.contains("released by the motion switcher"), "{}", tail(&sim_err));
+    assert!(run.sim_err.contains("released by the motion switcher"), "{}", tail(&run.sim_err));
 }
 
 /// `--no-motion-switcher`: nothing answers the SDK's motion-switcher client on the wire, while the locomotion service
@@ -91,21 +87,16 @@ fn python_sdk_motion_switcher_releases_and_selects() {
 fn sim_motion_switcher_can_be_turned_off() {
     let _slot = RealtimeSlot::acquire();
     let domain = lease_domain();
-    let ClientBesideSim { status, out, err, sim_err } = client_beside_sim(
+    let run = client_beside_sim(
         &["sim", "--engine", "mujoco", "--domain", &domain.arg(), "--loco-api", "h1", "--no-motion-switcher"],
         "sdk_motion_switcher_client.py",
         &["--domain", &domain.arg(), "--absent"],
         Duration::from_secs(300),
     );
-    if !status.is_some_and(|s| s.success()) {
-        eprintln!("client failed ({status:?}): {}", tail(&err));
-    }
-    let report: Value = serde_json::from_str(out.lines().last().unwrap_or(""))
-        .unwrap_or_else(|e| panic!("client output ...{}: {e}\n{}", tail(&out), tail(&err)));
-    assert!(report.get("error").is_none(), "{} (sim: {})", report["error"], tail(&sim_err));
+    let report = run.report("motion switcher");
     assert_eq!(report["loco_api_version"][0], json!(0), "the locomotion service answers: {report}");
     assert_eq!(report["check_absent"], json!([3102, null]), "RPC_ERR_CLIENT_SEND, no reader: {report}");
-    let summary = sim_summary(&sim_err).unwrap_or_else(|| panic!("no summary:\n{}", tail(&sim_err)));
+    let summary = sim_summary(&run.sim_err).unwrap_or_else(|| panic!("no summary:\n{}", tail(&run.sim_err)));
     assert_eq!(summary["loco"]["motion_switcher"], Value::Null, "{summary}");
-    assert!(!sim_err.contains("released by the motion switcher"), "{}", tail(&sim_err));
+    assert!(!run.sim_err.contains("released by the motion switcher"), "{}", tail(&run.sim_err));
 }
