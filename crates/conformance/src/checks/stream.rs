@@ -10,8 +10,13 @@ use unitree_idl::{h1_2, hg};
 
 /// Slack (rad) beyond the joint range before a reported position counts as out of limits.
 pub const LIMIT_TOLERANCE: f32 = 0.05;
-/// Fraction of consecutive identical LowState samples above which state counts as stale.
-const MAX_REPEAT_FRACTION: f64 = 0.1;
+/// Fraction of consecutive identical LowState samples above which state counts as stale: more than half means the
+/// peer publishes over twice as many states as it computes, which is its design (a cached snapshot republished, a
+/// publisher faster than its physics). A peer that builds each state from its physics repeats one only when two
+/// publishes fall between two physics steps: two unsynchronised loops at the same rate repeat a few per cent, and
+/// more as the physics falls behind real time on a loaded host (Unitree's Python bridge: 3 % alone, 10-23 % beside a
+/// busy core), so a lower bound would judge the host's load, not the peer.
+const MAX_REPEAT_FRACTION: f64 = 0.5;
 /// `state_rate` passes at this fraction of the nominal rate.
 const MIN_RATE_FRACTION: f64 = 0.9;
 /// `state_jitter` passes when the 99th percentile arrival interval is at most this many mean intervals ...
@@ -22,6 +27,11 @@ const MAX_P99_FLOOR_S: f64 = 0.02;
 /// A unit quaternion sent as f32 and renormalised by no one stays within a few ulps of norm 1; 1e-3 is far above that
 /// and far below a quaternion that is not one (a zero, an unnormalised or a mis-ordered one).
 const QUATERNION_TOLERANCE: f64 = 1e-3;
+/// `state_quaternion` fails when more than this fraction of the samples is off unit norm. A peer that fills the
+/// quaternion wrongly does so in every sample it builds that way; a sample copied while another thread of the peer
+/// writes the quaternion (a torn read) is off norm at random, once in thousands of samples, so whether one run
+/// catches one is chance. Those are reported (`off_norm`, the worst error), and decide nothing.
+const MAX_OFF_NORM_FRACTION: f64 = 0.01;
 /// `tick` counts milliseconds: it must advance at 1000 per second of reception time, within this fraction.
 const TICK_RATE_TOLERANCE: f64 = 0.1;
 
@@ -282,18 +292,21 @@ pub(super) fn quaternion(samples: &[StateSample]) -> CheckResult {
             e.is_nan() || e > QUATERNION_TOLERANCE as f32
         })
         .count();
+    let fraction = bad as f64 / norms.len() as f64;
     CheckResult::new(
         CheckId::StateQuaternion,
-        if bad == 0 { Status::Pass } else { Status::Fail },
+        if fraction <= MAX_OFF_NORM_FRACTION { Status::Pass } else { Status::Fail },
         format!(
-            "{bad} of {} IMU quaternions off unit norm by more than {QUATERNION_TOLERANCE:e} (worst |norm-1| = {worst:.2e})",
-            norms.len()
+            "{bad} of {} IMU quaternions off unit norm by more than {QUATERNION_TOLERANCE:e} (worst |norm-1| = \
+             {worst:.2e}; pass: at most {:.0} % of the samples, as a sample torn between the peer's threads is)",
+            norms.len(),
+            MAX_OFF_NORM_FRACTION * 100.0
         ),
     )
     .with("samples", norms.len())
     .with("off_norm", bad)
     .with("worst_norm_error", f64::from(worst))
-    .with_margin(Some(Margin::at_most("worst_norm_error", f64::from(worst), QUATERNION_TOLERANCE)))
+    .with_margin(Some(Margin::at_most("off_norm_fraction", fraction, MAX_OFF_NORM_FRACTION)))
 }
 
 pub(super) fn joint_limits(samples: &[StateSample]) -> CheckResult {
@@ -380,6 +393,63 @@ mod tests {
             .collect();
         let facts = StreamFacts::measure(&samples);
         assert_eq!(jitter(&samples, facts.as_ref()).status, Status::Fail);
+    }
+
+    /// A LowState at step `k` of a motion: every physics field moves with `k`.
+    fn moving(t: f64, k: u32) -> StateSample {
+        let mut s = sample(t, (t * 1000.0) as u32, true);
+        if let Some(st) = s.state.as_mut() {
+            let a = f64::from(k) * 1e-3;
+            st.imu_state.quaternion = [a.cos() as f32, a.sin() as f32, 0.0, 0.0];
+            st.motor_state[0].q = a as f32;
+            st.motor_state[0].dq = 1.0 + a as f32;
+            crc::seal(st);
+        }
+        s
+    }
+
+    /// A peer that builds every state from its physics but publishes on a loop of its own repeats a state whenever
+    /// its physics falls behind: beside a busy core, Unitree's Python bridge repeated 10-23 % of its samples from one
+    /// run to the next, around the 10 % bound of the time, and `state_fresh` passed once and failed nine times on the
+    /// same peer. Such a peer passes however far behind its physics falls, short of computing fewer than half the
+    /// states it publishes; a peer that republishes a snapshot fails.
+    #[test]
+    fn a_physics_behind_its_publisher_is_fresh_and_a_republished_snapshot_is_stale() {
+        for repeat_every in [30u32, 4] {
+            // One publish in `repeat_every` finds no new physics step (3 % and 25 %).
+            let mut k = 0;
+            let samples: Vec<StateSample> = (0..400u32)
+                .map(|i| {
+                    if i % repeat_every != 0 {
+                        k += 1;
+                    }
+                    moving(f64::from(i) * 0.005, k)
+                })
+                .collect();
+            assert_eq!(fresh(&samples).status, Status::Pass, "one in {repeat_every} repeated");
+        }
+        // A snapshot refreshed every tenth publish (our bridge's stale-state defect).
+        let samples: Vec<StateSample> = (0..400u32).map(|i| moving(f64::from(i) * 0.005, i / 10)).collect();
+        assert_eq!(fresh(&samples).status, Status::Fail);
+    }
+
+    /// A torn read (one sample whose quaternion mixes two physics steps) turned up in one of ten runs of a peer
+    /// beside a busy core, and failed `state_quaternion` in that run only. Sporadic off-norm samples are reported
+    /// and pass; a quaternion off norm in many samples fails.
+    #[test]
+    fn a_torn_quaternion_is_reported_and_a_wrong_one_fails() {
+        let mut samples: Vec<StateSample> = (0..700u32).map(|i| moving(f64::from(i) * 0.005, i)).collect();
+        let tear = |s: &mut StateSample| {
+            if let Some(st) = s.state.as_mut() {
+                st.imu_state.quaternion[1] += 0.0035;
+            }
+        };
+        tear(&mut samples[300]);
+        let r = quaternion(&samples);
+        assert_eq!((r.status, r.evidence["off_norm"].clone()), (Status::Pass, serde_json::json!(1)), "{}", r.summary);
+        // An unnormalised quaternion in every tenth sample is no tear.
+        samples.iter_mut().step_by(10).for_each(tear);
+        assert_eq!(quaternion(&samples).status, Status::Fail);
     }
 
     #[test]
