@@ -2,12 +2,15 @@
 # The gap diagnosis's development and evaluation sets (issue 57). An evaluation split is fixed here before the
 # decision model it judges is designed, and is run only to report; the development sets are for looking at.
 # `eval` judged the judge of 65e947d and has been read since; `eval2` (fixed at 2554d96) was first run on that same
-# judge, unchanged, and has been read since; `eval3` (fixed before `eval2` was read) judges any later change of the
-# decision model, reported beside `dev`, `eval` and `eval2`.
+# judge, unchanged, and has been read since; `eval3` (fixed before `eval2` was read) judged the change of 4ada592 (the
+# candidates replayed exactly ranked by the decision's own measure) and has been read since; `eval4` (fixed when
+# `eval3` was read) judges the next change of the decision model, reported beside the others.
 #
-#   bench/gap-eval/run.sh dev|eval|eval2|eval3 [SET...]     generate the logs, diagnose them, score them strictly
-#   bench/gap-eval/run.sh rediagnose dev|eval|eval2|eval3 [SET...]   diagnose the logs already there again
-#   bench/gap-eval/run.sh score dev|eval|eval2|eval3        score what is there
+#   bench/gap-eval/run.sh dev|eval|eval2|eval3|eval4 [SET...]     generate the logs, diagnose them, score them strictly
+#   bench/gap-eval/run.sh rediagnose dev|eval|eval2|eval3|eval4 [SET...]   diagnose the logs already there again
+#       (with ULAB_EVAL_AS=NAME into out/gap-eval/<split>@NAME/, the logs linked, the split's own reports untouched:
+#       two judges on the same logs)
+#   bench/gap-eval/run.sh score dev|eval|eval2|eval3|eval4        score what is there
 #
 # Output: out/gap-eval/<split>/<set>/ (logs, labels, one report per trial) and out/gap-eval/<split>/score.{md,json}.
 # Sets: four of `ulab gap bench` (reference plants Rapier multibody and DART, each under the excitation plan and
@@ -19,7 +22,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 source scripts/env.sh
-split=${1:?usage: run.sh dev|eval|eval2|eval3 [SET...] | run.sh score dev|eval|eval2|eval3}
+split=${1:?usage: run.sh dev|eval|eval2|eval3|eval4 [SET...] | run.sh score dev|eval|eval2|eval3|eval4}
 shift
 BIN=${ULAB_BIN:-target/release/ulab}
 JOBS=${ULAB_EVAL_JOBS:-1}
@@ -47,6 +50,13 @@ EVAL3_SETS=(
   "dart-chirp bench 9204 --reference-engine dart --trials 12 --out-of-library 2 --gentle-chirp"
   "mujoco-py mujoco 9205 --trials 24 --out-of-library 4"
 )
+EVAL4_SETS=(
+  "rapier-plan bench 9301 --reference-engine rapier_multibody --trials 12 --out-of-library 2"
+  "rapier-chirp bench 9302 --reference-engine rapier_multibody --trials 12 --out-of-library 2 --gentle-chirp"
+  "dart-plan bench 9303 --reference-engine dart --trials 12 --out-of-library 2"
+  "dart-chirp bench 9304 --reference-engine dart --trials 12 --out-of-library 2 --gentle-chirp"
+  "mujoco-py mujoco 9305 --trials 24 --out-of-library 4"
+)
 DEV_SETS=(
   "rapier-plan bench 101 --reference-engine rapier_multibody --trials 12 --out-of-library 2"
   "rapier-chirp bench 102 --reference-engine rapier_multibody --trials 12 --out-of-library 2 --gentle-chirp"
@@ -63,15 +73,18 @@ score() {
 }
 
 rediagnose=false
-if [ "$split" = rediagnose ]; then rediagnose=true; split=${1:?dev, eval, eval2 or eval3}; shift; fi
+if [ "$split" = rediagnose ]; then rediagnose=true; split=${1:?dev, eval, eval2, eval3 or eval4}; shift; fi
 case "$split" in
-  score) score "${1:?dev, eval, eval2 or eval3}"; exit 0 ;;
+  score) score "${1:?dev, eval, eval2, eval3 or eval4}"; exit 0 ;;
   eval) sets=("${EVAL_SETS[@]}") ;;
   eval2) sets=("${EVAL2_SETS[@]}") ;;
   eval3) sets=("${EVAL3_SETS[@]}") ;;
+  eval4) sets=("${EVAL4_SETS[@]}") ;;
   dev) sets=("${DEV_SETS[@]}") ;;
-  *) echo "usage: run.sh dev|eval|eval2|eval3 [SET...] | run.sh rediagnose dev|eval|eval2|eval3 [SET...] | run.sh score dev|eval|eval2|eval3" >&2; exit 2 ;;
+  *) echo "usage: run.sh dev|eval|eval2|eval3|eval4 [SET...] | run.sh rediagnose dev|eval|eval2|eval3|eval4 [SET...] | run.sh score dev|eval|eval2|eval3|eval4" >&2; exit 2 ;;
 esac
+src_split=$split
+if $rediagnose && [ -n "${ULAB_EVAL_AS:-}" ]; then split="$split@$ULAB_EVAL_AS"; fi
 [ -x "$BIN" ] || cargo build --release --locked -p ulab
 mkdir -p "out/gap-eval/$split"
 cp "$BIN" "out/gap-eval/$split/ulab"
@@ -84,8 +97,14 @@ plan=out/gap-eval/plan.mcap
 for spec in "${sets[@]}"; do
   read -r name kind seed args <<< "$spec"
   if [ $# -gt 0 ] && [[ " $* " != *" $name "* ]]; then continue; fi
+  src=out/gap-eval/$src_split/$name
   dir=out/gap-eval/$split/$name
   mkdir -p "$dir"
+  if [ "$src" != "$dir" ]; then
+    for f in "$src"/trial_*.mcap "$src"/trial_*.labels.json "$src"/scores.json; do
+      [ -e "$f" ] && ln -sf "$(readlink -f "$f")" "$dir/"
+    done
+  fi
   # shellcheck disable=SC2086
   n=$(( $(echo $args | sed -E 's/.*--trials ([0-9]+).*/\1/') + $(echo $args | sed -E 's/.*--out-of-library ([0-9]+).*/\1/') ))
   echo "run.sh: $split/$name ($n trials)"
@@ -96,7 +115,7 @@ for spec in "${sets[@]}"; do
       if $rediagnose; then
         for ((i = w; i < n; i += JOBS)); do
           t=$(printf "trial_%03d" "$i")
-          "$BIN" gap diagnose --log "$dir/$t.mcap" --out "$dir/$t" --seed "$seed" --format json > /dev/null
+          "$BIN" gap diagnose --log "$src/$t.mcap" --out "$dir/$t" --seed "$seed" --format json > /dev/null
         done
       elif [ "$kind" = bench ]; then
         # shellcheck disable=SC2086
