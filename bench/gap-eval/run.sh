@@ -88,7 +88,7 @@ if $rediagnose && [ -n "${ULAB_EVAL_AS:-}" ]; then split="$split@$ULAB_EVAL_AS";
 [ -x "$BIN" ] || cargo build --release --locked -p ulab
 mkdir -p "out/gap-eval/$split"
 cp "$BIN" "out/gap-eval/$split/ulab"
-git describe --always --dirty > "out/gap-eval/$split/ulab.version"
+{ git describe --always --dirty; [ -z "${ULAB_BIN:-}" ] || echo "binary: $ULAB_BIN"; } > "out/gap-eval/$split/ulab.version"
 BIN=out/gap-eval/$split/ulab
 plan=out/gap-eval/plan.mcap
 [ -f "$plan" ] || { mkdir -p out/gap-eval; "$BIN" gap excite --out "$plan" --duration "$DURATION" --rate 500; }

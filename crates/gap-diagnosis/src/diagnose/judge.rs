@@ -36,7 +36,7 @@ use super::breakdown::Baseline;
 use super::fit::{self, report_value, FittedUnit, Unit};
 use super::options::PlantKind;
 use super::replay::{Ctx, Scores};
-use super::stats::{bootstrap_mean, log_gain, total, Estimate};
+use super::stats::{bootstrap_mean, log_gain, mean, total, Estimate};
 use super::torque_ceiling::joints_above_ceiling;
 use crate::effects::EffectKind;
 use crate::plant::Effects;
@@ -209,7 +209,7 @@ pub(super) fn judge(
         for &kind in &open {
             fitted.extend(fit_candidates(ctx, kind, &fx, &cur_train, &cur_test, th.joints_per_limb, rng)?);
         }
-        // The most promising valid candidates, then the invalid ones that would have ranked among them.
+        // The most promising candidates, valid or not: an invalid fit the log prefers still stands as a rival.
         fitted.sort_by(|a, b| b.approx_gain.total_cmp(&a.approx_gain));
         let exact: Vec<Fitted> = fitted.into_iter().take(th.exact_candidates).collect();
         let cfgs: Vec<Effects> = exact.iter().map(|f| f.fx.clone()).collect();
@@ -418,7 +418,7 @@ fn fit_candidates(
 /// The held-out log-likelihood gain per window on columns `cols` of scores going from `before` to `after`: the
 /// measure the decision judges by, used to choose which candidates it judges.
 fn mean_gain(before: &Scores, after: &Scores, cols: &[usize], noise: &[f64]) -> f64 {
-    log_gain(before, after, Some(cols), noise).iter().sum::<f64>() / before.len().max(1) as f64
+    mean(&log_gain(before, after, Some(cols), noise))
 }
 
 /// Why a fit is not an estimate, if it is not one.
