@@ -13,8 +13,8 @@
 #     walking plant's contact stiffness (`floating_diagnose`; CI runs its leg damping, control and fallen windows);
 #   - the control of the planted cheat (a gait optimised in MuJoCo transfers; CI runs the cheat itself);
 #   - every fuzz target, `engine_divergence` included (a release build of three engines with coverage);
-#   - a `ulab diff` and a `ulab validate` campaign sharded over a local Ray cluster (head + 2 workers), merged and
-#     compared with the unsharded run (tests/campaign/ray_local.py; Ray is ~285 MB, installed by setup.sh --ray).
+#   - a campaign of each shardable kind (diff, diff fuzz, validate, gap bench) sharded over a local Ray cluster
+#     (head + 2 workers), merged and compared with the unsharded run (tests/campaign/ray_local.py; Ray is ~285 MB, installed by setup.sh --ray).
 # Run after scripts/test.sh on the same checkout (it reuses its set-up); ~60–90 min on 2 cores.
 #   ULAB_FUZZ_SECONDS (default 60) per fuzz target.
 set -euo pipefail

@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
-"""A local Ray cluster (a head and two worker nodes on this machine, `ray.cluster_utils.Cluster`) runs a `ulab diff`
-and a `ulab validate` campaign as 3 shards through scripts/campaign.py; the merged output must equal the unsharded
-run's, file by file (report.json with its wall-clock `timing.engine_s`/`timing.total_s` left out, as in
-crates/ulab/tests/it/shard_cli.rs). Run by scripts/nightly.sh with the Ray venv of `scripts/setup.sh --ray`:
+"""A local Ray cluster (a head and two worker nodes on this machine, `ray.cluster_utils.Cluster`) runs a campaign of
+each shardable kind — `ulab diff`, `ulab diff fuzz` (lanes), `ulab validate`, `ulab gap bench` — as 3 shards through
+scripts/campaign.py; the merged output must equal the unsharded run's, file by file in every subdirectory, with the
+wall-clock fields and lines left out as crates/ulab/tests/it/shard_cli.rs leaves them out. Run by scripts/nightly.sh with the Ray venv of `scripts/setup.sh --ray`:
 
     $ULAB_RAY_PYTHON tests/campaign/ray_local.py [--ulab target/debug/ulab]
 
@@ -21,32 +21,48 @@ ROOT = Path(__file__).resolve().parents[2]
 CAMPAIGNS = {
     "diff": ["diff", "--engines", "mujoco,rapier-multibody", "--episodes", "6", "--seconds", "0.2", "--window", "25",
              "--jobs", "1"],
+    "diff-fuzz": ["diff", "fuzz", "--engines", "mujoco,rapier-impulse", "--iterations", "12", "--lanes", "4",
+                  "--seconds", "0.1", "--seed", "2", "--window", "10", "--minimize", "1"],
     "validate": ["validate", "--policy", "robots/h1_2/policies/unitree_rl_gym_lstm.toml", "--train-engine", "mujoco",
                  "--engines", "mujoco,rapier-multibody", "--commands", "stand,forward", "--episodes", "2",
                  "--seconds", "2", "--no-evidence"],
+    "gap-bench": ["gap", "bench", "--trials", "4", "--seed", "3", "--duration", "4", "--effects", "damping",
+                  "--max-windows", "8"],
 }
-WALL_CLOCK = {("timing", "engine_s"), ("timing", "total_s")}
+# Wall-clock fields, as (parent key, key) or (key,): campaign timings, a diagnosis's time and its stages' times.
+WALL_CLOCK = {("timing", "engine_s"), ("timing", "total_s"), ("diagnose_s",), ("elapsed_s",), ("stages", "s")}
+# Wall-clock lines of Markdown outputs, by their start.
+WALL_CLOCK_LINES = ("| mean diagnosis time per log |", "Diagnosis time:")
 
 
 def strip_wall_clock(x, path=()):
     if isinstance(x, dict):
-        return {k: strip_wall_clock(v, path + (k,)) for k, v in x.items() if tuple(path[-1:] + (k,)) not in WALL_CLOCK}
+        return {k: strip_wall_clock(v, path + (k,)) for k, v in x.items()
+                if tuple(path[-1:] + (k,)) not in WALL_CLOCK and (k,) not in WALL_CLOCK}
     if isinstance(x, list):
         return [strip_wall_clock(v, path) for v in x]
     return x
 
 
+def strip_wall_clock_lines(text: str) -> list[str]:
+    return [line for line in text.splitlines() if not line.startswith(WALL_CLOCK_LINES)]
+
+
 def same_outputs(a: Path, b: Path) -> list[str]:
+    """Files of `a` and `b` (every subdirectory) that differ, wall-clock fields and lines aside."""
     diffs = []
-    names = sorted(p.name for p in a.iterdir() if p.is_file())
-    other = sorted(p.name for p in b.iterdir() if p.is_file())
+    names = sorted(str(p.relative_to(a)) for p in a.rglob("*") if p.is_file())
+    other = sorted(str(p.relative_to(b)) for p in b.rglob("*") if p.is_file() and not p.is_relative_to(b / "shards"))
     if names != other:
-        diffs.append(f"files differ: {names} vs {other}")
+        diffs.append(f"files differ: {sorted(set(names) ^ set(other))}")
     for n in names:
         if not (b / n).is_file():
             continue
         if n.endswith(".json"):
             if strip_wall_clock(json.loads((a / n).read_text())) != strip_wall_clock(json.loads((b / n).read_text())):
+                diffs.append(n)
+        elif n.endswith(".md"):
+            if strip_wall_clock_lines((a / n).read_text()) != strip_wall_clock_lines((b / n).read_text()):
                 diffs.append(n)
         elif (a / n).read_bytes() != (b / n).read_bytes():
             diffs.append(n)
