@@ -301,3 +301,127 @@ mod physx {
         assert!(thin.iter().all(|&x| x < 1.0), "{thin:?}");
     }
 }
+
+/// Newton (`newton` feature, `scripts/nightly.sh`; issue 61): the candidates of the Newton campaign
+/// (`corpus/newton-2026-12-03/`), Steel's and Featherstone's one-step joint velocity with feet on the ground.
+#[cfg(feature = "newton")]
+mod newton {
+    use super::*;
+
+    const NAMES: [&str; 5] = ["mujoco", "bullet", "dart", "newton_featherstone", "newton_steel"];
+    const FEATHERSTONE: usize = 3;
+    const STEEL: usize = 4;
+
+    fn load_newton(file: &str) -> Reproducer {
+        let path = format!("{}/../../corpus/newton-2026-12-03/{file}", env!("CARGO_MANIFEST_DIR"));
+        let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
+        serde_json::from_str(&text).unwrap_or_else(|e| panic!("{path}: {e}"))
+    }
+
+    type Matrix = Vec<Vec<f64>>;
+
+    /// One-step joint-velocity difference / bound between every pair of `NAMES` on the reproducer's first step:
+    /// with contacts (MuJoCo's solref time constant 0.02 s), with MuJoCo stiffened to 0.004 s (two steps), and
+    /// with collisions off.
+    fn matrices(file: &str) -> (Reproducer, Matrix, Matrix, Matrix) {
+        let r = load_newton(file);
+        let rest = [EngineKind::Bullet, EngineKind::Dart, EngineKind::NewtonFeatherstone, EngineKind::NewtonSteel];
+        let matrix = |r: &Reproducer, timeconst: f64| -> Matrix {
+            let s = MujocoSettings { solref: [timeconst, 1.0], ..MujocoSettings::default() };
+            let mut f = vec![mujoco_with(s)];
+            f.extend(rest.iter().map(|k| builtin(*k)));
+            let run = replay(r, &f, Some(1));
+            (0..f.len()).map(|i| (0..f.len()).map(|j| dq_ratio(r, &run, i, j)).collect()).collect()
+        };
+        let soft = matrix(&r, 0.02);
+        let stiff = matrix(&r, 0.004);
+        let mut off = r.clone();
+        off.common.collisions = false;
+        let free = matrix(&off, 0.02);
+        for (label, m) in [("with contacts", &soft), ("MuJoCo solref 0.004 s", &stiff), ("collisions off", &free)] {
+            eprintln!("{file}: one-step joint-velocity difference / bound, {label} ({NAMES:?}):");
+            for (n, row) in NAMES.iter().zip(m.iter()) {
+                eprintln!("  {n:>20}: {row:.2?}");
+            }
+        }
+        (r, soft, stiff, free)
+    }
+
+    /// Steel's contact rows are rigid, velocity-level constraints; MuJoCo's contacts are soft. If Steel's excess
+    /// is that difference, it must vanish without collisions and shrink when only MuJoCo's contact is made stiff.
+    #[test]
+    fn steel_ground_contact_is_rigid_against_soft_contact() {
+        for file in [
+            "steel-double-support-D01.json",
+            "fuzz-gepetto_demo_rsl-D01.json",
+            "fuzz-unitree_rl_gym_lstm-D01.json",
+            "fuzz-excitation-D01.json",
+            "fuzz-unitree_rl_gym_lstm-min5-D04.json",
+        ] {
+            let (r, soft, stiff, free) = matrices(file);
+            assert_eq!((r.finding.engine.as_str(), r.finding.quantity.as_str()), ("newton_steel", "joint velocity"));
+            let (with, stiffened) = (soft[STEEL][0], stiff[STEEL][0]);
+            eprintln!(
+                "{file}: Steel against MuJoCo {with:.2} (solref 0.02 s) -> {stiffened:.2} (0.004 s), without \
+                 collisions {:.2}; against Bullet {:.2}, DART {:.2}, Featherstone {:.2}",
+                free[STEEL][0], soft[STEEL][1], soft[STEEL][2], soft[STEEL][FEATHERSTONE]
+            );
+            assert!(with > 1.0, "{file}: the finding is gone ({with})");
+            // Without contacts Steel agrees with MuJoCo, DART and Featherstone to a few hundredths of the bound:
+            // the excess comes from the contact models. (Bullet is up to about the bound from all four even
+            // without contacts, as in the touch-down test above, so it is no counterpart for this check.)
+            for j in [0, 2, FEATHERSTONE] {
+                assert!(
+                    free[STEEL][j] < 0.35 * with.min(1.0),
+                    "{file}: Steel vs {} without contacts: {free:?}",
+                    NAMES[j]
+                );
+            }
+            // Stiffening only MuJoCo's soft contact must bring it towards Steel's rigid rows: the difference is the
+            // softness, not Steel's joints or integrator.
+            assert!(stiffened < 0.5 * with, "{file}: {with} -> {stiffened}");
+            // And the allow-list entry written from this experiment covers the recorded finding.
+            let allow = engine_diff::triage::AllowList::builtin().expect("allow-list");
+            let id = allow.matching(&r.finding).map(|e| e.id.as_str());
+            assert_eq!(id, Some("steel-rigid-contact-rows"), "{file}: {:?}", r.finding);
+        }
+    }
+
+    /// Featherstone's penalty contacts (spring `contact_ke`, damper `contact_kd`) are soft like MuJoCo's but with
+    /// another law. Its two lstm candidates must vanish without collisions; the sweep of its contact stiffness is
+    /// printed as a measurement (no allow-list entry rests on it yet).
+    #[test]
+    fn featherstone_ground_contact_is_a_contact_difference() {
+        use diff_physics::newton::{NewtonEngine, NewtonSettings, NewtonSolver};
+        for file in ["fuzz-unitree_rl_gym_lstm-min5-D02.json", "fuzz-unitree_rl_gym_lstm-min5-D03.json"] {
+            let (r, soft, stiff, free) = matrices(file);
+            assert_eq!(r.finding.engine, "newton_featherstone");
+            let with = soft[FEATHERSTONE][0];
+            eprintln!(
+                "{file}: Featherstone against MuJoCo {with:.2} (solref 0.02 s), {:.2} (0.004 s), without collisions \
+                 {:.2}; against Steel {:.2}, DART {:.2}",
+                stiff[FEATHERSTONE][0], free[FEATHERSTONE][0], soft[FEATHERSTONE][STEEL], soft[FEATHERSTONE][2]
+            );
+            assert!(with > 1.0, "{file}: the finding is gone ({with})");
+            for j in [0, 2, STEEL] {
+                assert!(
+                    free[FEATHERSTONE][j] < 0.35,
+                    "{file}: Featherstone vs {} without contacts: {free:?}",
+                    NAMES[j]
+                );
+            }
+            for ke in [3e4, 1e5, 3e5, 1e6] {
+                let s = NewtonSettings { contact_ke: ke, ..NewtonSettings::for_solver(NewtonSolver::Featherstone) };
+                let f = vec![
+                    builtin(EngineKind::Mujoco),
+                    Arc::new(Variant {
+                        name: "newton_featherstone".into(),
+                        build: Box::new(move |m, c| Ok(Box::new(NewtonEngine::new(m, c, &s)?) as Box<dyn Engine>)),
+                    }) as Arc<dyn EngineFactory>,
+                ];
+                let run = replay(&r, &f, Some(1));
+                eprintln!("{file}: Featherstone contact_ke {ke:.0e} N/m: {:.2} from MuJoCo", dq_ratio(&r, &run, 1, 0));
+            }
+        }
+    }
+}
