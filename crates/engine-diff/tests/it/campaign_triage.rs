@@ -58,7 +58,12 @@ fn mujoco_with(settings: MujocoSettings) -> Arc<dyn EngineFactory> {
 }
 
 fn load(file: &str) -> Reproducer {
-    let path = format!("{}/../../corpus/campaign-2026-11-25/{file}", env!("CARGO_MANIFEST_DIR"));
+    load_from("campaign-2026-11-25", file)
+}
+
+/// A reproducer of the campaign recorded in `corpus/{campaign}/`.
+fn load_from(campaign: &str, file: &str) -> Reproducer {
+    let path = format!("{}/../../corpus/{campaign}/{file}", env!("CARGO_MANIFEST_DIR"));
     let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
     serde_json::from_str(&text).unwrap_or_else(|e| panic!("{path}: {e}"))
 }
@@ -312,19 +317,13 @@ mod newton {
     const FEATHERSTONE: usize = 3;
     const STEEL: usize = 4;
 
-    fn load_newton(file: &str) -> Reproducer {
-        let path = format!("{}/../../corpus/newton-2026-12-03/{file}", env!("CARGO_MANIFEST_DIR"));
-        let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
-        serde_json::from_str(&text).unwrap_or_else(|e| panic!("{path}: {e}"))
-    }
-
     type Matrix = Vec<Vec<f64>>;
 
     /// One-step joint-velocity difference / bound between every pair of `NAMES` on the reproducer's first step:
     /// with contacts (MuJoCo's solref time constant 0.02 s), with MuJoCo stiffened to 0.004 s (two steps), and
     /// with collisions off.
     fn matrices(file: &str) -> (Reproducer, Matrix, Matrix, Matrix) {
-        let r = load_newton(file);
+        let r = load_from("newton-2026-12-03", file);
         let rest = [EngineKind::Bullet, EngineKind::Dart, EngineKind::NewtonFeatherstone, EngineKind::NewtonSteel];
         let matrix = |r: &Reproducer, timeconst: f64| -> Matrix {
             let s = MujocoSettings { solref: [timeconst, 1.0], ..MujocoSettings::default() };
