@@ -124,10 +124,14 @@ pub struct AllowUsage {
     pub cap: f64,
     /// Findings of the entry's engines, kinds, quantities and phases that exceeded the cap (candidate bugs).
     pub over_cap: usize,
+    /// Findings under the cap that the entry does not cover because the run took their quantity beyond the cap
+    /// elsewhere in the entry's scope ([`triage::WithdrawnCovers`]; candidate bugs too).
+    pub withdrawn: usize,
 }
 
 /// Per-entry usage of the allow-list over `episodes`.
 pub fn allow_usage(allow: &AllowList, episodes: &[EpisodeResult]) -> Vec<AllowUsage> {
+    let withdrawn = triage::WithdrawnCovers::of(allow, episodes.iter().flat_map(|e| e.findings.iter()));
     allow
         .entries
         .iter()
@@ -140,6 +144,7 @@ pub fn allow_usage(allow: &AllowList, episodes: &[EpisodeResult]) -> Vec<AllowUs
                 max_ratio: 0.0,
                 cap: entry.max_ratio,
                 over_cap: 0,
+                withdrawn: 0,
             };
             let mut groups = std::collections::BTreeSet::new();
             for f in episodes.iter().flat_map(|e| e.findings.iter()) {
@@ -148,6 +153,7 @@ pub fn allow_usage(allow: &AllowList, episodes: &[EpisodeResult]) -> Vec<AllowUs
                     continue;
                 }
                 match allow.matching(f) {
+                    Some(m) if m.id == entry.id && withdrawn.withdraws(&m.id, f) => u.withdrawn += 1,
                     Some(m) if m.id == entry.id => {
                         u.findings += 1;
                         u.max_ratio = u.max_ratio.max(f.ratio());
@@ -342,10 +348,11 @@ pub fn analyse(a: &Analysis<'_>, episodes: &[EpisodeResult]) -> Result<(Report, 
             }
         }
     }
+    let withdrawn = triage::WithdrawnCovers::of(a.allow, episodes.iter().flat_map(|e| e.findings.iter()));
     let mut entries = Vec::new();
     for (_, (count, ei, f)) in groups {
         let state = &episodes[ei].windows[f.window].input.start;
-        let class = triage::classify(model, a.factories, &a.cfg.common, a.allow, &f, state)?;
+        let class = withdrawn.apply(&f, triage::classify(model, a.factories, &a.cfg.common, a.allow, &f, state)?);
         entries.push(Entry {
             id: String::new(),
             kind: f.kind.clone(),
@@ -558,20 +565,21 @@ impl Report {
                         s += &format!("- {}: allow-list `{id}`: {} ({})\n", e.id, rationale.split(". ").next().unwrap_or(""), citation.join(", "));
                     }
                     Class::TranslationProblem { detail } => s += &format!("- {}: model equivalence fails at the window start: {detail}\n", e.id),
-                    Class::CandidateEngineBug => s += &format!("- {}: no translation problem, no allow-list entry: candidate engine bug (replay: `ulab diff replay DIR/{}`)\n", e.id, e.minimized.as_ref().map(|m| m.reproducer.as_str()).unwrap_or("-")),
+                    Class::CandidateEngineBug => s += &format!("- {}: no translation problem, no allow-list entry covers it in this run: candidate engine bug (replay: `ulab diff replay DIR/{}`)\n", e.id, e.minimized.as_ref().map(|m| m.reproducer.as_str()).unwrap_or("-")),
                 }
             }
         }
-        s += "\n## Allow-list usage\n\n| entry | findings absorbed | groups | largest ratio absorbed | cap | in scope but over the cap |\n|---|---|---|---|---|---|\n";
+        s += "\n## Allow-list usage\n\n| entry | findings absorbed | groups | largest ratio absorbed | cap | in scope but over the cap | under the cap, withdrawn |\n|---|---|---|---|---|---|---|\n";
         for u in &self.allow_usage {
             s += &format!(
-                "| `{}` | {} | {} | {} | {} | {} |\n",
+                "| `{}` | {} | {} | {} | {} | {} | {} |\n",
                 u.id,
                 u.findings,
                 u.groups,
                 if u.findings > 0 { g3(u.max_ratio) } else { "–".into() },
                 g3(u.cap),
-                u.over_cap
+                u.over_cap,
+                u.withdrawn
             );
         }
         s += "\n## Plots\n\n- `one_step.svg`: per window (x), max one-step joint-velocity divergence (y, linear from 0).\n- `k_step.svg`: per window, k-step link-position divergence.\n- `per_joint.svg`: per joint (x, slot order), max k-step joint-angle divergence.\n\nLines, in engine order after the lead: ";

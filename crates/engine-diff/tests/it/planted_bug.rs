@@ -8,7 +8,7 @@
 use diff_physics::{CommonSettings, Contact, Energy, Engine, EngineError, EngineKind, LinkPose, State};
 use engine_diff::harness::{self, excitation_factory, BuiltinEngine, EngineFactory, Finding, HarnessConfig};
 use engine_diff::scenario::Scenario;
-use engine_diff::triage::{classify, AllowList, Class};
+use engine_diff::triage::{classify, AllowList, Class, WithdrawnCovers};
 use robot_model::RobotModel;
 use std::collections::BTreeSet;
 use std::sync::Arc;
@@ -90,13 +90,13 @@ impl Engine for Planted {
 /// MuJoCo with `defect`, reporting itself as `name` (a Rapier engine covered by allow-list entries).
 #[derive(Debug)]
 struct PlantedFactory {
-    name: &'static str,
+    name: String,
     defect: Defect,
 }
 
 impl EngineFactory for PlantedFactory {
     fn name(&self) -> String {
-        self.name.into()
+        self.name.clone()
     }
     fn build(&self, model: &RobotModel, common: &CommonSettings) -> Result<Box<dyn Engine>, EngineError> {
         let mut c = common.clone();
@@ -119,7 +119,7 @@ struct Triaged {
 /// Runs the excitation input (with its push) against the lead MuJoCo, and triages every finding of the planted
 /// engine that the defect-free run of the same wrapper does not have. `lead`: the name the (unmodified) lead
 /// reports; another engine than MuJoCo makes the pair one the allow-list covers only through the reference.
-fn run(lead: &'static str, name: &'static str, defect: Defect) -> Triaged {
+fn run(lead: &str, name: &str, defect: Defect) -> Triaged {
     let m = RobotModel::h1_2().expect("built-in model");
     let allow = AllowList::builtin().expect("allow-list");
     let ctrl = excitation_factory(&m);
@@ -128,21 +128,23 @@ fn run(lead: &'static str, name: &'static str, defect: Defect) -> Triaged {
     let episode = |d: Defect| {
         let lead: Arc<dyn EngineFactory> = match lead {
             "mujoco" => Arc::new(BuiltinEngine(EngineKind::Mujoco)),
-            other => Arc::new(PlantedFactory { name: other, defect: Defect::None }),
+            other => Arc::new(PlantedFactory { name: other.to_string(), defect: Defect::None }),
         };
-        let f: Vec<Arc<dyn EngineFactory>> = vec![lead, Arc::new(PlantedFactory { name, defect: d })];
+        let f: Vec<Arc<dyn EngineFactory>> = vec![lead, Arc::new(PlantedFactory { name: name.to_string(), defect: d })];
         (harness::run_episode(&m, &f, ctrl.as_ref(), &s, &cfg).expect("episode"), f)
     };
     let (clean, _) = episode(Defect::None);
     let clean_keys: BTreeSet<_> = clean.findings.iter().filter(|f| f.engine == name).map(|f| f.group_key()).collect();
     let (r, f) = episode(defect);
+    // As the report triages: an entry the run exceeds anywhere in its scope covers none of it.
+    let withdrawn = WithdrawnCovers::of(&allow, &r.findings);
     let caused = r
         .findings
         .iter()
         .filter(|x| x.engine == name && !clean_keys.contains(&x.group_key()))
         .map(|x| {
             let start = &r.windows[x.window].input.start;
-            let class = classify(&m, &f, &cfg.common, &allow, x, start).expect("triage");
+            let class = withdrawn.apply(x, classify(&m, &f, &cfg.common, &allow, x, start).expect("triage"));
             (x.clone(), class)
         })
         .collect();
@@ -161,12 +163,14 @@ fn summary(t: &Triaged) -> String {
 
 /// The report triages each finding group (kind, engine, quantity, phase) by its worst finding: every group the
 /// defect causes must come out as a candidate bug. Single findings of a group may still sit under an entry's cap
-/// (they are printed): the group, not each finding, is what a report entry shows.
-fn assert_flagged_as_candidate(lead: &'static str, name: &'static str, defect: Defect) {
+/// (they are printed): the group, not each finding, is what a report entry shows. Returns what failed.
+fn groups_not_flagged(lead: &str, name: &str, defect: Defect) -> Vec<String> {
     let t = run(lead, name, defect);
     let text = summary(&t);
     eprintln!("{name} with {defect:?} against {lead}:\n{text}");
-    assert!(!t.caused.is_empty(), "{defect:?} produced no finding at all");
+    if t.caused.is_empty() {
+        return vec![format!("{defect:?} under the name {name} against {lead} produced no finding at all")];
+    }
     let mut worst: std::collections::BTreeMap<_, &(Finding, Class)> = std::collections::BTreeMap::new();
     for x in &t.caused {
         let e = worst.entry(x.0.group_key()).or_insert(x);
@@ -174,30 +178,48 @@ fn assert_flagged_as_candidate(lead: &'static str, name: &'static str, defect: D
             *e = x;
         }
     }
-    for (key, (f, c)) in &worst {
-        assert!(
-            *c == Class::CandidateEngineBug,
-            "{defect:?} under the name {name} against {lead}: group {key:?} (worst ratio {:.2}) triaged as {}\n{text}",
-            f.ratio(),
-            c.label()
-        );
-    }
     let hidden = t.caused.iter().filter(|(_, c)| matches!(c, Class::ExpectedDifference { .. })).count();
     eprintln!("{} of {} caused findings individually under an entry's cap", hidden, t.caused.len());
+    worst
+        .iter()
+        .filter(|(_, (_, c))| *c != Class::CandidateEngineBug)
+        .map(|(key, (f, c))| {
+            format!(
+                "{defect:?} under the name {name} against {lead}: group {key:?} (worst ratio {:.2}) triaged as {}",
+                f.ratio(),
+                c.label()
+            )
+        })
+        .collect()
+}
+
+fn assert_flagged_as_candidate(pairs: &[(&str, &str)], defect: Defect) {
+    let failed: Vec<String> = pairs.iter().flat_map(|(lead, name)| groups_not_flagged(lead, name, defect)).collect();
+    assert!(failed.is_empty(), "{}", failed.join("\n"));
+}
+
+/// Every engine name some allow-list entry covers, read from the allow-list itself, so that a new entry is tested
+/// the day it is written (Newton's Steel entry, cap 2.7, is the loosest one-step allowance for joint velocity in
+/// contact). MuJoCo is the lead, so it is not planted under its own name. Names are strings here: the planted
+/// engine is MuJoCo whatever it is called, and no PhysX or Newton build is needed.
+fn allow_listed_names() -> Vec<String> {
+    let allow = AllowList::builtin().expect("allow-list");
+    let names: BTreeSet<String> = allow.entries.iter().flat_map(|e| e.engines.iter().cloned()).collect();
+    names.into_iter().filter(|n| n != "mujoco").collect()
 }
 
 #[test]
 fn a_damping_sign_slip_is_a_candidate_bug_under_every_allow_listed_name() {
-    for name in ["rapier_multibody", "rapier_impulse"] {
-        assert_flagged_as_candidate("mujoco", name, Defect::DampingSign);
-    }
+    let names = allow_listed_names();
+    let pairs: Vec<(&str, &str)> = names.iter().map(|n| ("mujoco", n.as_str())).collect();
+    assert_flagged_as_candidate(&pairs, Defect::DampingSign);
 }
 
 #[test]
 fn a_gravity_sign_slip_is_a_candidate_bug_under_every_allow_listed_name() {
-    for name in ["rapier_multibody", "rapier_impulse"] {
-        assert_flagged_as_candidate("mujoco", name, Defect::GravitySign);
-    }
+    let names = allow_listed_names();
+    let pairs: Vec<(&str, &str)> = names.iter().map(|n| ("mujoco", n.as_str())).collect();
+    assert_flagged_as_candidate(&pairs, Defect::GravitySign);
 }
 
 /// A pair without the reference is covered by the sum of both engines' allowances against MuJoCo
@@ -208,8 +230,7 @@ fn a_gravity_sign_slip_is_a_candidate_bug_under_every_allow_listed_name() {
 /// this test does not exercise the summed cap itself (its soundness is the triangle inequality, see `Cover`).
 #[test]
 fn a_planted_defect_is_a_candidate_bug_between_two_allow_listed_engines() {
-    for (lead, name) in [("bullet", "rapier_multibody"), ("dart", "rapier_impulse")] {
-        assert_flagged_as_candidate(lead, name, Defect::DampingSign);
-        assert_flagged_as_candidate(lead, name, Defect::GravitySign);
-    }
+    let pairs = [("bullet", "rapier_multibody"), ("dart", "rapier_impulse")];
+    assert_flagged_as_candidate(&pairs, Defect::DampingSign);
+    assert_flagged_as_candidate(&pairs, Defect::GravitySign);
 }
