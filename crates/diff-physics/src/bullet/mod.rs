@@ -24,8 +24,12 @@
 //!   alone (the contact-free accelerations match the model's RNEA, `tests/it/bullet_engine.rs`).
 //! - `btMultibodyLink::m_jointDamping` / `m_jointFriction` are stored but unused by Bullet ("todo: implement this
 //!   internally", btMultiBodyLink.h). Viscous damping is applied as the explicit torque `-d q̇` at the start of
-//!   each step (pybullet does the same in its step); dry friction as a velocity motor with target 0 whose impulse
-//!   per step is bounded by `frictionloss · dt` (the remedy btMultiBodyLink.h names), solved with the contacts.
+//!   each step (pybullet does the same in its step). Explicit damping is stable only while `d·dt/I < 2` for each
+//!   joint's effective inertia `I`: with the H1-2's armature (0.1 kg·m²) `d·dt/I` is at most 0.02, but a model
+//!   with armature 0 puts the wrists (I ≈ 1e-4) near 20, and the robot diverges within 0.1 s (measured with an
+//!   armature-0 sidecar: states of 1e28 m; finite with damping 0, and in DART, which damps implicitly). Dry
+//!   friction is a velocity motor with target 0 whose impulse per step is bounded by `frictionloss · dt` (the
+//!   remedy btMultiBodyLink.h names), solved with the contacts.
 //! - `btMultiBody` clamps every generalized velocity to `m_maxCoordinateVelocity` = 100 (rad/s and m/s) whenever
 //!   constraint impulses are applied; set to 1e30 here (no clamp, as in the other engines).
 //! - `btMultiBody` damps every body's velocity by default (`m_linearDamping` = `m_angularDamping` = 0.04, a
