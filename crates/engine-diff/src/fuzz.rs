@@ -1,6 +1,6 @@
 //! Feedback-driven search over perturbations: a corpus of scenarios is mutated and scheduled by divergence
 //! per unit of perturbation and by new contact patterns, evaluated in parallel (rayon).
-use crate::harness::{self, ControllerFactory, EngineFactory, EpisodeResult, HarnessConfig};
+use crate::harness::{self, ControllerFactory, EngineFactory, EngineFailure, EpisodeResult, HarnessConfig};
 use crate::scenario::Scenario;
 use crate::triage::AllowList;
 use crate::DiffError;
@@ -48,6 +48,9 @@ pub struct FuzzOutcome {
     pub evaluated: usize,
     pub failed: usize,
     pub patterns: BTreeSet<String>,
+    /// The inputs on which an engine failed, in the order they were evaluated (candidate engine bugs).
+    #[serde(default)]
+    pub failures: Vec<EngineFailure>,
 }
 
 /// Seed of lane `lane` of a campaign seeded `seed`. A campaign of several lanes is that many independent fuzzers
@@ -68,13 +71,20 @@ pub fn lane_iterations(iterations: usize, lanes: usize, lane: usize) -> usize {
 /// together ordered by score (equal scores in lane order), counts summed, contact patterns united. One lane gives
 /// that lane's outcome unchanged.
 pub fn combine_lanes(lanes: Vec<FuzzOutcome>) -> FuzzOutcome {
-    let mut all =
-        FuzzOutcome { corpus: Vec::new(), episodes: Vec::new(), evaluated: 0, failed: 0, patterns: BTreeSet::new() };
+    let mut all = FuzzOutcome {
+        corpus: Vec::new(),
+        episodes: Vec::new(),
+        evaluated: 0,
+        failed: 0,
+        patterns: BTreeSet::new(),
+        failures: Vec::new(),
+    };
     for lane in lanes {
         all.corpus.extend(lane.corpus);
         all.episodes.extend(lane.episodes);
         all.evaluated += lane.evaluated;
         all.failed += lane.failed;
+        all.failures.extend(lane.failures);
         all.patterns.extend(lane.patterns);
     }
     // Stable: each lane's corpus is already in score order.
@@ -159,13 +169,24 @@ pub fn fuzz_with_observer(
                 kept.push(r);
             }
         };
+    let mut failures = Vec::new();
+    let mut fail = |e: DiffError, s: &Scenario| -> Result<(), DiffError> {
+        match e {
+            DiffError::EngineFailed { engine, t, source } => {
+                failures.push(EngineFailure { engine, t, error: source.to_string(), scenario: s.clone() })
+            }
+            DiffError::Engine(_) => {}
+            e => return Err(e),
+        }
+        failed += 1;
+        Ok(())
+    };
     let first: Vec<Result<EpisodeResult, DiffError>> = seeds.par_iter().map(&eval).collect();
     let mut evaluated = first.len();
-    for r in first {
+    for (r, s) in first.into_iter().zip(&seeds) {
         match r {
             Ok(r) => absorb(r, &mut corpus, f64::NEG_INFINITY, &mut patterns),
-            Err(DiffError::Engine(_)) => failed += 1,
-            Err(e) => return Err(e),
+            Err(e) => fail(e, s)?,
         }
     }
     while evaluated < fcfg.iterations.max(seeds.len()) && !corpus.is_empty() {
@@ -194,11 +215,10 @@ pub fn fuzz_with_observer(
         let results: Vec<(f64, Result<EpisodeResult, DiffError>)> =
             children.par_iter().map(|(ps, c)| (*ps, eval(c))).collect();
         evaluated += results.len();
-        for (ps, r) in results {
+        for ((ps, r), (_, c)) in results.into_iter().zip(&children) {
             match r {
                 Ok(r) => absorb(r, &mut corpus, ps, &mut patterns),
-                Err(DiffError::Engine(_)) => failed += 1,
-                Err(e) => return Err(e),
+                Err(e) => fail(e, c)?,
             }
         }
     }
@@ -206,7 +226,7 @@ pub fn fuzz_with_observer(
     let keep: BTreeSet<usize> = best.values().map(|v| v.1).collect();
     let episodes = kept.into_iter().enumerate().filter(|(i, _)| keep.contains(i)).map(|(_, e)| e).collect();
     corpus.sort_by(|a, b| b.score.total_cmp(&a.score));
-    Ok(FuzzOutcome { corpus, episodes, evaluated, failed, patterns })
+    Ok(FuzzOutcome { corpus, episodes, evaluated, failed, patterns, failures })
 }
 
 /// The oracle of the `engine_divergence` cargo-fuzz target: per-engine invariants plus the one-step

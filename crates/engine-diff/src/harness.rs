@@ -534,6 +534,24 @@ pub struct WindowRun {
 /// Resets every engine to `input.start` and runs `steps` steps (≤ `input.steps`) with the input's targets and
 /// pushes, PD torques computed from each engine's own state. `live` (the episode) may produce targets online
 /// from the lead's state; replay passes `None` and uses `input.targets`.
+/// An engine's error while it runs a window, with the engine's name and time.
+fn failed(e: &dyn Engine, source: diff_physics::EngineError) -> DiffError {
+    DiffError::EngineFailed { engine: e.name().to_string(), t: e.time(), source: Box::new(source) }
+}
+
+/// An input on which an engine failed (`ulab diff fuzz` keeps and reports them: a diverging engine is the
+/// plainest engine bug there is, not an input to skip).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EngineFailure {
+    pub engine: String,
+    /// Simulated time at the start of the step that failed (s).
+    pub t: f64,
+    /// The engine's error.
+    pub error: String,
+    /// The input, replayable as a seed corpus entry (`ulab diff fuzz --corpus`).
+    pub scenario: Scenario,
+}
+
 fn simulate_window(
     engines: &mut [Box<dyn Engine>],
     model: &RobotModel,
@@ -557,7 +575,7 @@ fn simulate_window(
     let mut engine_time = Duration::ZERO;
     let gravity = engines.first().map_or([0.0, 0.0, -robot_model::GRAVITY_EARTH], |e| e.common().gravity);
     for (i, e) in engines.iter_mut().enumerate() {
-        e.reset(&input.start)?;
+        e.reset(&input.start).map_err(|source| failed(e.as_ref(), source))?;
         inv.energy_start[i] = e.energy().total();
     }
     let mut tau = vec![0.0; model.nj()];
@@ -588,7 +606,7 @@ fn simulate_window(
             let st = e.state();
             pd_torques_into(&target, &st.q, &st.dq, &torque_limits, &mut tau);
             let t0 = Instant::now();
-            e.step(&tau)?;
+            e.step(&tau).map_err(|source| failed(e.as_ref(), source))?;
             engine_time += t0.elapsed();
             let after = e.state();
             let w: f64 = tau.iter().zip(after.q.iter().zip(&st.q)).map(|(t, (a, b))| t * (a - b)).sum();

@@ -36,6 +36,14 @@ use thiserror::Error;
 pub enum DiffError {
     #[error(transparent)]
     Engine(#[from] diff_physics::EngineError),
+    /// An engine failed while it ran an input (diverged, or refused a state the others took): which, and when.
+    #[error("{engine} failed at t = {t:.4} s")]
+    EngineFailed {
+        engine: String,
+        t: f64,
+        #[source]
+        source: Box<diff_physics::EngineError>,
+    },
     #[error(transparent)]
     Policy(#[from] policy_runtime::PolicyError),
     #[error(transparent)]

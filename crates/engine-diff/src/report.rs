@@ -186,6 +186,9 @@ pub struct Report {
     pub divergence: Vec<EngineDivergence>,
     pub outcomes: Vec<OutcomeDistribution>,
     pub entries: Vec<Entry>,
+    /// Inputs on which an engine failed (`ulab diff fuzz`): candidate engine bugs that have no window to triage.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub engine_failures: Vec<crate::harness::EngineFailure>,
     pub allow_list: AllowList,
     /// What each allow-list entry absorbed.
     pub allow_usage: Vec<AllowUsage>,
@@ -434,6 +437,7 @@ pub fn analyse(a: &Analysis<'_>, episodes: &[EpisodeResult]) -> Result<(Report, 
         divergence,
         outcomes,
         entries,
+        engine_failures: Vec::new(),
         allow_list: a.allow.clone(),
         allow_usage: allow_usage(a.allow, episodes),
         timing,
@@ -529,6 +533,13 @@ impl Report {
                     stats_cell(&o.velocity_tracking_rms),
                     o.joint_tracking_vs_lead_p.map(|p| format!("{p:.2}")).unwrap_or_else(|| "–".into())
                 );
+            }
+        }
+        if !self.engine_failures.is_empty() {
+            s += "\n## Engine failures\n\nAn engine failed on these inputs (candidate engine bugs; each input is `failures/NN.json`, \
+                  replayed by `ulab diff fuzz --corpus DIR/failures`):\n\n| input | engine | failing step from t (s) | error | seed |\n|---|---|---|---|---|\n";
+            for (i, f) in self.engine_failures.iter().enumerate() {
+                s += &format!("| `{i:02}.json` | {} | {:.4} | {} | {} |\n", f.engine, f.t, f.error, f.scenario.seed);
             }
         }
         s += "\n## Triaged divergences\n\n";
@@ -639,6 +650,13 @@ pub fn write_outputs(
     w("report.json", serde_json::to_string_pretty(report)?)?;
     for (name, r) in repros {
         w(name, serde_json::to_string_pretty(r)?)?;
+    }
+    if !report.engine_failures.is_empty() {
+        let d = dir.join("failures");
+        std::fs::create_dir_all(&d).map_err(io_err(&d))?;
+        for (i, f) in report.engine_failures.iter().enumerate() {
+            w(&format!("failures/{i:02}.json"), serde_json::to_string_pretty(&f.scenario)?)?;
+        }
     }
     let engines: Vec<&str> = report.divergence.iter().map(|d| d.engine.as_str()).collect();
     let windows: Vec<&crate::harness::WindowRecord> = episodes.iter().flat_map(|e| e.windows.iter()).collect();

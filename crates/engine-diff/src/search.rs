@@ -200,7 +200,7 @@ fn unexpected(r: &[Result<EpisodeResult, DiffError>]) -> Result<(), DiffError> {
     // Engine failures are counted; anything else (bad input, policy errors) stops the search.
     for x in r {
         if let Err(e) = x {
-            if !matches!(e, DiffError::Engine(_)) {
+            if !matches!(e, DiffError::Engine(_) | DiffError::EngineFailed { .. }) {
                 return Err(DiffError::Input(format!("search rollout failed: {e}")));
             }
         }

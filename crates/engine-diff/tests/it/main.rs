@@ -5,6 +5,7 @@
 mod allowlist_evidence;
 mod campaign_triage;
 mod determinism;
+mod engine_failure;
 mod fuzz_regressions;
 mod harness;
 mod planted_bug;

@@ -409,12 +409,14 @@ fn check_seconds(s: f64) -> Result<()> {
 }
 
 fn summarize(out: &Path, report: &engine_diff::report::Report, fail_on_bug: bool) -> Exit {
-    let bugs = report.entries.iter().filter(|e| e.triage == Class::CandidateEngineBug).count();
+    let failures = report.engine_failures.len();
+    let bugs = report.entries.iter().filter(|e| e.triage == Class::CandidateEngineBug).count() + failures;
     let expected = report.entries.iter().filter(|e| matches!(e.triage, Class::ExpectedDifference { .. })).count();
-    let translation = report.entries.len() - bugs - expected;
+    let translation = report.entries.len() + failures - bugs - expected;
+    let of_which = if failures > 0 { format!(" ({failures} of them engine failures)") } else { String::new() };
     println!(
-        "{} entries: {bugs} candidate engine bug(s), {expected} expected difference(s), {translation} translation problem(s); report in {}",
-        report.entries.len(),
+        "{} entries: {bugs} candidate engine bug(s){of_which}, {expected} expected difference(s), {translation} translation problem(s); report in {}",
+        report.entries.len() + failures,
         out.join("report.md").display()
     );
     if fail_on_bug && bugs > 0 {
@@ -463,7 +465,7 @@ fn diff(a: RunArgs) -> Result<Exit> {
         let results = items.into_iter().zip(episodes).collect();
         return super::merge::write_shard(&out, SHARD_KIND, shard, scenarios.len(), campaign, results);
     }
-    let report = report(&out, &s, a.minimize, &episodes)?;
+    let report = report(&out, &s, a.minimize, &episodes, Vec::new())?;
     if let (Some(path), Some(first)) = (&a.video, episodes.first()) {
         let ends = super::video::render_trajectories(&s.model, path, &a.video_args, &first.trajectories)
             .with_context(|| format!("rendering {}", path.display()))?;
@@ -475,7 +477,13 @@ fn diff(a: RunArgs) -> Result<Exit> {
 }
 
 /// Analyses every episode of a run (in report order) and writes the report into `out`.
-fn report(out: &Path, s: &Setup, minimize: usize, episodes: &[EpisodeResult]) -> Result<engine_diff::report::Report> {
+fn report(
+    out: &Path,
+    s: &Setup,
+    minimize: usize,
+    episodes: &[EpisodeResult],
+    failures: Vec<engine_diff::harness::EngineFailure>,
+) -> Result<engine_diff::report::Report> {
     let allow = AllowList::builtin().context("allow-list")?;
     let an = Analysis {
         model: &s.model,
@@ -486,7 +494,8 @@ fn report(out: &Path, s: &Setup, minimize: usize, episodes: &[EpisodeResult]) ->
         allow: &allow,
         minimize_limit: minimize,
     };
-    let (report, repros) = analyse(&an, episodes).context("analysing")?;
+    let (mut report, repros) = analyse(&an, episodes).context("analysing")?;
+    report.engine_failures = failures;
     write_outputs(out, &report, &repros, episodes).with_context(|| format!("writing {}", out.display()))?;
     Ok(report)
 }
@@ -507,7 +516,7 @@ pub(crate) fn merge(files: &[PathBuf], out: &Path) -> Result<Exit> {
             bail!("episode {i} of the shards is not the input the campaign makes (seed {})", e.scenario.seed);
         }
     }
-    let report = report(out, &s, c.minimize, &episodes)?;
+    let report = report(out, &s, c.minimize, &episodes, Vec::new())?;
     Ok(summarize(out, &report, c.fail_on_bug))
 }
 
@@ -624,7 +633,7 @@ fn fuzz_report(out: &Path, s: &Setup, c: &FuzzCampaign, lanes: Vec<engine_diff::
         outcome.patterns.len(),
         outcome.corpus.first().map(|c| c.score).unwrap_or(0.0)
     );
-    let report = report(out, s, c.minimize, &outcome.episodes)?;
+    let report = report(out, s, c.minimize, &outcome.episodes, outcome.failures)?;
     Ok(summarize(out, &report, c.fail_on_bug))
 }
 
