@@ -9,19 +9,20 @@ SolverMuJoCo with armature 0 (the independent solver; needs `pip install "newton
 honoured means a smaller rate.
 
   ulab model mjcf > /tmp/h1_2.xml
-  .venv-newton/bin/python bench/rediscovery/newton/issue_4269.py /tmp/h1_2.xml ["CONFIG"]   # one row only
-Prints one JSON line per configuration and exits 0 (the verdicts are data, not a test).
+  .venv-newton/bin/python bench/rediscovery/newton/issue_4269.py /tmp/h1_2.xml ["CONFIG"] [--dt S]
+Prints one JSON line per configuration (CONFIG: that row only) and exits 0 (the verdicts are data, not a test).
+`--dt` changes the step (default 2 ms) to test the mechanism against the bound `explicit_damping_bound.py` predicts.
 """
+import argparse
 import json
 import re
-import sys
 
 import numpy as np
 import newton
 import warp as wp
 
 wp.config.quiet = True
-DT, SECONDS = 0.002, 0.5
+SECONDS, DT = 0.5, 0.002
 
 
 def build(mjcf, armature, damping):
@@ -35,7 +36,7 @@ def build(mjcf, armature, damping):
     return b.finalize(device="cpu")
 
 
-def run(mjcf, solver, armature, damping=True):
+def run(mjcf, solver, armature, damping=True, dt=DT):
     m = build(mjcf, armature, damping)
     s0, s1, ctl = m.state(), m.state(), m.control()
     q = m.joint_q.numpy()
@@ -49,29 +50,34 @@ def run(mjcf, solver, armature, damping=True):
         sol = newton.solvers.SolverFeatherstone(m, angular_damping=0.0)
     else:
         sol = newton.solvers.SolverMuJoCo(m, disable_contacts=True)
-    for i in range(int(round(SECONDS / DT))):
-        sol.step(s0, s1, ctl, None, DT)
+    for i in range(int(round(SECONDS / dt))):
+        sol.step(s0, s1, ctl, None, dt)
         s0, s1 = s1, s0
         x = np.concatenate([s0.joint_q.numpy(), s0.joint_qd.numpy()])
         if not np.isfinite(x).all():
-            return {"finite": False, "t": round((i + 1) * DT, 6)}
+            return {"finite": False, "t": round((i + 1) * dt, 6)}
     return {"finite": True, "t": SECONDS, "max_joint_rate": float(np.abs(s0.joint_qd.numpy()[6:]).max())}
 
 
 def main():
-    mjcf = open(sys.argv[1]).read()
+    ap = argparse.ArgumentParser()
+    ap.add_argument("mjcf")
+    ap.add_argument("config", nargs="?")
+    ap.add_argument("--dt", type=float, default=DT)
+    a = ap.parse_args()
+    mjcf, dt = open(a.mjcf).read(), a.dt
     rows = [
-        ("#4269", "SolverFeatherstone", "armature 0", lambda: run(mjcf, "featherstone", False)),
-        ("#4269", "SolverFeatherstone", "armature 0.1", lambda: run(mjcf, "featherstone", True)),
+        ("#4269", "SolverFeatherstone", "armature 0", lambda: run(mjcf, "featherstone", False, dt=dt)),
+        ("#4269", "SolverFeatherstone", "armature 0.1", lambda: run(mjcf, "featherstone", True, dt=dt)),
         # Featherstone applies joint damping explicitly: d·dt/I ≫ 2 on the wrists without armature.
-        ("#4269", "SolverFeatherstone", "armature 0, damping 0", lambda: run(mjcf, "featherstone", False, False)),
-        ("#4269", "SolverMuJoCo", "armature 0", lambda: run(mjcf, "mujoco", False)),
-        ("#2303", "SolverFeatherstone", "damping 1", lambda: run(mjcf, "featherstone", True, True)),
-        ("#2303", "SolverFeatherstone", "damping 0", lambda: run(mjcf, "featherstone", True, False)),
+        ("#4269", "SolverFeatherstone", "armature 0, damping 0",
+         lambda: run(mjcf, "featherstone", False, False, dt=dt)),
+        ("#4269", "SolverMuJoCo", "armature 0", lambda: run(mjcf, "mujoco", False, dt=dt)),
+        ("#2303", "SolverFeatherstone", "damping 1", lambda: run(mjcf, "featherstone", True, True, dt=dt)),
+        ("#2303", "SolverFeatherstone", "damping 0", lambda: run(mjcf, "featherstone", True, False, dt=dt)),
     ]
-    only = sys.argv[2] if len(sys.argv) > 2 else None
     for issue, solver, config, f in rows:
-        if only and only != config:
+        if a.config and a.config != config:
             continue
         try:
             r = f()
@@ -79,7 +85,7 @@ def main():
         except Exception as e:  # noqa: BLE001 - a solver that cannot run is reported, not fatal
             r, verdict = {"error": f"{type(e).__name__}: {e}"[:200]}, "n/a"
         print(json.dumps({"newton": newton.__version__, "issue": issue, "solver": solver, "config": config,
-                          "verdict": verdict, **r}), flush=True)
+                          "dt": dt, "verdict": verdict, **r}), flush=True)
 
 
 if __name__ == "__main__":
