@@ -7,7 +7,8 @@
 # flagged on the first and quiet on the second rediscovers the bug.
 #   bash bench/rediscovery/blind.sh          # from the repository root
 # Environment: BLIND_BUDGET (CPU seconds per version, this process and its children; default 1800),
-# BLIND_SEED (default 1), BLIND_WHEELS (default: every wheel of the cross set, as PKG:VER), CARGO_TARGET_DIR
+# BLIND_SEED (default 1), BLIND_WHEELS (default: every wheel of the cross set, as PKG:VER; `rapier:VER` runs the Rust
+# adapter of a glam-era rapier version, adapters/rapier-VER/src/blind.rs, built here), CARGO_TARGET_DIR
 # (default target-rediscovery), REDISCOVERY_NICE (default 10), REDISCOVERY_VENVS, REDISCOVERY_VENV_PREFIX (see
 # run.sh). Output: $CARGO_TARGET_DIR/blind-out/PKG-VER/{findings.jsonl,summary.json,scenes/} and a table on stdout.
 set -euo pipefail
@@ -28,18 +29,51 @@ read -r -a wheels <<< "${BLIND_WHEELS:-mujoco:3.1.0 mujoco:3.1.1 mujoco:3.1.5 mu
 "${nice_cmd[@]}" cargo build --quiet --locked --manifest-path "$here/Cargo.toml" -p rediscovery-harness --bin blind
 blind="$CARGO_TARGET_DIR/debug/blind"
 
+# engine_of PKG VER: sets eng_py and eng_adapter, the PYTHON ADAPTER pair of `blind` for that version: a wheel's venv
+# interpreter and Python adapter, or (PKG rapier) the Rust adapter's executable and `-`.
+engine_of() {
+    if [ "$1" = rapier ]; then
+        local crate="rapier-${2//[.-]/_}"
+        if [ ! -f "$here/adapters/$crate/src/blind.rs" ]; then
+            echo "no blind adapter for rapier $2 (adapters/$crate/src/blind.rs)" >&2
+            return 1
+        fi
+        "${nice_cmd[@]}" cargo build --quiet --locked --manifest-path "$here/adapters/$crate/Cargo.toml" --bin "blind-$crate"
+        eng_py="$CARGO_TARGET_DIR/debug/blind-$crate" eng_adapter=-
+    else
+        ensure_venv "$1" "$2"
+        eng_py="$venv/bin/python" eng_adapter="$here/adapters/python/$adapter"
+    fi
+}
+
 for w in "${wheels[@]}"; do
     pkg="${w%%:*}" ver="${w##*:}"
-    ensure_venv "$pkg" "$ver"
+    engine_of "$pkg" "$ver"
     rm -rf "${out:?}/$pkg-$ver"
-    "${nice_cmd[@]}" "$blind" campaign "$venv/bin/python" "$here/adapters/python/$adapter" "$seed" "$budget" "$out/$pkg-$ver" > /dev/null
+    "${nice_cmd[@]}" "$blind" campaign "$eng_py" "$eng_adapter" "$seed" "$budget" "$out/$pkg-$ver" > /dev/null
     python3 -c 'import json,sys; s=json.load(open(sys.argv[1])); print("{engine}: {scenes} scenes, {flagged} flagged, {unsupported} not run, {cpu_s:.0f} CPU s, first finding after {cpu_s_to_first_finding} CPU s".format(**s))' "$out/$pkg-$ver/summary.json" >&2
 done
 
-pkg_of() { case "$1" in MuJoCo) echo mujoco ;; pybullet) echo pybullet ;; dartpy) echo dartpy ;; esac; }
+pkg_of() { case "$1" in MuJoCo) echo mujoco ;; pybullet) echo pybullet ;; dartpy) echo dartpy ;; rapier3d) echo rapier ;; esac; }
 echo "| bug | last bad / first good | scenes flagged on last bad | of them quiet on first good | smallest such scene (bodies+geoms) | rediscovered |"
 echo "|---|---|---|---|---|---|"
-while IFS=$'\t' read -r engine bad good id; do
+# Bugs fixed by one release share a version pair (rapier #974 and #968): the flip cannot tell them apart, so the first
+# row names every bug of its pair and the later ones point to it instead of replaying the same scenes again (README:
+# how the flips were attributed).
+mapfile -t bugs < <("$blind" bugs)
+declare -A first_of_pair=() ids_of_pair=()
+for line in "${bugs[@]}"; do
+    IFS=$'\t' read -r engine bad good id <<< "$line"
+    ids_of_pair["$engine $bad $good"]+="${ids_of_pair["$engine $bad $good"]:+ and }$id"
+done
+for line in "${bugs[@]}"; do
+    IFS=$'\t' read -r engine bad good id <<< "$line"
+    pair="$engine $bad $good"
+    if [ -n "${first_of_pair[$pair]:-}" ]; then
+        echo "| $id | $bad / $good | same pair as ${first_of_pair[$pair]}: the same scenes | | | see ${first_of_pair[$pair]} |"
+        continue
+    fi
+    first_of_pair[$pair]="$id"
     pkg=$(pkg_of "$engine")
     dir="$out/$pkg-$bad"
     if [ ! -d "$dir/scenes" ]; then
@@ -47,19 +81,19 @@ while IFS=$'\t' read -r engine bad good id; do
         continue
     fi
     mapfile -t files < <(find "$dir/scenes" -name '*.json' | sort)
-    ensure_venv "$pkg" "$bad"
-    bad_py="$venv/bin/python" bad_adapter="$here/adapters/python/$adapter"
-    ensure_venv "$pkg" "$good"
-    good_py="$venv/bin/python" good_adapter="$here/adapters/python/$adapter"
+    engine_of "$pkg" "$bad"
+    bad_py="$eng_py" bad_adapter="$eng_adapter"
+    engine_of "$pkg" "$good"
+    good_py="$eng_py" good_adapter="$eng_adapter"
     if [ "${#files[@]}" -eq 0 ]; then
         echo "| $id | $bad / $good | 0 | | | no |"
         continue
     fi
     "${nice_cmd[@]}" "$blind" replay "$bad_py" "$bad_adapter" "${files[@]}" > "$dir/replay-$bad.jsonl"
     "${nice_cmd[@]}" "$blind" replay "$good_py" "$good_adapter" "${files[@]}" > "$dir/replay-$good.jsonl"
-    python3 - "$dir" "$bad" "$good" "$id" <<'PY'
+    python3 - "$dir" "$bad" "$good" "$id" "${ids_of_pair[$pair]}" <<'PY'
 import json, os, sys
-d, bad, good, bug = sys.argv[1:5]
+d, bad, good, bug, pair_bugs = sys.argv[1:6]
 def load(v):
     return {r["verdict"]["scene"]: r for r in map(json.loads, open(os.path.join(d, "replay-%s.jsonl" % v)))}
 b, g = load(bad), load(good)
@@ -71,6 +105,7 @@ def size(s):
     return len(w["bodies"]) + sum(len(x["geoms"]) for x in w["bodies"])
 best = min(quiet, key=size) if quiet else None
 print("| {} | {} / {} | {} | {} | {} | {} |".format(bug, bad, good, len(flagged), len(quiet),
-      "{} ({}; {})".format(best, size(best), b[best]["violation"]) if best else "-", "**yes**" if quiet else "no"))
+      "{} ({}; {})".format(best, size(best), b[best]["violation"]) if best else "-",
+      ("**yes**" if pair_bugs == bug else "**yes**, for one of " + pair_bugs) if quiet else "no"))
 PY
-done < <("$blind" bugs)
+done

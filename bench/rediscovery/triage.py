@@ -5,7 +5,8 @@ cause removed (a counterfactual variant of the scene or of the engine option) an
     python3 bench/rediscovery/triage.py target-rediscovery/blind-out/mujoco-3.17.0 [OUT_DIR ...]
 
 Each OUT_DIR is a `blind campaign` output (findings.jsonl, scenes/), named PKG-VER; the venv is
-$REDISCOVERY_VENVS/PKG-VER (default target-rediscovery/venvs) and the judge is the harness's own `blind replay`
+$REDISCOVERY_VENVS/PKG-VER (default target-rediscovery/venvs), or for PKG `rapier` the Rust adapter
+$CARGO_TARGET_DIR/debug/blind-rapier-VER (VER with `_` for `.` and `-`, built by blind.sh), and the judge is the harness's own `blind replay`
 ($CARGO_TARGET_DIR/debug/blind, default target-rediscovery). For every flag, the variants below are built and replayed
 on the same engine version; the flag's class is the first variant, in the order `ORDER` gives for its violation, on
 which the scene is judged and no longer shows the flag's violation; a flag no variant clears is a candidate defect. All variants that clear it are
@@ -252,8 +253,16 @@ def venv_python(pkg, ver):
     return os.path.join(base, os.environ.get("REDISCOVERY_VENV_PREFIX", "") + "{}-{}".format(pkg, ver), "bin", "python")
 
 
-def blind_bin():
-    return os.path.join(os.environ.get("CARGO_TARGET_DIR", os.path.join(ROOT, "target-rediscovery")), "debug", "blind")
+def blind_bin(name="blind"):
+    return os.path.join(os.environ.get("CARGO_TARGET_DIR", os.path.join(ROOT, "target-rediscovery")), "debug", name)
+
+
+def engine(pkg, ver):
+    """The PYTHON ADAPTER pair of `blind replay` for one version: a wheel's venv interpreter and Python adapter, or for
+    PKG `rapier` the Rust adapter's executable (built by blind.sh) and `-`."""
+    if pkg == "rapier":
+        return blind_bin("blind-rapier-" + ver.replace(".", "_").replace("-", "_")), "-"
+    return venv_python(pkg, ver), os.path.join(HERE, "adapters", "python", ADAPTERS[pkg])
 
 
 def replay(python, adapter, scenes, work):
@@ -291,8 +300,7 @@ def main(dirs):
         pkg, ver = name.split("-", 1)
         findings = [json.loads(l) for l in open(os.path.join(d, "findings.jsonl")) if l.strip()]
         scenes = {r["scene"]: json.load(open(os.path.join(d, "scenes", r["scene"] + ".json"))) for r in findings}
-        python = venv_python(pkg, ver)
-        adapter = os.path.join(HERE, "adapters", "python", ADAPTERS[pkg])
+        python, adapter = engine(pkg, ver)
         results = {r["scene"]: {"violation": r["violation"], "cleared_by": [], "tried": []} for r in findings}
         with tempfile.TemporaryDirectory() as work:
             base = replay(python, adapter, list(scenes.values()), work)
@@ -330,9 +338,9 @@ def main(dirs):
             for opkg, over in engines:
                 if opkg == pkg:
                     continue
-                oad = os.path.join(HERE, "adapters", "python", ADAPTERS[opkg])
+                opy, oad = engine(opkg, over)
                 mine = [scenes[r["scene"]] for r in findings if r["violation"] != "inverse_dynamics"]
-                got = replay(venv_python(opkg, over), oad, mine, work)
+                got = replay(opy, oad, mine, work)
                 for r in findings:
                     if r["violation"] == "inverse_dynamics":
                         continue

@@ -5,7 +5,7 @@
 //! blind campaign PYTHON ADAPTER SEED BUDGET_S OUT_DIR
 //! blind replay PYTHON ADAPTER SCENE.json...     # verdict lines of saved scenes on another version
 //! blind minimise PYTHON ADAPTER SCENE.json BUDGET_S OUT.json [GOOD_PYTHON]
-//! blind bugs                                    # the known-bug table: engine, last bad, first good, id
+//! blind bugs                                    # known bugs (cross set, rapier set): engine, bad, good, id
 //! ```
 //!
 //! `campaign` generates scenes from `SEED` and runs them in batches through `PYTHON ADAPTER` (one engine
@@ -15,6 +15,10 @@
 //! `findings.jsonl` (one line per finding), `scenes/ID.json` (flagged scenes), `scenes/ID-min.json`
 //! (minimised) and `summary.json`. The campaign knows nothing of which bug the version has.
 //!
+//! `ADAPTER` is a Python adapter script run as `PYTHON ADAPTER BATCH.json`, or `-` for a native adapter: then
+//! `PYTHON` is the adapter's executable, run as `PYTHON BATCH.json` (the Rust adapters of the rapier versions,
+//! `adapters/rapier-*/src/blind.rs`). Both print the same observation lines.
+//!
 //! `minimise` reduces one saved scene the same way; with `GOOD_PYTHON` (another version of the same engine) a
 //! reduction is kept only if it still violates the same invariant on `PYTHON` **and** is judged quiet on
 //! `GOOD_PYTHON`, so the minimised scene keeps the version flip instead of drifting to a failure both share.
@@ -23,7 +27,7 @@
 use anyhow::{anyhow, bail, Context, Result};
 use rediscovery_harness::blind::{generate, judge_world, reductions, size, Violation, World};
 use rediscovery_harness::cross::{Observation, CROSS_BUGS};
-use rediscovery_harness::Verdict;
+use rediscovery_harness::{Verdict, BUGS};
 use std::collections::{HashMap, HashSet};
 use std::io::Read;
 use std::path::PathBuf;
@@ -36,7 +40,8 @@ const BATCH: usize = 16;
 struct Engine {
     /// Absolute: the adapter runs with its own directory as the working directory.
     python: PathBuf,
-    adapter: PathBuf,
+    /// `None`: `python` is a native adapter executable (ADAPTER `-`), run in the work directory.
+    adapter: Option<PathBuf>,
     work: PathBuf,
     label: String,
 }
@@ -45,8 +50,28 @@ impl Engine {
     fn new(python: &str, adapter: &str, work: PathBuf) -> Result<Engine> {
         // Not canonicalised: a venv's interpreter is a symlink that must keep its path.
         let python = std::path::absolute(python).with_context(|| format!("python {python}"))?;
-        let adapter = std::fs::canonicalize(adapter).with_context(|| format!("adapter {adapter}"))?;
+        let adapter = if adapter == "-" {
+            None
+        } else {
+            Some(std::fs::canonicalize(adapter).with_context(|| format!("adapter {adapter}"))?)
+        };
         Ok(Engine { python, adapter, work, label: String::new() })
+    }
+
+    /// The command that runs one batch file.
+    fn command(&self, batch: &std::path::Path) -> Result<Command> {
+        let mut c = Command::new(&self.python);
+        match &self.adapter {
+            Some(a) => {
+                let dir = a.parent().ok_or_else(|| anyhow!("adapter path has no directory"))?;
+                c.arg(a).current_dir(dir);
+            }
+            None => {
+                c.current_dir(&self.work);
+            }
+        }
+        c.arg(batch);
+        Ok(c)
     }
 }
 
@@ -91,11 +116,8 @@ fn run(engine: &mut Engine, scenes: &[World]) -> Result<Vec<Observation>> {
         let file = engine.work.join("batch.json");
         std::fs::write(&file, scene_json(&rest)?)?;
         let stderr = std::fs::File::create(engine.work.join("adapter.stderr"))?;
-        let dir = engine.adapter.parent().ok_or_else(|| anyhow!("adapter path has no directory"))?;
-        let mut child = Command::new(&engine.python)
-            .arg(&engine.adapter)
-            .arg(&file)
-            .current_dir(dir)
+        let mut child = engine
+            .command(&file)?
             .stdout(Stdio::piped())
             .stderr(stderr)
             .spawn()
@@ -372,8 +394,40 @@ fn main() -> Result<()> {
             for b in CROSS_BUGS {
                 println!("{}\t{}\t{}\t{}", b.engine, b.last_bad, b.first_good, b.id);
             }
+            // The rapier set's bugs (engine label "rapier3d VERSION" of the Rust adapters).
+            for b in BUGS {
+                println!("rapier3d\t{}\t{}\t{}", b.last_bad, b.first_good, b.id);
+            }
         }
         _ => bail!("usage: blind gen|campaign|replay|minimise|bugs ... (see the source's header)"),
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn args(c: &Command) -> Vec<String> {
+        c.get_args().map(|a| a.to_string_lossy().into_owned()).collect()
+    }
+
+    #[test]
+    fn a_native_adapter_gets_only_the_batch_file_and_a_script_gets_both() -> Result<()> {
+        let work = std::env::temp_dir();
+        let batch = work.join("batch.json");
+        let native = Engine::new("/bin/true", "-", work.clone())?;
+        let c = native.command(&batch)?;
+        assert_eq!(args(&c), vec![batch.display().to_string()]);
+        assert_eq!(c.get_current_dir(), Some(work.as_path()));
+        // A script: the interpreter gets the script, then the batch, and runs in the script's directory.
+        let script = std::fs::canonicalize(file!()).or_else(|_| std::fs::canonicalize("src/bin/blind.rs"))?;
+        let py = Engine::new("/bin/true", &script.display().to_string(), work)?;
+        let c = py.command(&batch)?;
+        assert_eq!(args(&c), vec![script.display().to_string(), batch.display().to_string()]);
+        assert_eq!(c.get_current_dir(), script.parent());
+        // A missing script is an error, never taken for a native adapter.
+        assert!(Engine::new("/bin/true", "no-such-adapter.py", std::env::temp_dir()).is_err());
+        Ok(())
+    }
 }
