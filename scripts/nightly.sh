@@ -6,6 +6,7 @@
 #   - Newton (the `newton` feature, `setup.sh --newton`: ~575 MB and 30–70 s of Warp kernel compilation per solver on
 #     a cold cache): its engines against the reference and MuJoCo, the server's own unit tests, and
 #     `ulab model check` on Featherstone and Steel (docs/newton.md);
+#   - PhysX's and Newton's bit-for-bit repetition against the determinism table (docs/diff/determinism.md);
 #   - the gap diagnosis on every single effect and every stored benchmark trial (`effects_found`, 1–4 min a case;
 #     CI runs the no-effect control and one benchmark trial), and the Python plant's single-joint and load-friction
 #     logs (CI runs its control, pair and ceiling);
@@ -37,6 +38,10 @@ cargo test --locked -p diff-physics --features diff-physics/newton --test it -- 
 "$ULAB_NEWTON_PYTHON" -m unittest crates/diff-physics/python/test_newton_server.py || status=$?
 cargo test --locked -p ulab --features ulab/newton --test it -- model_cli::check_newton_solvers || status=$?
 phase "newton engines"
+# PhysX's and Newton's entries in the determinism table of this machine class (CI's build lacks both engines).
+cargo test --locked -p engine-diff --features engine-diff/physx,engine-diff/newton --test it -- determinism:: \
+  || status=$?
+phase "physx and newton determinism"
 cargo test --locked -p gap-bench --test it -- --include-ignored effects_found:: || status=$?
 phase "effects_found"
 cargo test --locked -p gap-diagnosis --test it -- --include-ignored python_plant:: || status=$?

@@ -1,7 +1,8 @@
 //! Bit-for-bit reproducibility, measured (issue 62): one fixed episode run closed-loop in each engine, every
 //! physics step's state hashed. The same engine library on the same machine class must give the same hash in any
-//! process, on any thread count and in any shard of a campaign; a committed table (`corpus/determinism/`) holds
-//! the hashes, and [`compare`] says, engine by engine, whether this run reproduced them.
+//! process, on any thread count and in any shard of a campaign; committed tables (`corpus/determinism/`, one per
+//! machine class, [`read_tables`], [`table_for`]) hold the hashes, and [`compare`] says, engine by engine, whether
+//! this run reproduced them.
 //!
 //! The episode goes through the campaigns' own path ([`harness::free_run_recorded`], the state sampled after
 //! every step), so a hash that repeats is a statement about what `ulab diff`, `ulab validate` and the fuzzer
@@ -19,6 +20,7 @@ use rayon::prelude::*;
 use robot_model::RobotModel;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
+use std::path::Path;
 use std::sync::Arc;
 
 /// Version of the table format ([`HashTable`]).
@@ -175,7 +177,44 @@ pub enum Comparison {
     NotCompared { why: String },
 }
 
-/// Compares a run with the committed table, engine by engine (the run's order). The probes must be equal.
+/// Reads every table (`*.json`) in `dir`: one per robot and machine class (two tables of the same robot and
+/// class are an error, as the check could not say which one holds).
+pub fn read_tables(dir: &Path) -> Result<Vec<HashTable>, DiffError> {
+    let io = |e: std::io::Error| DiffError::Io { path: dir.display().to_string(), source: e };
+    let mut paths = Vec::new();
+    for entry in std::fs::read_dir(dir).map_err(io)? {
+        let path = entry.map_err(io)?.path();
+        if path.extension().is_some_and(|x| x == "json") {
+            paths.push(path);
+        }
+    }
+    paths.sort();
+    let mut tables: Vec<HashTable> = Vec::new();
+    for path in paths {
+        let text = std::fs::read_to_string(&path)
+            .map_err(|e| DiffError::Io { path: path.display().to_string(), source: e })?;
+        let t: HashTable = serde_json::from_str(&text)
+            .map_err(|e| DiffError::Input(format!("{}: not a hash table: {e}", path.display())))?;
+        if tables.iter().any(|o| o.robot == t.robot && o.machine == t.machine) {
+            return Err(DiffError::Input(format!(
+                "{}: a second table for {} on {}",
+                path.display(),
+                t.robot,
+                t.machine
+            )));
+        }
+        tables.push(t);
+    }
+    Ok(tables)
+}
+
+/// The table of `robot` measured on machine class `machine`, if `tables` has one.
+pub fn table_for<'a>(tables: &'a [HashTable], robot: &str, machine: &MachineClass) -> Option<&'a HashTable> {
+    tables.iter().find(|t| t.robot == robot && &t.machine == machine)
+}
+
+/// Compares a run with the committed table, engine by engine (the run's order, then the table's entries the run
+/// did not hash: their engine is not compiled into this build or was not selected). The probes must be equal.
 pub fn compare(table: &HashTable, run: &HashTable) -> Result<Vec<(String, Comparison)>, DiffError> {
     if table.probe != run.probe || table.robot != run.robot || table.format != run.format {
         return Err(DiffError::Input(format!(
@@ -210,6 +249,10 @@ pub fn compare(table: &HashTable, run: &HashTable) -> Result<Vec<(String, Compar
             };
             (e.engine.clone(), c)
         })
+        .chain(table.engines.iter().filter(|t| !run.engines.iter().any(|e| e.engine == t.engine)).map(|t| {
+            let why = "not hashed in this run (engine not in this build, or not selected)".to_string();
+            (t.engine.clone(), Comparison::NotCompared { why })
+        }))
         .collect())
 }
 
@@ -242,6 +285,23 @@ mod tests {
         assert!(matches!(c[0].1, Comparison::Differs { .. }));
         let c = compare(&table(there, "aa"), &table(here, "bb")).unwrap();
         assert!(matches!(c[0].1, Comparison::NotCompared { .. }));
+    }
+
+    #[test]
+    fn an_entry_the_run_did_not_hash_is_not_compared_and_the_table_is_chosen_by_class() {
+        let here = MachineClass { arch: "x86_64".into(), features: vec!["fma".into()] };
+        let there = MachineClass { arch: "x86_64".into(), features: vec![] };
+        let mut t = table(here.clone(), "aa");
+        t.engines.push(EngineHash { engine: "physx".into(), version: "p".into(), steps: 1000, sha256: "cc".into() });
+        let c = compare(&t, &table(here.clone(), "aa")).unwrap();
+        assert_eq!(c.len(), 2);
+        assert_eq!(c[0].1, Comparison::Reproduced);
+        assert_eq!(c[1].0, "physx");
+        assert!(matches!(c[1].1, Comparison::NotCompared { .. }));
+        let tables = [table(there.clone(), "bb"), t];
+        assert_eq!(table_for(&tables, "h1_2", &here).map(|t| t.engines.len()), Some(2));
+        assert_eq!(table_for(&tables, "h1_2", &there).map(|t| t.engines[0].sha256.as_str()), Some("bb"));
+        assert!(table_for(&tables, "g1", &here).is_none());
     }
 
     #[test]

@@ -13,8 +13,9 @@
 //! - `ulab diff bench`: rollouts per second per engine, on one thread and on all cores.
 //! - `ulab diff search [--budget N] [--methods cem,mutation,random]`: CEM over perturbations of the rollout
 //!   against the mutation fuzzer and uniform random inputs, at equal compute.
-//! - `ulab diff hash [--check TABLE] [--write TABLE]`: every engine's hash of a fixed episode
-//!   (`engine_diff::determinism`), compared with a committed table: bit-for-bit reproducibility, measured.
+//! - `ulab diff hash [--check TABLE|DIR] [--write TABLE]`: every engine's hash of a fixed episode
+//!   (`engine_diff::determinism`), compared with the committed table of this machine class: bit-for-bit
+//!   reproducibility, measured.
 //!
 //! `--shard K/N` runs only the episodes dealt to shard K (`campaign`: episode i goes to shard i mod N + 1) and
 //! writes `DIR/shard-K-of-N.cbor` instead of the report; `ulab merge` (`super::merge`) runs the analysis on every
@@ -76,7 +77,8 @@ struct HashArgs {
     /// Worker threads (engines run in parallel); the hashes must not depend on it.
     #[arg(long, default_value_t = 1)]
     threads: usize,
-    /// Committed table to compare with (corpus/determinism/h1_2.json).
+    /// Committed table to compare with: a file, or a directory of tables (corpus/determinism/), of which the one
+    /// of this robot and machine class is used.
     #[arg(long)]
     check: Option<PathBuf>,
     /// Write this run's table here (JSON).
@@ -757,7 +759,7 @@ pub(crate) fn default_engines() -> String {
 }
 
 fn hash(a: HashArgs) -> Result<Exit> {
-    use engine_diff::determinism::{compare, hash_table, Comparison, HashTable, Probe};
+    use engine_diff::determinism::{compare, hash_table, read_tables, table_for, Comparison, HashTable, Probe};
     check_seconds(a.seconds)?;
     if !robot_model::BUILTIN_ROBOTS.contains(&a.robot.as_str()) {
         bail!("--robot must be a built-in robot ({})", robot_model::BUILTIN_ROBOTS.join(", "));
@@ -776,8 +778,28 @@ fn hash(a: HashArgs) -> Result<Exit> {
         std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))?;
     }
     let Some(path) = &a.check else { return Ok(Exit::Success) };
-    let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let table: HashTable = serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
+    let table: HashTable = if path.is_dir() {
+        let tables = read_tables(path).with_context(|| format!("reading the tables in {}", path.display()))?;
+        let Some(t) = table_for(&tables, &run.robot, &run.machine) else {
+            let measured: Vec<String> =
+                tables.iter().filter(|t| t.robot == run.robot).map(|t| t.machine.to_string()).collect();
+            for e in &run.engines {
+                println!(
+                    "{}: not compared: {} has no table for {} on {} (only for: {})",
+                    e.engine,
+                    path.display(),
+                    run.robot,
+                    run.machine,
+                    measured.join(", ")
+                );
+            }
+            return Ok(Exit::Success);
+        };
+        t.clone()
+    } else {
+        let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+        serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))?
+    };
     let mut differs = 0;
     for (engine, c) in compare(&table, &run).with_context(|| format!("comparing with {}", path.display()))? {
         match c {
