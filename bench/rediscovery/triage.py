@@ -9,7 +9,9 @@ $REDISCOVERY_VENVS/PKG-VER (default target-rediscovery/venvs), or for PKG `rapie
 $CARGO_TARGET_DIR/debug/blind-rapier-VER (VER with `_` for `.` and `-`, built by blind.sh), and the judge is the harness's own `blind replay`
 ($CARGO_TARGET_DIR/debug/blind, default target-rediscovery). For every flag, the variants below are built and replayed
 on the same engine version; the flag's class is the first variant, in the order `ORDER` gives for its violation, on
-which the scene is judged and no longer shows the flag's violation; a flag no variant clears is a candidate defect. All variants that clear it are
+which the scene is judged and no longer shows the flag's violation (for the variants that change the step,
+`coarse_step` and `several_causes`: shows no penetration, energy or non-finite violation at all); a flag no variant
+clears is a candidate defect. All variants that clear it are
 reported too (`cleared_by`), so overlaps are visible. The inverse-dynamics flags of pybullet have their own class
 (rotated floating root, README) and are checked by the identity-orientation variant.
 
@@ -23,8 +25,15 @@ Variants (cause → what is removed):
 * `inverted_limit`: a joint whose lower limit exceeds its upper one → that limit removed;
 * `soft_contact` (MuJoCo only): a scene's own `solref` time constant → MuJoCo's default;
 * `transient` (penetration only): the scene run 3 s longer, so the judged window is not in the middle of an impact;
+* `capsule_as_sphere` (DART only): capsules → cylinders of the same radius and half-length (DART's default FCL
+  detector builds no capsule and puts a fixed small sphere in its place; `dart/capsule_as_sphere.py`);
+* `mesh_primitives` (DART only): FCL colliding spheres, boxes and cylinders as primitives instead of DART's default
+  tessellated meshes (a mesh sphere rests up to 0.09 r deeper than the sphere; `dart/mesh_sphere_depth.py`);
+* `coarse_step`: the scene's time step down to `FINE_STEP` (0.1 ms; the same samples recorded), for a step that does
+  not resolve the scene's fastest motion: a small body spun by an impact, or one that travels more than its own size
+  in a step;
 * `several_causes`: all the scene-level removals above at once (initial overlap, thin support, mass ratio, inverted
-  limits, own solref), for flags that need two of them together;
+  limits, own solref, capsules on DART, the fine step), for flags that need two of them together;
 * `rotated_floating_root` (inverse dynamics only): floating roots at the identity orientation.
 Counterparts: the engines of the other OUT_DIRs given, plus TRIAGE_COUNTERPARTS="PKG-VER ..." (engines whose own
 campaign is not triaged in this call). Output: a markdown table per campaign on stdout and OUT_DIR/triage.jsonl (one line per flag).
@@ -53,6 +62,15 @@ MASS_FRACTION = 0.1
 # an impact or a bounce when the judged window began has come to rest if it can.
 LONGER_S = 3.0
 
+# The `coarse_step` variant's time step. Why 0.1 ms: the generator draws steps of 1, 2 or 5 ms and geoms down to 5 mm
+# (lever arms down to 2.5 mm), and an impact at its speeds (up to about 5 m/s: 3 m/s initial per axis plus a fall of
+# about 1 m) spins such a body at omega ~ v / lever, up to ~2000 rad/s (measured in converged runs: 400 rad/s on
+# MuJoCo's s1-350 and s1-577, 900 rad/s on DART's s1-35 run in MuJoCo); a first-order step treats the
+# velocity-dependent (Coriolis, gyroscopic) terms and the contact as constant over the step, which is accurate only
+# while omega * dt is a small angle (<= 0.2 rad), i.e. dt <= 0.1 ms. 1, 2 and 5 ms are whole multiples of it, so the
+# same samples are recorded.
+FINE_STEP = 1e-4
+
 # Wrapper that runs the MuJoCo adapter with another integrator (the adapter itself is unchanged).
 MUJOCO_IMPLICIT = """import sys
 sys.path.insert(0, {adapters!r})
@@ -65,6 +83,26 @@ import runpy
 sys.argv = [{adapter!r}] + sys.argv[1:]
 runpy.run_path({adapter!r}, run_name="__main__")
 """
+
+# Wrapper that runs the DART adapter with FCL colliding primitives as primitives instead of DART's default meshes
+# (`FCLCollisionDetector::setPrimitiveShapeType(PRIMITIVE)`; the adapter itself is unchanged).
+DART_PRIMITIVE = """import sys
+sys.path.insert(0, {adapters!r})
+import dartpy as dart
+_World = dart.simulation.World
+def _world(*a):
+    w = _World(*a)
+    d = dart.collision.FCLCollisionDetector()
+    d.setPrimitiveShapeType(dart.collision.FCLCollisionDetector.PrimitiveShape.PRIMITIVE)
+    w.getConstraintSolver().setCollisionDetector(d)
+    return w
+dart.simulation.World = _world
+import runpy
+sys.argv = [{adapter!r}] + sys.argv[1:]
+runpy.run_path({adapter!r}, run_name="__main__")
+"""
+# Engine-option variants: the variant's name -> the wrapper that runs the engine's adapter with that option changed.
+WRAPPERS = {"euler_integrator": MUJOCO_IMPLICIT, "mesh_primitives": DART_PRIMITIVE}
 
 
 # ---- geometry (conventions of harness/src/blind.rs) ---------------------------------------------------------------
@@ -200,11 +238,35 @@ def v_longer(w):
     return c
 
 
-def v_all_scene_causes(w):
+def v_capsule_as_cylinder(w):
+    c = copy.deepcopy(w)
+    changed = False
+    for b in c["bodies"]:
+        for g in b["geoms"]:
+            if g["shape"]["type"] == "capsule":
+                g["shape"]["type"] = "cylinder"
+                changed = True
+    return c if changed else None
+
+
+def v_fine_step(w):
+    k = round(w["dt"] / FINE_STEP)
+    if k <= 1:
+        return None
+    c = copy.deepcopy(w)
+    c["dt"] = w["dt"] / k
+    c["record_every"] = w["record_every"] * k
+    return c
+
+
+def v_all_scene_causes(w, pkg):
     """Every scene-level cause above removed at once (for flags that need two of them together, e.g. a body that
-    starts embedded in a thin support)."""
+    starts embedded in a thin support), the engine-specific ones only on their engine."""
     c, changed = w, False
-    for f in (v_initial_overlap, v_thin_support, v_mass_ratio, v_inverted_limit, v_soft_contact):
+    for f, only in ((v_initial_overlap, None), (v_thin_support, None), (v_mass_ratio, None), (v_inverted_limit, None),
+                    (v_soft_contact, None), (v_capsule_as_cylinder, {"dartpy"}), (v_fine_step, None)):
+        if only and pkg not in only:
+            continue
         n = f(c)
         if n is not None:
             c, changed = n, True
@@ -221,7 +283,8 @@ def v_identity_roots(w):
     return c if changed else None
 
 
-# (name, engines or None for all, violations it may explain, scene transform or None for an engine option)
+# (name, engines or None for all, violations it may explain, scene transform (World, engine) or None for an engine
+# option of WRAPPERS)
 VARIANTS = [
     ("rotated_floating_root", None, {"inverse_dynamics"}, v_identity_roots),
     ("initial_overlap", None, {"penetration", "energy", "non_finite"}, v_initial_overlap),
@@ -231,18 +294,25 @@ VARIANTS = [
     ("inverted_limit", None, {"penetration", "energy", "non_finite"}, v_inverted_limit),
     ("soft_contact", {"mujoco"}, {"penetration", "energy", "non_finite"}, v_soft_contact),
     ("transient", None, {"penetration"}, v_longer),
+    ("capsule_as_sphere", {"dartpy"}, {"penetration", "energy", "non_finite"}, v_capsule_as_cylinder),
+    ("mesh_primitives", {"dartpy"}, {"penetration", "energy", "non_finite"}, None),
+    ("coarse_step", None, {"penetration", "energy", "non_finite"}, v_fine_step),
     ("several_causes", None, {"penetration", "energy", "non_finite"}, v_all_scene_causes),
 ]
+# Violations of the physical invariants (the inverse-dynamics consistency one does not depend on contacts or the step).
+PHYSICAL = {"penetration", "energy", "non_finite", "engine_failure"}
+# Variants that must leave the scene free of every physical violation to clear a flag: they change the step.
+STRICT = {"coarse_step", "several_causes"}
 # The order in which variants name the class, per violation: the most direct mechanism first (a thin support for a
 # body that ends below it; the integrator for a state that diverges or gains energy without contact).
 ORDER = {
     "inverse_dynamics": ["rotated_floating_root"],
     "penetration": ["initial_overlap", "thin_support", "mass_ratio", "soft_contact", "transient", "euler_integrator",
-                    "inverted_limit", "several_causes"],
+                    "inverted_limit", "capsule_as_sphere", "mesh_primitives", "coarse_step", "several_causes"],
     "energy": ["euler_integrator", "inverted_limit", "mass_ratio", "initial_overlap", "thin_support", "soft_contact",
-               "several_causes"],
+               "capsule_as_sphere", "mesh_primitives", "coarse_step", "several_causes"],
     "non_finite": ["euler_integrator", "inverted_limit", "mass_ratio", "initial_overlap", "thin_support",
-                   "soft_contact", "several_causes"],
+                   "soft_contact", "capsule_as_sphere", "mesh_primitives", "coarse_step", "several_causes"],
 }
 
 
@@ -314,7 +384,10 @@ def main(dirs):
                     if r["violation"] not in viols:
                         continue
                     w = scenes[r["scene"]]
-                    c = fn(w) if fn else copy.deepcopy(w)
+                    if fn is v_all_scene_causes:
+                        c = fn(w, pkg)
+                    else:
+                        c = fn(w) if fn else copy.deepcopy(w)
                     if c is None:
                         continue
                     c["id"] = "{}-{}".format(w["id"], vname)
@@ -322,17 +395,24 @@ def main(dirs):
                 if not todo:
                     continue
                 ad = adapter
-                if fn is None:  # an engine option: the MuJoCo adapter with the implicit integrator
-                    ad = os.path.join(work, "scenes_mujoco_implicit.py")
+                if fn is None:  # an engine option: the engine's adapter run through its wrapper
+                    ad = os.path.join(work, "adapter_{}.py".format(vname))
                     with open(ad, "w") as fh:
-                        fh.write(MUJOCO_IMPLICIT.format(adapters=os.path.dirname(adapter), adapter=adapter))
+                        fh.write(WRAPPERS[vname].format(adapters=os.path.dirname(adapter), adapter=adapter))
                 got = replay(python, ad, [c for _, c in todo], work)
                 for r, c in todo:
                     res = results[r["scene"]]
                     res["tried"].append(vname)
                     v = got.get(c["id"])
-                    # Cleared: judged (not refused, not crashed) and no longer showing the flag's violation.
-                    if v is not None and v[1] is not None and v[0] != r["violation"] and v[0] != "engine_failure":
+                    res.setdefault("outcome", {})[vname] = (
+                        "not run" if v is None or (v[0] is None and v[1] is None) else v[0] or "quiet")
+                    # Cleared: judged (not refused, not crashed) and no longer showing the flag's violation; for the
+                    # variants that refine the step, no physical violation at all (a finer step that trades an energy
+                    # flag for a body falling through the support explains nothing).
+                    cleared = v is not None and v[1] is not None and v[0] != r["violation"] and v[0] != "engine_failure"
+                    if vname in STRICT and v is not None and v[0] in PHYSICAL:
+                        cleared = False
+                    if cleared:
                         res["cleared_by"].append(vname)
             # The independent counterpart: the same flagged scenes on every other engine given.
             for opkg, over in engines:
