@@ -5,7 +5,7 @@
 //! "0 entries, no finding exceeded its bound": inputs on which an engine failed were counted on stdout and dropped.
 //! The engine here is MuJoCo that reports a divergence from its 40th step on (what Newton's server does on a
 //! non-finite state), under its own name; the lead is the unmodified MuJoCo.
-use diff_physics::{CommonSettings, Contact, Energy, Engine, EngineError, EngineKind, LinkPose, State};
+use diff_physics::{CommonSettings, Engine, EngineError, EngineKind, State};
 use engine_diff::fuzz::{fuzz, FuzzConfig};
 use engine_diff::harness::{excitation_factory, BuiltinEngine, EngineFactory, HarnessConfig};
 use engine_diff::report::{analyse, Analysis};
@@ -30,12 +30,6 @@ impl Engine for Diverging {
     fn settings(&self) -> serde_json::Value {
         self.0.settings()
     }
-    fn common(&self) -> &CommonSettings {
-        self.0.common()
-    }
-    fn reset(&mut self, s: &State) -> Result<(), EngineError> {
-        self.0.reset(s)
-    }
     fn step(&mut self, tau: &[f64]) -> Result<(), EngineError> {
         if self.1 >= FAILS_AFTER {
             return Err(EngineError::Diverged(format!("non-finite state at t = {:.6} s", self.0.time())));
@@ -46,33 +40,7 @@ impl Engine for Diverging {
     fn state(&self) -> State {
         self.0.state()
     }
-    fn time(&self) -> f64 {
-        self.0.time()
-    }
-    fn contacts(&self) -> Vec<Contact> {
-        self.0.contacts()
-    }
-    fn energy(&mut self) -> Energy {
-        self.0.energy()
-    }
-    fn link_masses(&self) -> Vec<f64> {
-        self.0.link_masses()
-    }
-    fn link_poses(&mut self) -> Vec<LinkPose> {
-        self.0.link_poses()
-    }
-    fn com(&mut self) -> [f64; 3] {
-        self.0.com()
-    }
-    fn joint_axes(&mut self) -> Vec<[f64; 3]> {
-        self.0.joint_axes()
-    }
-    fn joint_limits(&self) -> Vec<(f64, f64)> {
-        self.0.joint_limits()
-    }
-    fn generalized_acceleration(&mut self, f: &[f64]) -> Result<Vec<f64>, EngineError> {
-        self.0.generalized_acceleration(f)
-    }
+    delegate_engine!(0);
 }
 
 #[derive(Debug)]

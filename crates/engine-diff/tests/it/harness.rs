@@ -1,7 +1,7 @@
 //! Harness properties that do not depend on what the engines happen to produce: determinism (an engine
 //! compared with itself diverges by exactly zero), metric plumbing (a known injected offset is measured on
 //! the right joint), bit-exact reproducers (and a tampered one is caught), allow-list hygiene.
-use diff_physics::{CommonSettings, Contact, Energy, Engine, EngineError, EngineKind, LinkPose, State};
+use diff_physics::{CommonSettings, Engine, EngineError, EngineKind, State};
 use engine_diff::harness::{self, excitation_factory, BuiltinEngine, EngineFactory, HarnessConfig};
 use engine_diff::repro::Reproducer;
 use engine_diff::scenario::Scenario;
@@ -58,12 +58,6 @@ impl Engine for Offset {
     fn settings(&self) -> serde_json::Value {
         serde_json::Value::Null
     }
-    fn common(&self) -> &CommonSettings {
-        self.0.common()
-    }
-    fn reset(&mut self, s: &State) -> Result<(), EngineError> {
-        self.0.reset(s)
-    }
     fn step(&mut self, tau: &[f64]) -> Result<(), EngineError> {
         self.0.step(tau)
     }
@@ -72,33 +66,7 @@ impl Engine for Offset {
         s.q[J] += OFF;
         s
     }
-    fn time(&self) -> f64 {
-        self.0.time()
-    }
-    fn contacts(&self) -> Vec<Contact> {
-        self.0.contacts()
-    }
-    fn energy(&mut self) -> Energy {
-        self.0.energy()
-    }
-    fn link_masses(&self) -> Vec<f64> {
-        self.0.link_masses()
-    }
-    fn link_poses(&mut self) -> Vec<LinkPose> {
-        self.0.link_poses()
-    }
-    fn com(&mut self) -> [f64; 3] {
-        self.0.com()
-    }
-    fn joint_axes(&mut self) -> Vec<[f64; 3]> {
-        self.0.joint_axes()
-    }
-    fn joint_limits(&self) -> Vec<(f64, f64)> {
-        self.0.joint_limits()
-    }
-    fn generalized_acceleration(&mut self, f: &[f64]) -> Result<Vec<f64>, EngineError> {
-        self.0.generalized_acceleration(f)
-    }
+    delegate_engine!(0);
 }
 
 #[derive(Debug)]

@@ -5,7 +5,7 @@
 //! allow-list entry written for that engine applies to it; the lead is the unmodified MuJoCo. Without the defect
 //! the two are the same engine and diverge by exactly zero (`tests/it/harness.rs` shows that), so every finding the
 //! planted run adds is caused by the defect. Counterpart: the unmodified engine (the same code minus the defect).
-use diff_physics::{CommonSettings, Contact, Energy, Engine, EngineError, EngineKind, LinkPose, State};
+use diff_physics::{CommonSettings, Engine, EngineError, EngineKind, State};
 use engine_diff::harness::{self, excitation_factory, BuiltinEngine, EngineFactory, Finding, HarnessConfig};
 use engine_diff::scenario::Scenario;
 use engine_diff::triage::{classify, AllowList, Class, WithdrawnCovers};
@@ -40,12 +40,6 @@ impl Engine for Planted {
     fn settings(&self) -> serde_json::Value {
         self.inner.settings()
     }
-    fn common(&self) -> &CommonSettings {
-        self.inner.common()
-    }
-    fn reset(&mut self, s: &State) -> Result<(), EngineError> {
-        self.inner.reset(s)
-    }
     fn step(&mut self, tau: &[f64]) -> Result<(), EngineError> {
         if self.defect == Defect::DampingSign {
             // The engine applies −d·q̇; adding 2·d·q̇ turns it into +d·q̇.
@@ -58,33 +52,7 @@ impl Engine for Planted {
     fn state(&self) -> State {
         self.inner.state()
     }
-    fn time(&self) -> f64 {
-        self.inner.time()
-    }
-    fn contacts(&self) -> Vec<Contact> {
-        self.inner.contacts()
-    }
-    fn energy(&mut self) -> Energy {
-        self.inner.energy()
-    }
-    fn link_masses(&self) -> Vec<f64> {
-        self.inner.link_masses()
-    }
-    fn link_poses(&mut self) -> Vec<LinkPose> {
-        self.inner.link_poses()
-    }
-    fn com(&mut self) -> [f64; 3] {
-        self.inner.com()
-    }
-    fn joint_axes(&mut self) -> Vec<[f64; 3]> {
-        self.inner.joint_axes()
-    }
-    fn joint_limits(&self) -> Vec<(f64, f64)> {
-        self.inner.joint_limits()
-    }
-    fn generalized_acceleration(&mut self, f: &[f64]) -> Result<Vec<f64>, EngineError> {
-        self.inner.generalized_acceleration(f)
-    }
+    delegate_engine!(inner);
 }
 
 /// MuJoCo with `defect`, reporting itself as `name` (a Rapier engine covered by allow-list entries).
