@@ -9,9 +9,9 @@ $REDISCOVERY_VENVS/PKG-VER (default target-rediscovery/venvs), or for PKG `rapie
 $CARGO_TARGET_DIR/debug/blind-rapier-VER (VER with `_` for `.` and `-`, built by blind.sh), and the judge is the harness's own `blind replay`
 ($CARGO_TARGET_DIR/debug/blind, default target-rediscovery). For every flag, the variants below are built and replayed
 on the same engine version; the flag's class is the first variant, in the order `ORDER` gives for its violation, on
-which the scene is judged and no longer shows the flag's violation (for the variants that change the step,
-`coarse_step` and `several_causes`: shows no penetration, energy or non-finite violation at all); a flag no variant
-clears is a candidate defect. All variants that clear it are
+which the scene is judged and no longer shows the flag's violation (for the variants that change the step or lift a
+velocity cap, `coarse_step`, `velocity_clamp` and `several_causes`: shows no penetration, energy or non-finite
+violation at all); a flag no variant clears is a candidate defect. All variants that clear it are
 reported too (`cleared_by`), so overlaps are visible. The inverse-dynamics flags of pybullet have their own class
 (rotated floating root, README) and are checked by the identity-orientation variant.
 
@@ -29,11 +29,16 @@ Variants (cause → what is removed):
   detector builds no capsule and puts a fixed small sphere in its place; `dart/capsule_as_sphere.py`);
 * `mesh_primitives` (DART only): FCL colliding spheres, boxes and cylinders as primitives instead of DART's default
   tessellated meshes (a mesh sphere rests up to 0.09 r deeper than the sphere; `dart/mesh_sphere_depth.py`);
+* `velocity_clamp` (pybullet only): Bullet's maximum coordinate velocity (changeDynamics `maxJointVelocity`, 100 by
+  default) lifted to infinity on every multibody; Bullet clamps each velocity coordinate of a multibody on its own, a
+  floating base's six included, and on a light floating base spun past 100 rad/s by an impact that changes the
+  velocities of the heavy links it carries (energy and momentum from nothing; `pybullet/velocity_clamp_energy.py`);
 * `coarse_step`: the scene's time step down to `FINE_STEP` (0.1 ms; the same samples recorded), for a step that does
   not resolve the scene's fastest motion: a small body spun by an impact, or one that travels more than its own size
   in a step;
 * `several_causes`: all the scene-level removals above at once (initial overlap, thin support, mass ratio, inverted
-  limits, own solref, capsules on DART, the fine step), for flags that need two of them together;
+  limits, own solref, capsules on DART, the fine step; on pybullet run with the velocity clamp lifted too), for flags
+  that need two of them together;
 * `rotated_floating_root` (inverse dynamics only): floating roots at the identity orientation.
 Counterparts: the engines of the other OUT_DIRs given, plus TRIAGE_COUNTERPARTS="PKG-VER ..." (engines whose own
 campaign is not triaged in this call). Output: a markdown table per campaign on stdout and OUT_DIR/triage.jsonl (one line per flag).
@@ -101,8 +106,28 @@ import runpy
 sys.argv = [{adapter!r}] + sys.argv[1:]
 runpy.run_path({adapter!r}, run_name="__main__")
 """
+# Wrapper that runs the pybullet adapter with Bullet's maximum coordinate velocity lifted: changeDynamics
+# `maxJointVelocity` (one value per multibody, btMultiBody::setMaxCoordinateVelocity; 100 by default) set to infinity
+# on every multibody the adapter creates, so no velocity coordinate is ever clamped (the adapter itself is unchanged).
+PYBULLET_NO_CLAMP = """import sys
+sys.path.insert(0, {adapters!r})
+import pybullet as p
+_create = p.createMultiBody
+def _unclamped(*a, **k):
+    mb = _create(*a, **k)
+    if mb >= 0:
+        p.changeDynamics(mb, -1, maxJointVelocity=float("inf"), physicsClientId=k.get("physicsClientId", 0))
+    return mb
+p.createMultiBody = _unclamped
+import runpy
+sys.argv = [{adapter!r}] + sys.argv[1:]
+runpy.run_path({adapter!r}, run_name="__main__")
+"""
 # Engine-option variants: the variant's name -> the wrapper that runs the engine's adapter with that option changed.
-WRAPPERS = {"euler_integrator": MUJOCO_IMPLICIT, "mesh_primitives": DART_PRIMITIVE}
+WRAPPERS = {"euler_integrator": MUJOCO_IMPLICIT, "mesh_primitives": DART_PRIMITIVE, "velocity_clamp": PYBULLET_NO_CLAMP}
+# Engine options that `several_causes` removes too, on that engine (the variant is a scene transform run through the
+# option's wrapper).
+ALL_CAUSES_WRAPPER = {"pybullet": "velocity_clamp"}
 
 
 # ---- geometry (conventions of harness/src/blind.rs) ---------------------------------------------------------------
@@ -296,23 +321,28 @@ VARIANTS = [
     ("transient", None, {"penetration"}, v_longer),
     ("capsule_as_sphere", {"dartpy"}, {"penetration", "energy", "non_finite"}, v_capsule_as_cylinder),
     ("mesh_primitives", {"dartpy"}, {"penetration", "energy", "non_finite"}, None),
+    ("velocity_clamp", {"pybullet"}, {"penetration", "energy", "non_finite"}, None),
     ("coarse_step", None, {"penetration", "energy", "non_finite"}, v_fine_step),
     ("several_causes", None, {"penetration", "energy", "non_finite"}, v_all_scene_causes),
 ]
 # Violations of the physical invariants (the inverse-dynamics consistency one does not depend on contacts or the step).
 PHYSICAL = {"penetration", "energy", "non_finite", "engine_failure"}
-# Variants that must leave the scene free of every physical violation to clear a flag: they change the step.
-STRICT = {"coarse_step", "several_causes"}
+# Variants that must leave the scene free of every physical violation to clear a flag: they change the step, or lift
+# pybullet's velocity clamp, which also lets a runaway that the clamp held back grow (the campaign's s1-9, a slide
+# driven through the support by the cone-friction defect, then trades its penetration for an energy violation).
+STRICT = {"coarse_step", "velocity_clamp", "several_causes"}
 # The order in which variants name the class, per violation: the most direct mechanism first (a thin support for a
 # body that ends below it; the integrator for a state that diverges or gains energy without contact).
 ORDER = {
     "inverse_dynamics": ["rotated_floating_root"],
     "penetration": ["initial_overlap", "thin_support", "mass_ratio", "soft_contact", "transient", "euler_integrator",
-                    "inverted_limit", "capsule_as_sphere", "mesh_primitives", "coarse_step", "several_causes"],
+                    "inverted_limit", "capsule_as_sphere", "mesh_primitives", "velocity_clamp", "coarse_step",
+                    "several_causes"],
     "energy": ["euler_integrator", "inverted_limit", "mass_ratio", "initial_overlap", "thin_support", "soft_contact",
-               "capsule_as_sphere", "mesh_primitives", "coarse_step", "several_causes"],
+               "capsule_as_sphere", "mesh_primitives", "velocity_clamp", "coarse_step", "several_causes"],
     "non_finite": ["euler_integrator", "inverted_limit", "mass_ratio", "initial_overlap", "thin_support",
-                   "soft_contact", "capsule_as_sphere", "mesh_primitives", "coarse_step", "several_causes"],
+                   "soft_contact", "capsule_as_sphere", "mesh_primitives", "velocity_clamp", "coarse_step",
+                   "several_causes"],
 }
 
 
@@ -395,10 +425,11 @@ def main(dirs):
                 if not todo:
                     continue
                 ad = adapter
-                if fn is None:  # an engine option: the engine's adapter run through its wrapper
+                option = vname if fn is None else ALL_CAUSES_WRAPPER.get(pkg) if fn is v_all_scene_causes else None
+                if option:  # an engine option: the engine's adapter run through its wrapper
                     ad = os.path.join(work, "adapter_{}.py".format(vname))
                     with open(ad, "w") as fh:
-                        fh.write(WRAPPERS[vname].format(adapters=os.path.dirname(adapter), adapter=adapter))
+                        fh.write(WRAPPERS[option].format(adapters=os.path.dirname(adapter), adapter=adapter))
                 got = replay(python, ad, [c for _, c in todo], work)
                 for r, c in todo:
                     res = results[r["scene"]]

@@ -9,11 +9,13 @@ Gravity brings the chain down until the sphere rests on the plane with its centr
 same sphere on link 0 itself does). Measured: the sphere's centre after 1 s, at 240 Hz. The wrong behaviour: the
 sphere on a fixed child of a prismatic or revolute link 0 passes through the plane (4 m below it after 1 s on the
 prismatic joint; hanging 9 cm below it on the revolute one), while with a fixed link 0 in front of the moving joint
-(the same dynamics, the sphere one fixed joint further from the base) it rests. The pattern is that of a link made
-static (CF_STATIC_OBJECT: no collision with other static objects) when every joint between it and the base is fixed,
-with link 0's own joint never checked: copies of Bullet's URDF2Bullet.cpp in other repositories mark such links with
-a loop `do { ... } while (testLinkIndex > 0)` over the parents, which stops before link 0. The bullet3 commit read
-here is older and has no such loop; pybullet 3.2.7's own source was not read.
+(the same dynamics, the sphere one fixed joint further from the base) it rests. Cause, read in the source pybullet
+3.2.7 builds (bullet3 commit 6c888f4ab): createMultiBody goes through PhysicsServerCommandProcessor's
+processCreateMultiBodyCommandSingle and processImportedObjects into ConvertURDF2BulletInternal
+(examples/Importers/ImportURDFDemo/URDF2Bullet.cpp), which gives a link of a fixed-base multibody CF_STATIC_OBJECT when
+every joint between it and the base is fixed; its walk up the parents stops on reaching link 0 (`testLinkIndex > 0`)
+without checking link 0's own joint, and two static objects get no contact response (btCollisionDispatcher::
+needsResponse). Draft upstream report: UPSTREAM.md.
 
 Exit 1 when a sphere on a fixed child of a moving link 0 ends more than 2 cm (the campaign's penetration bound,
 physics-invariants PENETRATION_MAX) below the plane, 2 when a control configuration does too (then something else is

@@ -13,11 +13,16 @@ The wrong behaviour (measured on 3.2.7): with mu = 1, theta = 66.7 deg and phi a
 horizontal motion along neither world axis), the sphere ends 25 m below the plane and gains 2.9 kJ; at phi = 0 or 90
 deg, or with mu = 0, it stops at the plane. At phi = 45 deg it also goes through at theta = 45 deg (5 m, sinking
 without gaining energy), 60 and 75 deg, not at 30 deg (mu * tan(theta) < 1: friction alone cannot jam the joint).
-Bullet's source was not read for this (its contact has two friction directions; here both carry the joint's motion).
+Where: with pybullet's implicit cone friction off (setPhysicsEngineParameter(enableConeFriction=0), an engine option;
+on by default) the same case stops at the plane. In Bullet's source (3.2.7's commit) that option selects
+btMultiBodyConstraintSolver::resolveConeFrictionConstraintRows, which updates a contact's two friction rows together
+from the same velocities and then clips them to the cone; the two rows' directions come from btPlaneSpace1 of the
+normal (world x and y for a horizontal plane), so only a joint whose horizontal motion has both components couples them.
+Measured at theta = 66.7 deg: through the plane for phi from 15 to 75 deg, stopped at 0-12 and 78-90 deg.
 
 Exit 1 when a case with mu = 1 gains more than 1 J (the campaign's energy bound, physics-invariants) or ends more
-than 2 cm below the plane (its penetration bound), 2 when a frictionless control does (then something else is
-wrong), 0 otherwise.
+than 2 cm below the plane (its penetration bound), 2 when a control (frictionless, or cone friction off) does (then
+something else is wrong), 0 otherwise.
 
     python bench/rediscovery/pybullet/oblique_slide_friction.py
 """
@@ -31,8 +36,9 @@ DEPTH_BOUND = 0.02  # m
 MASS, RADIUS, HEIGHT, DT, DURATION = 0.586, 0.0145, 0.85, 0.005, 2.0
 
 
-def drop(theta_deg, phi_deg, mu):
-    """(lowest point's minimum height, largest gain of mechanical energy) over the run."""
+def drop(theta_deg, phi_deg, mu, cone=True):
+    """(lowest point's minimum height, largest gain of mechanical energy) over the run; `cone`: pybullet's implicit
+    cone friction (its default) on or off."""
     th, ph = math.radians(theta_deg), math.radians(phi_deg)
     axis = [math.sin(th) * math.cos(ph), math.sin(th) * math.sin(ph), -math.cos(th)]
     c = p.connect(p.DIRECT)
@@ -40,6 +46,8 @@ def drop(theta_deg, phi_deg, mu):
         g = 9.81
         p.setGravity(0, 0, -g, physicsClientId=c)
         p.setTimeStep(DT, physicsClientId=c)
+        if not cone:
+            p.setPhysicsEngineParameter(enableConeFriction=0, physicsClientId=c)
         plane = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=c)
         ground = p.createMultiBody(0, plane, physicsClientId=c)
         p.changeDynamics(ground, -1, lateralFriction=1.0, physicsClientId=c)
@@ -71,14 +79,17 @@ if __name__ == "__main__":
     bad = control_bad = False
     cases = [(66.7, 0, 1.0), (66.7, 90, 1.0), (66.7, 30, 1.0), (66.7, 45, 1.0), (66.7, 123, 1.0), (30, 45, 1.0),
              (45, 45, 1.0), (60, 45, 1.0), (75, 45, 1.0), (66.7, 45, 0.0), (66.7, 123, 0.0)]
-    for theta, phi, mu in cases:
-        lowest, gain = drop(theta, phi, mu)
+    # Controls (exit 2 when wrong): frictionless, and the defect's case with implicit cone friction off.
+    cases = [(t, f, m, True) for t, f, m in cases] + [(66.7, 45, 1.0, False), (66.7, 123, 1.0, False)]
+    for theta, phi, mu, cone in cases:
+        lowest, gain = drop(theta, phi, mu, cone)
         wrong = gain > ENERGY_BOUND or lowest < -DEPTH_BOUND
-        print("theta {:5.1f} deg, phi {:4.0f} deg, mu {:.1f} (mu tan theta {:5.2f}): lowest point {:9.3f} m, "
-              "largest energy gain {:10.3g} J: {}".format(theta, phi, mu, mu * math.tan(math.radians(theta)), lowest,
-                                                         gain, "WRONG" if wrong else "ok"))
+        print("theta {:5.1f} deg, phi {:4.0f} deg, mu {:.1f} (mu tan theta {:5.2f}), cone friction {}: lowest point "
+              "{:9.3f} m, largest energy gain {:10.3g} J: {}".format(theta, phi, mu, mu * math.tan(math.radians(theta)),
+                                                                    "on " if cone else "off", lowest, gain,
+                                                                    "WRONG" if wrong else "ok"))
         if wrong:
-            if mu == 0.0:
+            if mu == 0.0 or not cone:
                 control_bad = True
             else:
                 bad = True
