@@ -152,11 +152,9 @@ struct Sets {
 
 impl Sets {
     fn new(gravity: f64, dt: f64) -> Self {
-        let mut params = IntegrationParameters::default();
-        params.dt = f(dt);
         Sets {
             pipeline: PhysicsPipeline::new(),
-            params,
+            params: IntegrationParameters { dt: f(dt), ..Default::default() },
             gravity: Vector::new(0.0, 0.0, f(gravity)),
             islands: IslandManager::new(),
             broad: Broad::new(),
