@@ -8,7 +8,7 @@
 #   bash bench/rediscovery/blind.sh          # from the repository root
 # Environment: BLIND_BUDGET (CPU seconds per version, this process and its children; default 1800),
 # BLIND_SEED (default 1), BLIND_WHEELS (default: every wheel of the cross set, as PKG:VER; `rapier:VER` runs the Rust
-# adapter of a glam-era rapier version, adapters/rapier-VER/src/blind.rs, built here), CARGO_TARGET_DIR
+# adapter of a pinned rapier version, adapters/rapier-VER/src/blind.rs, built here), CARGO_TARGET_DIR
 # (default target-rediscovery), REDISCOVERY_NICE (default 10), REDISCOVERY_VENVS, REDISCOVERY_VENV_PREFIX (see
 # run.sh). Output: $CARGO_TARGET_DIR/blind-out/PKG-VER/{findings.jsonl,summary.json,scenes/} and a table on stdout.
 set -euo pipefail
