@@ -3,6 +3,7 @@ MJCF in MuJoCo's Python bindings, 1 ms steps, PD at 1 kHz, sensor noise, zstd MC
 hidden effects drawn here, written as logs with a labels file each.
 
     mujoco_trials.py --seed S --trials N --out DIR --plan PLAN.mcap [--duration S] [--out-of-library K] [--only I]...
+                     [--counterfactuals]
 
 Trial i follows the pattern single, single, pair, control (i mod 4); blocks of four alternate between the excitation
 plan (`--plan`, written by `ulab gap excite`) and gentle chirps (a third of the plant's chirp amplitude). Then K
@@ -98,26 +99,32 @@ def draw_effect(kind, rng):
 
 def draw_trial(seed, i, trials):
     """The label and plant arguments of trial i."""
+    lab, per_effect, motion = draw_trial_effects(seed, i, trials)
+    return lab, [x for a in per_effect for x in a], motion
+
+
+def draw_trial_effects(seed, i, trials):
+    """The label of trial i, the plant arguments of each of its hidden effects (in the label's order) and its motion."""
     rng = random.Random(seed * 1_000_003 + i)
     if i >= trials:
         if (i - trials) % 2 == 0:
             unit = rng.choice(LIMBS)
             mu = rng.uniform(0.1, 0.2)
             return ({"injected": [], "out_of_library": {"kind": "load_friction", "unit": unit, "value": mu}},
-                    ["--load-friction", f"{unit}={mu}"], "plan")
+                    [["--load-friction", f"{unit}={mu}"]], "plan")
         unit = rng.choice(JOINTS)
         frac = rng.uniform(0.03, 0.06)
         return ({"injected": [], "out_of_library": {"kind": "torque_ripple", "unit": unit, "value": frac}},
-                ["--torque-ripple", f"{unit}_joint={frac}"], "chirp")
+                [["--torque-ripple", f"{unit}_joint={frac}"]], "chirp")
     motion = "plan" if (i // 4) % 2 == 0 else "chirp"
     n = [1, 1, 2, 0][i % 4]
     kinds = rng.sample(KINDS, n)
-    labels, args = [], []
+    labels, per_effect = [], []
     for k in kinds:
         lab, a = draw_effect(k, rng)
         labels.append(lab)
-        args += a
-    return {"injected": labels, "out_of_library": None}, args, motion
+        per_effect.append(a)
+    return {"injected": labels, "out_of_library": None}, per_effect, motion
 
 
 def main():
@@ -129,17 +136,29 @@ def main():
     ap.add_argument("--plan", required=True, help="the excitation plan, from `ulab gap excite`")
     ap.add_argument("--out", required=True)
     ap.add_argument("--only", type=int, action="append", default=[])
+    ap.add_argument("--counterfactuals", action="store_true",
+                    help="also write, per hidden effect K, trial_NNN.without_K.mcap: the same plant, motion and noise "
+                         "without that effect (bench/gap-eval/visibility.py)")
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
     for i in range(a.trials + a.out_of_library):
         if a.only and i not in a.only:
             continue
-        lab, args, motion = draw_trial(a.seed, i, a.trials)
+        lab, per_effect, motion = draw_trial_effects(a.seed, i, a.trials)
+        args = [x for e in per_effect for x in e]
         drive = ["--plan", a.plan] if motion == "plan" else ["--chirp-scale", "0.33"]
+        common = ["--duration", str(a.duration), "--noise", "--seed", str(a.seed * 1000 + i)] + drive
         log = os.path.join(a.out, f"trial_{i:03}.mcap")
-        plant.main([log, "--duration", str(a.duration), "--noise", "--seed", str(a.seed * 1000 + i)] + drive + args)
+        plant.main([log] + common + args)
         with open(os.path.join(a.out, f"trial_{i:03}.labels.json"), "w") as f:
             json.dump(dict(lab, trial=i, motion=motion, plant_args=args), f, indent=1, sort_keys=True)
+        if a.counterfactuals:
+            # The noise and the chirps' phases come from the seed alone, so the two logs differ by the effect only.
+            for k, removed in enumerate(lab["injected"]):
+                others = [x for j, e in enumerate(per_effect) if j != k for x in e]
+                plant.main([os.path.join(a.out, f"trial_{i:03}.without_{k}.mcap")] + common + others)
+                with open(os.path.join(a.out, f"trial_{i:03}.without_{k}.json"), "w") as f:
+                    json.dump(removed, f, indent=1, sort_keys=True)
 
 
 if __name__ == "__main__":

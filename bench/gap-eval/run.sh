@@ -11,6 +11,9 @@
 #       (with ULAB_EVAL_AS=NAME into out/gap-eval/<split>@NAME/, the logs linked, the split's own reports untouched:
 #       two judges on the same logs)
 #   bench/gap-eval/run.sh score dev|eval|eval2|eval3|eval4        score what is there
+#   bench/gap-eval/run.sh visibility dev|eval|eval2|eval3|eval4 [SET...]   regenerate each trial's log beside the log
+#       without each of its hidden effects (<set>/counterfactual/), measure what each effect shows in its log
+#       (visibility.py -> <set>/visibility.json) and score again: score.py's second table (effects the log can show)
 #
 # Output: out/gap-eval/<split>/<set>/ (logs, labels, one report per trial) and out/gap-eval/<split>/score.{md,json}.
 # Sets: four of `ulab gap bench` (reference plants Rapier multibody and DART, each under the excitation plan and
@@ -73,7 +76,9 @@ score() {
 }
 
 rediagnose=false
+visibility=false
 if [ "$split" = rediagnose ]; then rediagnose=true; split=${1:?dev, eval, eval2, eval3 or eval4}; shift; fi
+if [ "$split" = visibility ]; then visibility=true; split=${1:?dev, eval, eval2, eval3 or eval4}; shift; fi
 case "$split" in
   score) score "${1:?dev, eval, eval2, eval3 or eval4}"; exit 0 ;;
   eval) sets=("${EVAL_SETS[@]}") ;;
@@ -83,6 +88,38 @@ case "$split" in
   dev) sets=("${DEV_SETS[@]}") ;;
   *) echo "usage: run.sh dev|eval|eval2|eval3|eval4 [SET...] | run.sh rediagnose dev|eval|eval2|eval3|eval4 [SET...] | run.sh score dev|eval|eval2|eval3|eval4" >&2; exit 2 ;;
 esac
+if $visibility; then
+  # The plants again, without each hidden effect; the judge's reports and its binary copy stay as they are.
+  [ -x "$BIN" ] || cargo build --release --locked -p ulab
+  plan=out/gap-eval/plan.mcap
+  for spec in "${sets[@]}"; do
+    read -r name kind seed args <<< "$spec"
+    if [ $# -gt 0 ] && [[ " $* " != *" $name "* ]]; then continue; fi
+    dir=out/gap-eval/$split/$name
+    # shellcheck disable=SC2086
+    n=$(( $(echo $args | sed -E 's/.*--trials ([0-9]+).*/\1/') + $(echo $args | sed -E 's/.*--out-of-library ([0-9]+).*/\1/') ))
+    echo "run.sh: visibility of $split/$name ($n trials)"
+    for ((w = 0; w < JOBS; w++)); do
+      (
+        only=()
+        for ((i = w; i < n; i += JOBS)); do only+=(--only "$i"); done
+        if [ "$kind" = bench ]; then
+          # shellcheck disable=SC2086
+          "$BIN" gap bench $args --seed "$seed" --duration "$DURATION" --out "$dir/counterfactual" "${only[@]}" \
+            --counterfactuals 2> /dev/null
+        else
+          # shellcheck disable=SC2086
+          "$ULAB_PYTHON" bench/gap-eval/mujoco_trials.py $args --seed "$seed" --duration "$DURATION" --plan "$plan" \
+            --out "$dir/counterfactual" "${only[@]}" --counterfactuals > /dev/null
+        fi
+      ) &
+    done
+    wait
+    "$ULAB_PYTHON" bench/gap-eval/visibility.py "$dir" > "$dir/visibility.txt"
+  done
+  score "$split"
+  exit 0
+fi
 src_split=$split
 if $rediagnose && [ -n "${ULAB_EVAL_AS:-}" ]; then split="$split@$ULAB_EVAL_AS"; fi
 [ -x "$BIN" ] || cargo build --release --locked -p ulab

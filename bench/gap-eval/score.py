@@ -15,29 +15,25 @@ Rules (issue 57):
 - a trial has a wrong name when some named effect matches no injected one (any name on a control or out-of-library
   trial is wrong).
 
-A second table applies the same rules to the effects the log can show. A torque ceiling acts only when the motor
-demands more than it: while the delivered torque (`tau_est`) stays below the ceiling, the plant with it and the plant
-without it give the same log, and no method can name it. An injected torque_saturation whose unit's largest |tau_est|
-in the trial's log (`trial_NNN.mcap`) stays under REACHED of its ceiling (value x the joint's torque limit in
-Unitree's MJCF) is dropped from the trial's expected set: a single becomes an "unseen" trial, right when nothing is
-named; a pair becomes a single. The log, the labels and Unitree's MJCF decide this, not ulab.
+A second table applies the same rules to the effects the log can show. An effect that moves the log by less than the
+judge needs to name anything cannot be named by any method that keeps that bar: `visibility.py` compares each trial's
+log with the log of the same plant, motion and sensor noise without one hidden effect (`run.sh visibility SPLIT`
+writes them), and an injected effect whose `signature` (the judge's evidence for a replay that models everything,
+over the whole log) is below the report's own `min_gain` is dropped from the trial's expected set: a single becomes
+an "unseen" trial, right when nothing is named; a pair becomes a single. The plant and the log decide this, not the
+judge. A set without `visibility.json` gets no second table.
 """
 import argparse
 import json
 import os
 import re
 import sys
-import types
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 from mujoco_trials import LIMBS, MOTORS, covered  # noqa: E402
 
 GROUPS = set(LIMBS) | {"torso"}
-# A ceiling counts as reached when the delivered torque comes within 5 % of it: the plants' torque noise is a fraction
-# of that, and a clip that engages holds tau_est at the ceiling (the reached ones of eval2 sit at 1.00-1.05 of it,
-# the others under 0.75).
-REACHED = 0.95
 
 
 def torque_limits():
@@ -48,27 +44,24 @@ def torque_limits():
     return {m: float(found[m]) for m in MOTORS}
 
 
-def peak_torques(log):
-    """Largest |tau_est| of each motor over the log's LowStates (N·m), read with the mcap reader and Unitree's IDL."""
-    sys.modules.setdefault("unitree_sdk2py.b2", types.ModuleType("unitree_sdk2py.b2"))
-    from mcap.reader import make_reader
-    from unitree_sdk2py.idl.unitree_hg.msg.dds_ import LowState_
-    peak = [0.0] * len(MOTORS)
-    with open(log, "rb") as f:
-        for _, _, msg in make_reader(f).iter_messages(topics=["rt/lowstate"]):
-            s = LowState_.deserialize(msg.data)
-            for k in range(len(MOTORS)):
-                peak[k] = max(peak[k], abs(s.motor_state[k].tau_est))
-    return dict(zip(MOTORS, peak))
+def load_visibility(d):
+    """{(trial, effect index): signature} of a set, or None when `visibility.py` has not run on it."""
+    path = os.path.join(d, "visibility.json")
+    if not os.path.exists(path):
+        return None
+    return {(r["trial"], r["effect"]): (r["kind"], r["signature"]) for r in json.load(open(path))}
 
 
-def unseen(injected, log, limits):
-    """Whether the log never shows this injected effect: a torque ceiling its delivered torque never reaches."""
-    if injected["kind"] != "torque_saturation" or not os.path.exists(log):
-        return False
-    joints = injected_joints(injected) or set()
-    peaks = peak_torques(log)
-    return all(peaks[j] < REACHED * injected["value"] * limits[j] for j in joints)
+def shown_effects(trial, injected, visibility, min_gain):
+    """The injected effects whose signature in the log reaches the judge's bar."""
+    shown = []
+    for k, inj in enumerate(injected):
+        kind, sig = visibility.get((trial, k), (None, None))
+        if kind != inj["kind"]:
+            raise SystemExit(f"trial {trial}: visibility.json has no signature of its effect {k} ({inj['kind']})")
+        if sig >= min_gain:
+            shown.append(inj)
+    return shown
 
 
 def unit_joints(unit):
@@ -167,17 +160,22 @@ def main():
     ap.add_argument("dirs", nargs="+")
     ap.add_argument("--json")
     a = ap.parse_args()
-    limits = torque_limits()
-    table, seen_table, rows = {}, {}, []
+    table, seen_table, rows, no_visibility = {}, {}, [], []
     for d in a.dirs:
         name = os.path.basename(os.path.normpath(d))
+        visibility = load_visibility(d)
+        if visibility is None:
+            no_visibility.append(name)
         for trial, cls, injected, report, motion, log in load_set(d):
             if report is None:
                 rows.append({"set": name, "trial": trial, "class": cls, "missing": True})
                 continue
             s = score_trial(cls, injected, report)
             count(table, name, cls, s)
-            shown = [i for i in injected if not unseen(i, log, limits)]
+            if visibility is None:
+                rows.append(dict(s, set=name, trial=trial, cls=cls, motion=motion, injected=injected))
+                continue
+            shown = shown_effects(trial, injected, visibility, report["thresholds"]["min_gain"])
             seen_cls = cls if cls == "out_of_library" or len(shown) == len(injected) else (
                 {0: "unseen", 1: "single", 2: "pair"}[len(shown)])
             seen_s = s if len(shown) == len(injected) else score_trial(seen_cls, shown, report)
@@ -190,10 +188,13 @@ def main():
     missing = [r for r in rows if r.get("missing")]
     if missing:
         print(f"\n{len(missing)} trials without a report: " + ", ".join(f"{r['set']}/{r['trial']}" for r in missing))
-    print_table("Effects the log can show (a torque ceiling its delivered torque never reaches is dropped; a single "
-                "left with none is an unseen trial, right when nothing is named):", seen_table,
-                classes[:2] + ["unseen"] + classes[2:],
-                heads[:2] + ["unseen clean"] + heads[2:])
+    if seen_table:
+        print_table("Effects the log can show (an effect whose signature in the log is below the judge's min_gain is "
+                    "dropped; a single left with none is an unseen trial, right when nothing is named):", seen_table,
+                    classes[:2] + ["unseen"] + classes[2:],
+                    heads[:2] + ["unseen clean"] + heads[2:])
+    if no_visibility:
+        print("\nNo visibility.json (run.sh visibility SPLIT), so not in the second table: " + ", ".join(no_visibility))
     if a.json:
         json.dump({"table": table, "seen_table": seen_table, "rows": rows}, open(a.json, "w"), indent=1)
 

@@ -668,6 +668,84 @@ pub fn trial_config(model: &RobotModel, i: usize, opts: &BenchOptions) -> (RealC
     (cfg, labels)
 }
 
+/// Trial `i`'s reference plant with its `k`-th hidden effect removed and everything else (motion, noise, timing
+/// jitter, the other hidden effect) as in the trial: the log the plant would have written without that effect. The
+/// difference between the two logs is what the effect shows in the log, with nothing of the diagnosis in it
+/// (`ulab gap bench --counterfactuals`, bench/gap-eval/visibility.py). None when the trial hides fewer effects.
+pub fn trial_config_without(model: &RobotModel, i: usize, opts: &BenchOptions, k: usize) -> Option<RealConfig> {
+    let (mut cfg, labels) = trial_config(model, i, opts);
+    let kind = labels.injected.get(k)?.kind;
+    // The effects of one trial are of different kinds, so resetting the kind removes exactly this effect.
+    kind.copy(&Effects::none(model.nj()), &mut cfg.effects);
+    Some(cfg)
+}
+
+/// Length of the oracle's replay windows (s): the diagnosis's window ([`oracle_differences`]).
+pub const ORACLE_WINDOW_S: f64 = 0.1;
+
+/// What hidden effect `k` of trial `i` shows to a replay that models the trial's plant perfectly, window by window as
+/// the diagnosis replays: for each window of [`ORACLE_WINDOW_S`] of `log` (the trial's log), back to back, the
+/// trial's own plant (its engine, with every hidden effect) and the same plant without effect `k` both replay the
+/// logged commands from the logged state, and the window's row holds, per column (each joint, then the IMU), the mean
+/// squared difference of the two predictions in the diagnosis's residual scales (angle, speed, torque averaged per
+/// joint; orientation and gyro averaged over the IMU's six components). Rig trials only; None when the trial hides
+/// fewer effects. The reference plant replays in its own engine, not in the diagnosing MuJoCo.
+pub fn oracle_differences(
+    model: &RobotModel,
+    i: usize,
+    opts: &BenchOptions,
+    log: &RobotLog,
+    k: usize,
+) -> Result<Option<Vec<Vec<f64>>>, GapError> {
+    let Some(without) = trial_config_without(model, i, opts, k) else { return Ok(None) };
+    let (with, _) = trial_config(model, i, opts);
+    let mut plants = Vec::with_capacity(2);
+    for cfg in [&with, &without] {
+        let (real_model, fx) = in_engine(&cfg.effects.apply_to_model(model), &cfg.effects, !cfg.engine.is_mujoco());
+        let rig = Rig::reference(&real_model, &cfg.engine, cfg.stepping)?;
+        plants.push((real_model, fx, rig));
+    }
+    let nj = model.nj();
+    let sigma_tau: Vec<f64> =
+        model.joints.iter().map(|j| gap_diagnosis::noise::SIGMA_TAU_FRAC * j.torque_limit.max(1.0)).collect();
+    let mut rows = Vec::new();
+    let mut start = 0;
+    while let Some(s0) = log.states.get(start) {
+        let len = log.states[start + 1..].iter().take_while(|s| s.t < s0.t + ORACLE_WINDOW_S).count();
+        if len == 0 || start + len >= log.states.len() {
+            break;
+        }
+        let mut preds = Vec::with_capacity(2);
+        for (real_model, fx, rig) in plants.iter_mut() {
+            preds.push(gap_diagnosis::plant::predict_window(rig, real_model, log, fx, start, len, true)?);
+        }
+        let mut row = vec![0.0; nj + 1];
+        for (a, b) in preds[0].iter().zip(&preds[1]) {
+            for j in 0..nj {
+                let eq = (a.q[j] - b.q[j]) / gap_diagnosis::noise::SIGMA_Q;
+                let edq = (a.dq[j] - b.dq[j]) / gap_diagnosis::noise::SIGMA_DQ;
+                let et = (a.tau[j] - b.tau[j]) / sigma_tau[j];
+                row[j] += (eq * eq + edq * edq + et * et) / 3.0;
+            }
+            let angle = rotation_angle(&a.quat, &b.quat);
+            let gyro: f64 = (0..3).map(|c| ((a.gyro[c] - b.gyro[c]) / gap_diagnosis::noise::SIGMA_GYRO).powi(2)).sum();
+            row[nj] += ((angle / gap_diagnosis::noise::SIGMA_QUAT).powi(2) + gyro) / 6.0;
+        }
+        let n = preds[0].len().max(1) as f64;
+        row.iter_mut().for_each(|x| *x /= n);
+        rows.push(row);
+        start += len;
+    }
+    Ok(Some(rows))
+}
+
+/// Angle (rad) of the rotation between two unit quaternions `[w, x, y, z]`.
+fn rotation_angle(a: &[f64; 4], b: &[f64; 4]) -> f64 {
+    let qa = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(a[0], a[1], a[2], a[3]));
+    let qb = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(b[0], b[1], b[2], b[3]));
+    qa.angle_to(&qb)
+}
+
 /// Runs one trial end to end (generate, seal, diagnose, open, score). The caller may write the log with
 /// `on_log` (e.g. as MCAP, so the diagnosis reads it through the same path as a recorded log).
 pub fn run_trial(

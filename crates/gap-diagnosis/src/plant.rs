@@ -491,8 +491,8 @@ pub(crate) fn sensed(
 
 /// Replays `log`'s commands from the measured state at state index `start` for `len` state samples; returns the
 /// predicted measurements at those samples' times (what the sensors would report).
-pub fn predict_window(
-    rig: &mut Rig,
+pub fn predict_window<E: Engine + ?Sized>(
+    rig: &mut Rig<E>,
     model: &RobotModel,
     log: &RobotLog,
     fx: &Effects,

@@ -3,6 +3,7 @@
 //! One topic: `cargo test -p gap-bench --test it -- MODULE::`.
 
 mod common;
+mod counterfactual;
 mod effects_found;
 mod floating;
 mod floating_bench;

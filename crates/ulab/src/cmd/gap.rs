@@ -224,6 +224,13 @@ struct BenchArgs {
     /// unsharded run's.
     #[arg(long, value_name = "K/N", requires = "out")]
     shard: Option<campaign::Shard>,
+    /// Write each trial's log and, for each effect it hides, the log the same plant writes without that effect
+    /// (`trial_NNN.without_K.mcap`, K counted from 0 in the trial's order, with the removed effect in
+    /// `trial_NNN.without_K.json`, with what the effect shows to a perfect replay in the diagnosis's windows:
+    /// `gap_bench::oracle_differences`); no diagnosis, no table. For scoring which hidden effects a log can show at
+    /// all (bench/gap-eval/visibility.py). Rig only.
+    #[arg(long, requires = "out", conflicts_with_all = ["floating", "shard"])]
+    counterfactuals: bool,
 }
 
 /// The shard files' kind of `ulab gap bench` campaigns.
@@ -505,6 +512,38 @@ fn simulate(a: SimulateArgs) -> Result<Exit> {
     Ok(Exit::Success)
 }
 
+/// `gap bench --counterfactuals`: each selected trial's log, and the log without each of its hidden effects.
+fn write_counterfactuals(model: &RobotModel, trials: &[usize], opts: &BenchOptions, dir: &Path) -> Result<Exit> {
+    for &i in trials {
+        let input = if i >= opts.trials { None } else { bench::trial_policy(i, opts) };
+        let (cfg, labels) = bench::trial_config(model, i, opts);
+        let log = bench::generate_log_with(model, &cfg, input.as_ref()).with_context(|| format!("trial {i}"))?;
+        let path = dir.join(format!("trial_{i:03}.mcap"));
+        write_log(&path, &log, model, true)?;
+        // The oracle replays start from the states as the diagnosis reads them back.
+        let trial_log = read_log(&path, model)?;
+        for (k, removed) in labels.injected.iter().enumerate() {
+            let Some(cfg) = bench::trial_config_without(model, i, opts, k) else { continue };
+            let log = bench::generate_log_with(model, &cfg, input.as_ref())
+                .with_context(|| format!("trial {i} without its effect {k}"))?;
+            write_log(&dir.join(format!("trial_{i:03}.without_{k}.mcap")), &log, model, true)?;
+            let differences =
+                bench::oracle_differences(model, i, opts, &trial_log, k).with_context(|| format!("trial {i}"))?;
+            let removed = serde_json::json!({
+                "kind": removed.kind.name(),
+                "unit": removed.unit,
+                "value": removed.value,
+                "window_s": bench::ORACLE_WINDOW_S,
+                "oracle_differences": differences,
+            });
+            let p = dir.join(format!("trial_{i:03}.without_{k}.json"));
+            std::fs::write(&p, serde_json::to_string(&removed)?).with_context(|| format!("writing {}", p.display()))?;
+        }
+        eprintln!("trial {i}: its log and {} without one hidden effect", labels.injected.len());
+    }
+    Ok(Exit::Success)
+}
+
 fn bench_cmd(a: BenchArgs) -> Result<Exit> {
     let model = load(&a.robot)?;
     if a.trials + a.out_of_library == 0 {
@@ -578,6 +617,9 @@ fn bench_cmd(a: BenchArgs) -> Result<Exit> {
         max_windows: a.max_windows.map(|n| n.max(4)),
     };
     let selected = campaign.selected();
+    if a.counterfactuals {
+        return write_counterfactuals(&model, &selected, &opts, &dir);
+    }
     let mine: Vec<usize> = match a.shard {
         Some(shard) => shard.items(selected.len()).collect(),
         None => (0..selected.len()).collect(),
