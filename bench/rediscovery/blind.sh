@@ -55,7 +55,7 @@ for w in "${wheels[@]}"; do
 done
 
 pkg_of() { case "$1" in MuJoCo) echo mujoco ;; pybullet) echo pybullet ;; dartpy) echo dartpy ;; rapier3d) echo rapier ;; esac; }
-echo "| bug | last bad / first good | scenes flagged on last bad | of them quiet on first good | smallest such scene (bodies+geoms) | rediscovered |"
+echo "| bug | last bad / first good | scenes flagged on last bad | of them quiet on first good | smallest such scene (bodies+geoms) | a flip (a rediscovery only once the flip is attributed to the bug: README) |"
 echo "|---|---|---|---|---|---|"
 # Bugs fixed by one release share a version pair (rapier #974 and #968): the flip cannot tell them apart, so the first
 # row names every bug of its pair and the later ones point to it instead of replaying the same scenes again (README:
@@ -106,6 +106,6 @@ def size(s):
 best = min(quiet, key=size) if quiet else None
 print("| {} | {} / {} | {} | {} | {} | {} |".format(bug, bad, good, len(flagged), len(quiet),
       "{} ({}; {})".format(best, size(best), b[best]["violation"]) if best else "-",
-      ("**yes**" if pair_bugs == bug else "**yes**, for one of " + pair_bugs) if quiet else "no"))
+      ("yes" if pair_bugs == bug else "yes, for one of " + pair_bugs) if quiet else "no"))
 PY
 done
