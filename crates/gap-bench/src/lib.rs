@@ -706,8 +706,7 @@ pub fn oracle_differences(
         plants.push((real_model, fx, rig));
     }
     let nj = model.nj();
-    let sigma_tau: Vec<f64> =
-        model.joints.iter().map(|j| gap_diagnosis::noise::SIGMA_TAU_FRAC * j.torque_limit.max(1.0)).collect();
+    let sigma_tau = gap_diagnosis::noise::torque_scales(model);
     let mut rows = Vec::new();
     let mut start = 0;
     while let Some(s0) = log.states.get(start) {
@@ -721,12 +720,7 @@ pub fn oracle_differences(
         }
         let mut row = vec![0.0; nj + 1];
         for (a, b) in preds[0].iter().zip(&preds[1]) {
-            for j in 0..nj {
-                let eq = (a.q[j] - b.q[j]) / gap_diagnosis::noise::SIGMA_Q;
-                let edq = (a.dq[j] - b.dq[j]) / gap_diagnosis::noise::SIGMA_DQ;
-                let et = (a.tau[j] - b.tau[j]) / sigma_tau[j];
-                row[j] += (eq * eq + edq * edq + et * et) / 3.0;
-            }
+            gap_diagnosis::noise::add_joint_terms(&sigma_tau, a, b, &mut row[..nj]);
             let angle = rotation_angle(&a.quat, &b.quat);
             let gyro: f64 = (0..3).map(|c| ((a.gyro[c] - b.gyro[c]) / gap_diagnosis::noise::SIGMA_GYRO).powi(2)).sum();
             row[nj] += ((angle / gap_diagnosis::noise::SIGMA_QUAT).powi(2) + gyro) / 6.0;

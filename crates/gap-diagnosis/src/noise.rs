@@ -1,5 +1,5 @@
-//! Noise and scales shared by the plants, the rig check and the diagnosis: a leaf module (it imports nothing from
-//! the crate), so that the modules using them do not import each other for a constant.
+//! Noise and scales shared by the plants, the rig check and the diagnosis, and the gap metric's joint term: it
+//! imports only the log's measurement type, so that the modules using them do not import each other for a constant.
 
 /// Residual scales of the diagnosis (what counts as "one unit" of gap per channel): joint position (rad).
 pub const SIGMA_Q: f64 = 2e-3;
@@ -17,3 +17,19 @@ pub const SIGMA_GYRO: f64 = 0.02;
 pub const TIMING_LO: f64 = 0.5;
 /// Upper bound of a regular state interval, as a multiple of the median (see [`TIMING_LO`]).
 pub const TIMING_HI: f64 = 2.0;
+
+/// Each joint's torque scale of the gap metric (N·m): [`SIGMA_TAU_FRAC`] of its torque limit, at least of 1 N·m.
+pub fn torque_scales(model: &robot_model::RobotModel) -> Vec<f64> {
+    model.joints.iter().map(|j| SIGMA_TAU_FRAC * j.torque_limit.max(1.0)).collect()
+}
+
+/// Adds one sample's normalised squared difference of `m` and `p` per joint (angle, speed and torque over their
+/// scales, averaged) to `s[j]`: the gap metric's joint term.
+pub fn add_joint_terms(sigma_tau: &[f64], m: &crate::log::Measurement, p: &crate::log::Measurement, s: &mut [f64]) {
+    for (j, x) in s.iter_mut().enumerate().take(sigma_tau.len()) {
+        let eq = (m.q[j] - p.q[j]) / SIGMA_Q;
+        let edq = (m.dq[j] - p.dq[j]) / SIGMA_DQ;
+        let et = (m.tau[j] - p.tau[j]) / sigma_tau[j];
+        *x += (eq * eq + edq * edq + et * et) / 3.0;
+    }
+}

@@ -10,7 +10,7 @@ use crate::GapError;
 use rayon::prelude::*;
 use robot_model::RobotModel;
 
-use crate::noise::{SIGMA_DQ, SIGMA_GYRO, SIGMA_Q, SIGMA_QUAT, SIGMA_TAU_FRAC};
+use crate::noise::{SIGMA_GYRO, SIGMA_QUAT};
 
 /// Per-window scores: `[window][column]`, columns = joints then the IMU.
 pub(super) type Scores = Vec<Vec<f64>>;
@@ -108,7 +108,7 @@ impl<'a> Ctx<'a> {
             train: windows.train,
             test: windows.test,
             groups: joint_groups(model),
-            sigma_tau: model.joints.iter().map(|j| SIGMA_TAU_FRAC * j.torque_limit.max(1.0)).collect(),
+            sigma_tau: crate::noise::torque_scales(model),
             noise: super::stats::noise_per_joint(model, &log.states).into_iter().chain([0.0]).collect(),
             null: Effects::none(model.nj()),
             pool: std::sync::Mutex::new(Vec::new()),
@@ -258,12 +258,7 @@ impl Ctx<'_> {
 
     /// Adds one sample's normalised squared joint residual (position, velocity, torque, averaged) to `s[j]`.
     fn add_joint_terms(&self, m: &Measurement, p: &Measurement, s: &mut [f64]) {
-        for (j, x) in s.iter_mut().enumerate().take(self.nj()) {
-            let eq = (m.q[j] - p.q[j]) / SIGMA_Q;
-            let edq = (m.dq[j] - p.dq[j]) / SIGMA_DQ;
-            let et = (m.tau[j] - p.tau[j]) / self.sigma_tau[j];
-            *x += (eq * eq + edq * edq + et * et) / 3.0;
-        }
+        crate::noise::add_joint_terms(&self.sigma_tau, m, p, s);
     }
 
     /// Predicted measurements of `windows` under `fx` (parallel over chunks of windows).
