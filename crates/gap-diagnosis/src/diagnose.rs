@@ -83,7 +83,9 @@ pub use crate::noise::{TIMING_HI, TIMING_LO};
 /// winner, rivals and verdict); `numerics` says which variant was adopted; effects carry only `named`, `reduction`,
 /// `gain`, `metric_after`, `noise_floor` (the judge's `min_gain`), `params` and `note`; `ambiguous` sets hold the winner and
 /// rivals of a step that abstained; `ceilings_in_log` lists the torque plateaus the log shows (a measurement).
-pub const SCHEMA_VERSION: &str = "ulab-gap-report/18";
+/// `/19`: each step's candidate carries `acting_windows` and `gain_where_acting` (the held-out windows where its replay
+/// differs from the replay without it, and its gain over those: what test (a) judges).
+pub const SCHEMA_VERSION: &str = "ulab-gap-report/19";
 
 /// What the diagnosis concluded about the log as a whole.
 #[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq)]
@@ -452,9 +454,11 @@ fn verdict(
                     c.invalid.clone().unwrap_or_default()
                 ),
                 Some(c) => format!(
-                    "not named: its best candidate, on {} at {:.4}, gains {:.3} [{:.3}, {:.3}] per held-out window; \
-                     the selection stopped: {stop}",
-                    c.unit, c.value, c.gain.value, c.gain.lo, c.gain.hi
+                    "not named: its best candidate, on {} at {:.4}, gains {} per held-out window; the selection \
+                     stopped: {stop}",
+                    c.unit,
+                    c.value,
+                    judge::gain_words(c)
                 ),
                 None => format!("not named: no candidate of it ranked among those replayed at the last step; {stop}"),
             }

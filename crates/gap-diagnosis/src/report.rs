@@ -197,7 +197,8 @@ fn judge_section(r: &Report) -> String {
          fitted on every unit (each limb, each joint, the robot, the IMU) on the training windows with the named \
          effects applied; the most promising are replayed on the held-out windows. The candidate with the largest \
          held-out log-likelihood gain per window (each joint's and each window's residual weighed by its own size) is \
-         named when the lower bound of its {:.0} % interval reaches {}, its size is at least {:.0} % of the size the \
+         named when its {:.0} % interval excludes 0 and, over the windows where it acts (where its replay differs from \
+         the replay without it), the interval's lower bound reaches {}, its size is at least {:.0} % of the size the \
          library resolves, and no valid candidate acting on the same joints has a gain the log cannot rank below it; at \
          most {} effects. Thresholds and their reasons: `docs/gap/method.md`.\n\n",
         100.0 * th.confidence,
@@ -210,7 +211,7 @@ fn judge_section(r: &Report) -> String {
         if st.candidates.is_empty() {
             continue;
         }
-        s += "| candidate | unit | value ± sd | size | gain per window [95 % CI] | on its limb | cut of the gap metric | note |\n|---|---|---|---|---|---|---|---|\n";
+        s += "| candidate | unit | value ± sd | size | gain per window [95 % CI] | where it acts (windows) | on its limb | cut of the gap metric | note |\n|---|---|---|---|---|---|---|---|---|\n";
         for (k, c) in st.candidates.iter().enumerate() {
             let note = if Some(k) == st.winner {
                 "winner".to_string()
@@ -220,13 +221,15 @@ fn judge_section(r: &Report) -> String {
                 c.invalid.clone().unwrap_or_default()
             };
             s += &format!(
-                "| {} | {} | {:.4} ± {:.4} | {:.0} % | {} | {:.3} | {:.1} % | {} |\n",
+                "| {} | {} | {:.4} ± {:.4} | {:.0} % | {} | {} ({}) | {:.3} | {:.1} % | {} |\n",
                 c.kind.name(),
                 c.unit,
                 c.value,
                 c.sd,
                 100.0 * c.size,
                 est(&c.gain),
+                est(&c.gain_where_acting),
+                c.acting_windows,
                 c.local_gain.value,
                 100.0 * c.cut.value,
                 note

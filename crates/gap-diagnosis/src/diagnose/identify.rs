@@ -3,7 +3,7 @@
 //! without it; how far the two simulations move apart on the unit's columns, in the gap metric's units, is the
 //! *signal* an effect of that size would add. Were the effect in the log, the judge's evidence for it would be about
 //! the log-likelihood gain of removing that signal from the baseline residual, `Σ_c ln((b + d + ν) / (b + ν))` per
-//! window; under [`super::Thresholds::min_gain`] the log cannot reveal the effect there, whatever a fit says: the
+//! window where it acts; under [`super::Thresholds::min_gain`] the log cannot reveal the effect there, whatever a fit says: the
 //! report says so, with the motion that would reveal it ([`EffectKind::revealed_by`]). Simulator sensitivities only (no log residual in the signal): an effect is
 //! unidentifiable because the log's motion does not excite it, not because the data happen to hide it.
 use super::fit::{lockstep_sets, report_value};
@@ -98,7 +98,15 @@ pub(super) fn identify(
                 base.iter().zip(&diffs).map(|(b, d)| b.iter().zip(d).map(|(x, y)| x + y).collect()).collect();
             for u in &set {
                 let cols: Vec<usize> = u.score_columns(ctx).into_iter().filter(|&c| c < ctx.nj()).collect();
-                let signal = mean(&log_gain(&with_signal, &base, Some(&cols), &ctx.noise));
+                // Over the windows where the effect acts, as the judge's test (a) weighs it.
+                let gains = log_gain(&with_signal, &base, Some(&cols), &ctx.noise);
+                let acting: Vec<f64> = gains
+                    .iter()
+                    .zip(&diffs)
+                    .filter(|(_, d)| cols.iter().any(|&c| d.get(c).is_some_and(|&x| x != 0.0)))
+                    .map(|(&g, _)| g)
+                    .collect();
+                let signal = mean(&acting);
                 units.push(UnitSignal { unit: u.name().into(), signal, floor });
             }
         }

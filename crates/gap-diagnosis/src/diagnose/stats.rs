@@ -16,6 +16,13 @@ pub struct Estimate {
     pub hi: f64,
 }
 
+impl Estimate {
+    /// No value and no spread (what a report of an older schema lacks).
+    pub fn zero() -> Self {
+        Estimate { value: 0.0, lo: 0.0, hi: 0.0 }
+    }
+}
+
 /// The gap metric of one window: the sum of its column scores.
 pub(super) fn total(s: &[f64]) -> f64 {
     s.iter().sum()
