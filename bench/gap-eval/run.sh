@@ -4,14 +4,15 @@
 # `eval` judged the judge of 65e947d and has been read since; `eval2` (fixed at 2554d96) was first run on that same
 # judge, unchanged, and has been read since; `eval3` (fixed before `eval2` was read) judged the change of 4ada592 (the
 # candidates replayed exactly ranked by the decision's own measure) and has been read since; `eval4` (fixed when
-# `eval3` was read) judges the next change of the decision model, reported beside the others.
+# `eval3` was read) judged the change of 5f13a73 (test (a) over the windows where a candidate acts) and has been read
+# since; `eval5` (fixed while `eval4` ran) judges the next change of the decision model, reported beside the others.
 #
-#   bench/gap-eval/run.sh dev|eval|eval2|eval3|eval4 [SET...]     generate the logs, diagnose them, score them strictly
-#   bench/gap-eval/run.sh rediagnose dev|eval|eval2|eval3|eval4 [SET...]   diagnose the logs already there again
+#   bench/gap-eval/run.sh dev|eval|eval2|eval3|eval4|eval5 [SET...]     generate the logs, diagnose them, score them strictly
+#   bench/gap-eval/run.sh rediagnose dev|eval|eval2|eval3|eval4|eval5 [SET...]   diagnose the logs already there again
 #       (with ULAB_EVAL_AS=NAME into out/gap-eval/<split>@NAME/, the logs linked, the split's own reports untouched:
 #       two judges on the same logs)
-#   bench/gap-eval/run.sh score dev|eval|eval2|eval3|eval4        score what is there
-#   bench/gap-eval/run.sh visibility dev|eval|eval2|eval3|eval4 [SET...]   regenerate each trial's log beside the log
+#   bench/gap-eval/run.sh score dev|eval|eval2|eval3|eval4|eval5        score what is there
+#   bench/gap-eval/run.sh visibility dev|eval|eval2|eval3|eval4|eval5 [SET...]   regenerate each trial's log beside the log
 #       without each of its hidden effects (<set>/counterfactual/), measure what each effect shows in its log
 #       (visibility.py -> <set>/visibility.json) and score again: score.py's second table (effects the log can show)
 #
@@ -25,7 +26,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 source scripts/env.sh
-split=${1:?usage: run.sh dev|eval|eval2|eval3|eval4 [SET...] | run.sh score dev|eval|eval2|eval3|eval4}
+split=${1:?usage: run.sh dev|eval|eval2|eval3|eval4|eval5 [SET...] | run.sh score dev|eval|eval2|eval3|eval4|eval5}
 shift
 BIN=${ULAB_BIN:-target/release/ulab}
 JOBS=${ULAB_EVAL_JOBS:-1}
@@ -60,6 +61,13 @@ EVAL4_SETS=(
   "dart-chirp bench 9304 --reference-engine dart --trials 12 --out-of-library 2 --gentle-chirp"
   "mujoco-py mujoco 9305 --trials 24 --out-of-library 4"
 )
+EVAL5_SETS=(
+  "rapier-plan bench 9401 --reference-engine rapier_multibody --trials 12 --out-of-library 2"
+  "rapier-chirp bench 9402 --reference-engine rapier_multibody --trials 12 --out-of-library 2 --gentle-chirp"
+  "dart-plan bench 9403 --reference-engine dart --trials 12 --out-of-library 2"
+  "dart-chirp bench 9404 --reference-engine dart --trials 12 --out-of-library 2 --gentle-chirp"
+  "mujoco-py mujoco 9405 --trials 24 --out-of-library 4"
+)
 DEV_SETS=(
   "rapier-plan bench 101 --reference-engine rapier_multibody --trials 12 --out-of-library 2"
   "rapier-chirp bench 102 --reference-engine rapier_multibody --trials 12 --out-of-library 2 --gentle-chirp"
@@ -77,16 +85,17 @@ score() {
 
 rediagnose=false
 visibility=false
-if [ "$split" = rediagnose ]; then rediagnose=true; split=${1:?dev, eval, eval2, eval3 or eval4}; shift; fi
-if [ "$split" = visibility ]; then visibility=true; split=${1:?dev, eval, eval2, eval3 or eval4}; shift; fi
+if [ "$split" = rediagnose ]; then rediagnose=true; split=${1:?dev, eval, eval2, eval3, eval4 or eval5}; shift; fi
+if [ "$split" = visibility ]; then visibility=true; split=${1:?dev, eval, eval2, eval3, eval4 or eval5}; shift; fi
 case "$split" in
-  score) score "${1:?dev, eval, eval2, eval3 or eval4}"; exit 0 ;;
+  score) score "${1:?dev, eval, eval2, eval3, eval4 or eval5}"; exit 0 ;;
   eval) sets=("${EVAL_SETS[@]}") ;;
   eval2) sets=("${EVAL2_SETS[@]}") ;;
   eval3) sets=("${EVAL3_SETS[@]}") ;;
   eval4) sets=("${EVAL4_SETS[@]}") ;;
+  eval5) sets=("${EVAL5_SETS[@]}") ;;
   dev) sets=("${DEV_SETS[@]}") ;;
-  *) echo "usage: run.sh dev|eval|eval2|eval3|eval4 [SET...] | run.sh rediagnose dev|eval|eval2|eval3|eval4 [SET...] | run.sh score dev|eval|eval2|eval3|eval4" >&2; exit 2 ;;
+  *) echo "usage: run.sh dev|eval|eval2|eval3|eval4|eval5 [SET...] | run.sh rediagnose dev|eval|eval2|eval3|eval4|eval5 [SET...] | run.sh score dev|eval|eval2|eval3|eval4|eval5" >&2; exit 2 ;;
 esac
 if $visibility; then
   # The plants again, without each hidden effect; the judge's reports and its binary copy stay as they are.
