@@ -188,10 +188,6 @@ pub struct StageTime {
     pub s: f64,
 }
 
-fn zero() -> Estimate {
-    Estimate { value: 0.0, lo: 0.0, hi: 0.0 }
-}
-
 /// One fitted parameter of a named effect.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct FittedParam {
@@ -216,7 +212,7 @@ pub struct EffectResult {
     /// kind at the last step (not named).
     pub reduction: Estimate,
     /// The judge's evidence: held-out log-likelihood gain per window, likewise (absent before `/18`).
-    #[serde(default = "zero")]
+    #[serde(default = "Estimate::zero")]
     pub gain: Estimate,
     /// Held-out gap metric with it added.
     pub metric_after: Estimate,
@@ -386,7 +382,7 @@ fn verdict(
     any_contact: bool,
     rng: &mut impl rand::Rng,
 ) -> Verdict {
-    let zero = Estimate { value: 0.0, lo: 0.0, hi: 0.0 };
+    let zero = Estimate::zero();
     let n_test = ctx.test.len().max(1) as f64;
     let mut before: f64 = baseline.test_tot.iter().sum::<f64>() / n_test;
     let mut effects = Vec::new();
@@ -512,7 +508,7 @@ fn rig_violated(
     rig: RigCheck,
     t_start: std::time::Instant,
 ) -> Report {
-    let zero = Estimate { value: 0.0, lo: 0.0, hi: 0.0 };
+    let zero = Estimate::zero();
     let why = format!("not diagnosed: {}", rig.message);
     let kinds: Vec<EffectKind> = opts.kinds.clone().unwrap_or_else(|| EffectKind::ALL.to_vec());
     let effects: Vec<EffectResult> = kinds

@@ -45,7 +45,7 @@ pub struct NumericsVariant {
     /// over windows (negative: this variant fits the log worse).
     pub reduction: Estimate,
     /// Held-out log-likelihood gain per window against the diagnosing simulator's (what adopts it).
-    #[serde(default = "zero_estimate")]
+    #[serde(default = "Estimate::zero")]
     pub gain: Estimate,
     /// How far this variant's prediction moves from the diagnosing simulator's, in the gap metric's units (mean
     /// over held-out windows of the normalised squared difference, joints only).
@@ -70,10 +70,6 @@ impl NumericsVariant {
         }
         flags
     }
-}
-
-fn zero_estimate() -> Estimate {
-    Estimate { value: 0.0, lo: 0.0, hi: 0.0 }
 }
 
 /// What the integrator, timestep or PD-rate choice alone does to the prediction and to the gap.
@@ -271,8 +267,8 @@ mod tests {
             pd_period_ms,
             train_gap: 0.0,
             held_out_gap: 0.0,
-            reduction: Estimate { value: 0.0, lo: 0.0, hi: 0.0 },
-            gain: Estimate { value: 0.0, lo: 0.0, hi: 0.0 },
+            reduction: Estimate::zero(),
+            gain: Estimate::zero(),
             prediction_shift: 0.0,
         };
         assert_eq!(v("mujoco-rk4", 2.0, 2.0).diagnose_flags(), "--engine mujoco-rk4");
